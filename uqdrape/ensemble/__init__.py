@@ -1,0 +1,1 @@
+"""uqdrape.ensemble"""

@@ -1,0 +1,1 @@
+"""Shear-energy material models and material cards."""
