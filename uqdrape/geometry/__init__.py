@@ -1,6 +1,56 @@
-"""Moulds as height fields z = h(x, y) (mm)."""
+"""Moulds as height fields z = h(x, y) (mm), and a registry to build them by name.
 
-from .analytic import Hemisphere, Plate
+``build("hemisphere", radius=80)`` is how a study file's ``[geometry]`` table becomes a
+Surface: ``kind`` picks the class from ``KINDS``, the other keys are its constructor
+arguments (each class documents its parameters and defaults).
+"""
+
+from __future__ import annotations
+
+import inspect
+
+from .analytic import Cone, Cylinder, DoubleDome, Hemisphere, NoseCone, Plate, Saddle
 from .base import Surface
+from .stl import StlSurface, export_stl
 
-__all__ = ["Surface", "Plate", "Hemisphere"]
+#: geometry kind (as written in a study file) -> Surface class
+KINDS: dict[str, type] = {
+    cls.name: cls
+    for cls in (Plate, Cylinder, Hemisphere, Cone, NoseCone, DoubleDome, Saddle, StlSurface)
+}
+
+
+def build(kind: str, **params) -> Surface:
+    """Construct the mould ``kind`` with shape ``params``; ValueError on a bad kind or parameter."""
+    if not isinstance(kind, str) or kind not in KINDS:
+        raise ValueError(f"unknown geometry kind {kind!r}; valid: {', '.join(KINDS)}")
+    cls = KINDS[kind]
+    sig = inspect.signature(cls.__init__)
+    valid = [p for p in sig.parameters if p != "self"]
+    unknown = [p for p in params if p not in valid]
+    if unknown:
+        raise ValueError(
+            f"unknown parameter {unknown[0]!r} for geometry {kind!r}; valid: {', '.join(valid)}"
+        )
+    missing = [
+        p for p in valid if sig.parameters[p].default is inspect.Parameter.empty and p not in params
+    ]
+    if missing:
+        raise ValueError(f"geometry {kind!r} needs parameter {missing[0]!r}")
+    return cls(**params)
+
+
+__all__ = [
+    "Surface",
+    "Plate",
+    "Cylinder",
+    "Hemisphere",
+    "Cone",
+    "NoseCone",
+    "DoubleDome",
+    "Saddle",
+    "StlSurface",
+    "export_stl",
+    "KINDS",
+    "build",
+]
