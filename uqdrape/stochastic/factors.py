@@ -1,0 +1,131 @@
+"""Scalar process factors: a distribution that maps a standard uniform u to a value.
+
+Each factor is a deterministic function of u ∈ [0, 1] (the inverse CDF, via scipy.stats),
+so Monte Carlo, Latin hypercube, Sobol and SALib designs all drive it the same way.
+Values carry the factor's own units (blank-holder force N, friction -, angles degree,
+offsets mm). u is clipped to [1e-12, 1 − 1e-12] so the ends of a design stay finite
+(about ±7 sd for a normal).
+
+Parametrisations:
+- ``normal(mean, sd)``;
+- ``truncnormal(mean, sd, lower, upper)``: mean and sd of the parent normal, cut to
+  [lower, upper];
+- ``uniform(lower, upper)``;
+- ``lognormal(mean, sd)``: mean and sd of the value itself (not of its logarithm), so it
+  is specified like a normal but stays positive; median = mean / sqrt(1 + (sd/mean)²);
+- ``constant(value)``: not random (left out of sensitivity problems).
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.stats
+
+_EPS = 1e-12
+
+
+def _finite(name: str, value) -> float:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        number = math.nan
+    if not math.isfinite(number):
+        raise ValueError(f"{name} must be a finite number, got {value!r}")
+    return number
+
+
+def _positive(name: str, value) -> float:
+    value = _finite(name, value)
+    if value <= 0:
+        raise ValueError(f"{name} must be > 0, got {value!r}")
+    return value
+
+
+def _ordered(lower, upper) -> tuple[float, float]:
+    lower, upper = _finite("lower", lower), _finite("upper", upper)
+    if lower >= upper:
+        raise ValueError(f"lower must be < upper, got lower={lower!r}, upper={upper!r}")
+    return lower, upper
+
+
+@dataclass(frozen=True)
+class Factor:
+    """A scalar uncertain input; build it with the functions of this module."""
+
+    dist: str
+    params: dict
+    salib_dist: str | None = None
+    salib_bounds: tuple | None = None
+    _rv: object = field(default=None, repr=False, compare=False)
+
+    @property
+    def is_random(self) -> bool:
+        return self.dist != "constant"
+
+    def ppf(self, u) -> np.ndarray:
+        """Values at standard uniforms ``u`` (any shape, each in [0, 1])."""
+        u = np.asarray(u, dtype=float)
+        if np.any(~(u >= 0.0) | ~(u <= 1.0)):
+            raise ValueError(f"u must lie in [0, 1] for factor {self.describe()}, got values outside")
+        if not self.is_random:
+            return np.full(u.shape, self.params["value"])
+        return self._rv.ppf(np.clip(u, _EPS, 1.0 - _EPS))
+
+    def salib(self) -> dict:
+        """SALib ``{"bounds": [...], "dists": name}`` entry for this factor."""
+        if not self.is_random:
+            raise ValueError(f"{self.describe()} is not random and has no SALib distribution")
+        return {"bounds": list(self.salib_bounds), "dists": self.salib_dist}
+
+    def describe(self) -> str:
+        p = ", ".join(f"{k}={v:g}" for k, v in self.params.items())
+        return f"{self.dist}({p})"
+
+
+def normal(mean, sd) -> Factor:
+    mean, sd = _finite("mean", mean), _positive("sd", sd)
+    return Factor("normal", {"mean": mean, "sd": sd}, "norm", (mean, sd), scipy.stats.norm(mean, sd))
+
+
+def truncnormal(mean, sd, lower, upper) -> Factor:
+    mean, sd = _finite("mean", mean), _positive("sd", sd)
+    lower, upper = _ordered(lower, upper)
+    rv = scipy.stats.truncnorm((lower - mean) / sd, (upper - mean) / sd, loc=mean, scale=sd)
+    params = {"mean": mean, "sd": sd, "lower": lower, "upper": upper}
+    return Factor("truncnormal", params, "truncnorm", (lower, upper, mean, sd), rv)
+
+
+def uniform(lower, upper) -> Factor:
+    lower, upper = _ordered(lower, upper)
+    rv = scipy.stats.uniform(lower, upper - lower)
+    return Factor("uniform", {"lower": lower, "upper": upper}, "unif", (lower, upper), rv)
+
+
+def lognormal(mean, sd) -> Factor:
+    mean, sd = _positive("mean", mean), _positive("sd", sd)
+    sigma = math.sqrt(math.log1p((sd / mean) ** 2))
+    mu = math.log(mean) - 0.5 * sigma**2
+    rv = scipy.stats.lognorm(sigma, scale=math.exp(mu))
+    return Factor("lognormal", {"mean": mean, "sd": sd}, "lognorm", (mu, sigma), rv)
+
+
+def constant(value) -> Factor:
+    return Factor("constant", {"value": _finite("value", value)})
+
+
+DISTRIBUTIONS = {f.__name__: f for f in (normal, truncnormal, uniform, lognormal, constant)}
+
+
+def make_factor(dist: str, **params) -> Factor:
+    """Factor from a distribution name and its parameters, e.g. ``make_factor("uniform", lower=0.15, upper=0.3)``."""
+    if dist not in DISTRIBUTIONS:
+        raise ValueError(f"dist must be one of {tuple(DISTRIBUTIONS)}, got {dist!r}")
+    build = DISTRIBUTIONS[dist]
+    expected = tuple(inspect.signature(build).parameters)
+    if set(params) != set(expected):
+        raise ValueError(f"dist {dist!r} takes parameters {expected}, got {tuple(params)}")
+    return build(**params)
