@@ -1,0 +1,270 @@
+"""Shear-energy material model: normalised shear force curves -> energy per area and per cell.
+
+Interface units: angles in degrees, N_s in N/m, segment lengths in mm, energies in J.
+The evaluation methods (`energy_density`, `cell_energy`, ...) take radians because the
+drape solver calls them from inside its batched kernels.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.integrate import cumulative_simpson
+from scipy.interpolate import CubicHermiteSpline, PchipInterpolator
+
+#: Points of the fine grid on which W is tabulated once per branch.
+TABLE_POINTS = 4097
+
+#: Curvature of the locked extension of W, per radian, times the largest N_s of the
+#: material (N/m): k = LOCK_STIFFNESS_PER_RAD * max N_s  (J/m²/rad²). With 1e3, one
+#: degree past locking adds 0.15 * max N_s J/m² and the slope grows by 17 * max N_s per
+#: degree, so the minimiser treats the locking angle as a wall, yet W stays C1 for Newton.
+LOCK_STIFFNESS_PER_RAD = 1.0e3
+
+#: Default bending stiffness B (N·m²) of the generator-path penalty U_b = Σ (B/s)·δ²
+#: (s in m, δ in rad). See `Material` for why 1e-6.
+DEFAULT_BENDING_STIFFNESS = 1.0e-6
+
+
+class _Branch:
+    """One shear branch (positive or negative) on the magnitude axis x = |γ| >= 0 (rad).
+
+    `sense` is +1 for positive shear (the inter-tow angle 2φ0 closes to 2φ0 - x) and -1
+    for negative shear (it opens to 2φ0 + x); the work weight is sin(2φ0 - sense·x)/sin 2φ0.
+    """
+
+    def __init__(self, angles_rad, ns, limit_rad, phi0_rad, sense, lock_stiffness):
+        self.angles_rad = angles_rad
+        self.ns = ns
+        self.limit = limit_rad
+        self.lock_stiffness = lock_stiffness
+        self.force = PchipInterpolator(angles_rad, ns, extrapolate=False)
+        grid = np.linspace(0.0, limit_rad, TABLE_POINTS)
+        dw = self.force(grid) * np.sin(2.0 * phi0_rad - sense * grid) / np.sin(2.0 * phi0_rad)
+        w = cumulative_simpson(dw, x=grid, initial=0.0)
+        self.table = CubicHermiteSpline(grid, w, dw, extrapolate=False)
+        self.w_limit = float(w[-1])
+        self.slope_limit = float(dw[-1])
+
+    def energy(self, x):
+        """W along the branch (J/m²) at magnitude x (rad); quadratic wall beyond the limit."""
+        over = np.maximum(x - self.limit, 0.0)
+        inside = self.table(np.minimum(x, self.limit))
+        return inside + over * (self.slope_limit + 0.5 * self.lock_stiffness * over)
+
+    def denergy(self, x):
+        """dW/dx (J/m²/rad) along the branch at magnitude x (rad)."""
+        over = np.maximum(x - self.limit, 0.0)
+        inside = self.table(np.minimum(x, self.limit), 1)
+        return np.where(x > self.limit, self.slope_limit + self.lock_stiffness * over, inside)
+
+
+def _as_curve(label, angles_deg, ns):
+    """Validate one branch's (angle [deg], N_s [N/m]) points; return float arrays."""
+    try:
+        a = np.asarray(angles_deg, dtype=float)
+        n = np.asarray(ns, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{label}: angles and N_s must be numbers ({exc})") from None
+    if a.ndim != 1 or n.ndim != 1 or a.size != n.size:
+        raise ValueError(
+            f"{label}: angles and N_s must be 1-D and of equal length, got shapes {a.shape} and {n.shape}"
+        )
+    if a.size < 2:
+        raise ValueError(f"{label}: need at least 2 points, got {a.size}")
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(n))):
+        raise ValueError(f"{label}: angles and N_s must be finite numbers")
+    if a[0] != 0.0:
+        raise ValueError(f"{label}: the first angle must be 0 deg (W is integrated from 0), got {a[0]:g}")
+    steps = np.diff(a)
+    if np.any(steps <= 0.0):
+        k = int(np.argmax(steps <= 0.0))
+        raise ValueError(
+            f"{label}: angles must be strictly increasing, got {a[k]:g} then {a[k + 1]:g} deg"
+        )
+    if np.any(n < 0.0):
+        k = int(np.argmax(n < 0.0))
+        raise ValueError(
+            f"{label}: N_s must be >= 0 (give the magnitude for the negative branch), "
+            f"got {n[k]:g} N/m at {a[k]:g} deg"
+        )
+    return a, n
+
+
+class Material:
+    """A textile's in-plane shear behaviour as used by the pin-jointed-net drape.
+
+    Built from normalised shear force curves N_s(γ) (N/m, picture-frame normalisation,
+    thesis §3.3.2) for positive shear (fabric extended along the stitch: the stiff side
+    of a tricot NCF) and negative shear (given as magnitudes at positive angles); a woven
+    fabric gives one curve, used for both. The energy per unit initial area is
+
+        W(γ) = ∫_0^γ N_s(t) · sin(2φ0 − t) / sin(2φ0) dt      (J/m², t in rad),
+
+    integrated from 0 along each branch, so W(0) = 0, W >= 0 and W is monotone in |γ| on
+    each side. N_s is interpolated by a monotone cubic (PCHIP, no overshoot, so it stays
+    >= 0), W is tabulated once on a fine grid (Simpson) and evaluated by a cubic Hermite
+    spline whose slopes are the exact dW/dγ, so W is C1 within a branch.
+
+    Locking: beyond the locking angle of a branch, W continues as a quadratic wall
+    W(γ_L) + W'(γ_L)·Δ + ½·k·Δ², k = LOCK_STIFFNESS_PER_RAD · max N_s (C1 at γ_L), and
+    `is_locked` flags it. The locking angle of a branch defaults to the last angle of its
+    curve and may not exceed it (there is no data to integrate beyond it).
+
+    Bending: `bending_stiffness` B (N·m²) feeds the solver's generator-path penalty
+    U_b = Σ (B/s)·δ² (s in m, δ the in-plane turning angle in rad). The thesis uses it only
+    to stop arms folding back, so it must be small next to shear. Default 1e-6 N·m²: for
+    s = 5 mm and δ = 1° it gives U_b = 1e-6/0.005·(0.01745)² = 6.1e-8 J, while one 5 × 5 mm
+    cell sheared 5° stores 9.6e-7 J on the softest shipped branch (FGE 106hd-like, negative
+    shear) and 3.2e-6 J in the generic woven: 6 % and 2 % of a single cell, and far less
+    than the ~2k cells a quadrant adds at ring k.
+
+    Sign: γ > 0 closes the angle between +fibre1 and +fibre2 (model.md §1).
+    `stitch_direction_deg` (NCFs only) is the stitch direction measured in the flat,
+    unsheared fabric from fibre 1 towards fibre 2; the convention that positive shear
+    extends the stitch requires it to bisect +fibre1 and +fibre2, i.e. to equal φ0
+    (mod 180°). A stitch along the other bisector means the branches are swapped.
+
+    Parameters (interface units): name, angles_deg_pos [deg], ns_pos [N/m],
+    angles_deg_neg [deg, magnitudes], ns_neg [N/m, magnitudes] (None: same as positive),
+    phi0_deg [deg] (half the initial inter-tow angle, 45 for orthogonal fabrics),
+    locking_angle_deg [deg] (positive branch; None: end of the positive curve),
+    locking_angle_neg_deg [deg, magnitude] (None: locking_angle_deg if that is given,
+    else the end of the negative curve),
+    bending_stiffness [N·m²], stitch_direction_deg [deg] or None, description, note.
+    """
+
+    def __init__(
+        self,
+        name,
+        angles_deg_pos,
+        ns_pos,
+        angles_deg_neg=None,
+        ns_neg=None,
+        *,
+        phi0_deg=45.0,
+        locking_angle_deg=None,
+        locking_angle_neg_deg=None,
+        bending_stiffness=DEFAULT_BENDING_STIFFNESS,
+        stitch_direction_deg=None,
+        description="",
+        note="",
+    ):
+        if not isinstance(name, str) or not name:
+            raise ValueError(f"name must be a non-empty string, got {name!r}")
+        self.name = name
+        self.description = str(description)
+        self.note = str(note)
+
+        phi0_deg = float(phi0_deg)
+        if not 0.0 < phi0_deg < 90.0:
+            raise ValueError(f"phi0_deg must be in (0, 90) deg, got {phi0_deg:g}")
+        self.phi0_deg = phi0_deg
+        self.phi0_rad = np.deg2rad(phi0_deg)
+
+        if (angles_deg_neg is None) != (ns_neg is None):
+            raise ValueError("angles_deg_neg and ns_neg must be given together (or both omitted for a symmetric fabric)")
+        a_pos, n_pos = _as_curve("positive shear curve", angles_deg_pos, ns_pos)
+        if angles_deg_neg is None:
+            a_neg, n_neg = a_pos, n_pos
+        else:
+            a_neg, n_neg = _as_curve("negative shear curve", angles_deg_neg, ns_neg)
+        self.symmetric = bool(
+            a_pos.shape == a_neg.shape and np.array_equal(a_pos, a_neg) and np.array_equal(n_pos, n_neg)
+        )
+
+        lock_pos = a_pos[-1] if locking_angle_deg is None else float(locking_angle_deg)
+        if locking_angle_neg_deg is not None:
+            lock_neg = float(locking_angle_neg_deg)
+        elif locking_angle_deg is not None:
+            lock_neg = lock_pos
+        else:
+            lock_neg = a_neg[-1]
+        # Positive shear closes the inter-tow angle to 2φ0 - γ, negative opens it to 2φ0 + |γ|:
+        # both must stay inside (0, 180) deg for the work weight to be positive.
+        for label, lock, data_end, geometric in (
+            ("locking_angle_deg", lock_pos, a_pos[-1], 2.0 * phi0_deg),
+            ("locking_angle_neg_deg", lock_neg, a_neg[-1], 180.0 - 2.0 * phi0_deg),
+        ):
+            if not 0.0 < lock <= data_end:
+                raise ValueError(
+                    f"{label} must be in (0, {data_end:g}] deg (the end of that branch's curve), got {lock:g}"
+                )
+            if lock >= geometric:
+                raise ValueError(
+                    f"{label} must be below {geometric:g} deg, where the tows of a phi0 = {phi0_deg:g} deg "
+                    f"fabric become parallel, got {lock:g}"
+                )
+        self.locking_angle_deg = lock_pos
+        self.locking_angle_neg_deg = lock_neg
+
+        bending_stiffness = float(bending_stiffness)
+        if not (np.isfinite(bending_stiffness) and bending_stiffness >= 0.0):
+            raise ValueError(f"bending_stiffness must be a finite number >= 0 N·m², got {bending_stiffness:g}")
+        self.bending_stiffness = bending_stiffness
+
+        if stitch_direction_deg is not None:
+            stitch_direction_deg = float(stitch_direction_deg)
+            off = (stitch_direction_deg - phi0_deg + 90.0) % 180.0 - 90.0
+            if abs(off) > 1e-9:
+                raise ValueError(
+                    f"stitch_direction_deg must bisect +fibre1 and +fibre2, i.e. equal phi0_deg = {phi0_deg:g} "
+                    f"(mod 180), got {stitch_direction_deg:g}; for a stitch along the other bisector swap the "
+                    "positive and negative curves"
+                )
+        self.stitch_direction_deg = stitch_direction_deg
+
+        stiffness = LOCK_STIFFNESS_PER_RAD * max(float(n_pos.max()), float(n_neg.max()), 1.0)
+        self._pos = _Branch(np.deg2rad(a_pos), n_pos, np.deg2rad(lock_pos), self.phi0_rad, +1, stiffness)
+        self._neg = _Branch(np.deg2rad(a_neg), n_neg, np.deg2rad(lock_neg), self.phi0_rad, -1, stiffness)
+
+    @classmethod
+    def from_curves(cls, name, angles_deg_pos, ns_pos, angles_deg_neg=None, ns_neg=None, **props):
+        """Material from N_s points per branch (deg, N/m); props as in `Material`."""
+        return cls(name, angles_deg_pos, ns_pos, angles_deg_neg, ns_neg, **props)
+
+    def curve(self, branch):
+        """The input points of one branch ("positive" or "negative"): (angles [deg], N_s [N/m])."""
+        if branch not in ("positive", "negative"):
+            raise ValueError(f"branch must be 'positive' or 'negative', got {branch!r}")
+        b = self._pos if branch == "positive" else self._neg
+        return np.rad2deg(b.angles_rad), b.ns.copy()
+
+    def energy_density(self, gamma_rad):
+        """W(γ) in J/m² per unit initial area; γ signed, in rad, any array shape; NaN -> NaN."""
+        g = np.asarray(gamma_rad, dtype=float)
+        return self._pos.energy(np.maximum(g, 0.0)) + self._neg.energy(np.maximum(-g, 0.0))
+
+    def denergy_density(self, gamma_rad):
+        """dW/dγ in J/m²/rad; at γ = 0 it returns 0 (a subgradient when N_s(0) > 0)."""
+        g = np.asarray(gamma_rad, dtype=float)
+        pos = self._pos.denergy(np.maximum(g, 0.0))
+        neg = self._neg.denergy(np.maximum(-g, 0.0))
+        return np.where(g > 0.0, pos, np.where(g < 0.0, -neg, 0.0 * g))
+
+    def is_locked(self, gamma_rad):
+        """True where γ (rad) lies beyond the locking angle of its branch; NaN -> False."""
+        g = np.asarray(gamma_rad, dtype=float)
+        return (g > self._pos.limit) | (-g > self._neg.limit)
+
+    def cell_energy(self, gamma_rad, s1_mm, s2_mm, gamma0_rad=0.0):
+        """Shear energy (J) of cells with fibre segments s1, s2 (mm) and zero-energy angle γ0 (rad).
+
+        U = A0 · W(γ − γ0), A0 = s1·s2·sin 2φ0 the initial cell area (mm² -> m²: × 1e-6).
+        Arguments broadcast against each other.
+        """
+        area_m2 = np.asarray(s1_mm, dtype=float) * np.asarray(s2_mm, dtype=float) * np.sin(2.0 * self.phi0_rad) * 1e-6
+        return area_m2 * self.energy_density(np.asarray(gamma_rad, dtype=float) - gamma0_rad)
+
+    def shear_force(self, gamma_rad):
+        """The input curve N_s(γ) in N/m, signed (negative for γ < 0); NaN outside the data."""
+        g = np.asarray(gamma_rad, dtype=float)
+        pos = self._pos.force(np.maximum(g, 0.0))
+        neg = self._neg.force(np.maximum(-g, 0.0))
+        return np.where(g >= 0.0, pos, -neg)
+
+    def __repr__(self):
+        return (
+            f"Material({self.name!r}, phi0_deg={self.phi0_deg:g}, locking_angle_deg={self.locking_angle_deg:g}, "
+            f"locking_angle_neg_deg={self.locking_angle_neg_deg:g}, bending_stiffness={self.bending_stiffness:g}, "
+            f"symmetric={self.symmetric})"
+        )
