@@ -1,1 +1,17 @@
-"""uqdrape.stochastic"""
+"""uqdrape.stochastic: every uncertain input as a deterministic function of standard variables.
+
+Random fields (exact and Karhunen–Loève), the maps to the solver's spacing and zero-angle
+arrays, scalar process factors, sampling plans and per-realisation seeding.
+"""
+
+from .factors import DISTRIBUTIONS, Factor, constant, lognormal, make_factor, normal, truncnormal, uniform
+from .fields import CORRELATIONS, GaussianField, KLField
+from .inputs import SpacingInput, ZeroAngleInput
+from .sampling import PLANS, realization_normals, realization_rng, sample_uniforms, uniforms_to_normals
+
+__all__ = [
+    "CORRELATIONS", "GaussianField", "KLField",
+    "SpacingInput", "ZeroAngleInput",
+    "DISTRIBUTIONS", "Factor", "constant", "lognormal", "make_factor", "normal", "truncnormal", "uniform",
+    "PLANS", "realization_normals", "realization_rng", "sample_uniforms", "uniforms_to_normals",
+]

@@ -1,0 +1,83 @@
+"""Sampling plans (standard uniforms) and per-realisation random streams.
+
+Two sources of randomness, both derived from one study seed:
+
+- a *plan*: an (N, d) array of standard uniforms for the d scalar factors (and, in a
+  design, the KL mode variables of the fields), drawn in one piece by
+  :func:`sample_uniforms` from ``SeedSequence(seed)`` itself;
+- a *realisation stream*: realisation r draws the white noise of its exact fields from
+  ``SeedSequence(seed, spawn_key=(r,))``, which is ``SeedSequence(seed).spawn(N)[r]``
+  built directly. Realisation r's numbers therefore never depend on chunk size, worker
+  count or N, and never overlap the plan's stream.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.stats import qmc
+
+from .factors import normal
+
+PLANS = ("monte_carlo", "latin_hypercube", "sobol")
+
+_STANDARD_NORMAL = normal(0.0, 1.0)
+
+
+def _non_negative_int(name: str, value) -> int:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
+    return int(value)
+
+
+def sample_uniforms(plan: str, n: int, d: int, seed: int) -> np.ndarray:
+    """Standard uniforms of shape (n, d) from a sampling plan.
+
+    ``"monte_carlo"``: independent uniforms (row r does not depend on n);
+    ``"latin_hypercube"``: each of the n equal strata of every column is hit once;
+    ``"sobol"``: scrambled Sobol' points, n must be a power of two (balance).
+    """
+    if plan not in PLANS:
+        raise ValueError(f"plan must be one of {PLANS}, got {plan!r}")
+    n, d = _non_negative_int("n", n), _non_negative_int("d", d)
+    if n < 1:
+        raise ValueError(f"n (number of realisations) must be >= 1, got {n}")
+    rng = np.random.default_rng(np.random.SeedSequence(_non_negative_int("seed", seed)))
+    if d == 0:
+        return np.empty((n, 0))
+    if plan == "monte_carlo":
+        return rng.random((n, d))
+    if plan == "latin_hypercube":
+        return qmc.LatinHypercube(d, rng=rng).random(n)
+    m = n.bit_length() - 1
+    if n != 1 << m:
+        raise ValueError(f"plan 'sobol' needs a power-of-two n for balance, got n={n} (nearest: {1 << m}, {2 << m})")
+    return qmc.Sobol(d, scramble=True, rng=rng).random_base2(m)
+
+
+def uniforms_to_normals(u) -> np.ndarray:
+    """Standard normals Φ⁻¹(u), e.g. the KL mode variables of a design's columns."""
+    return _STANDARD_NORMAL.ppf(u)
+
+
+def realization_rng(study_seed: int, r: int) -> np.random.Generator:
+    """Random generator of realisation r: ``SeedSequence(study_seed).spawn(r + 1)[r]``, built directly."""
+    seq = np.random.SeedSequence(_non_negative_int("study_seed", study_seed),
+                                 spawn_key=(_non_negative_int("r", r),))
+    return np.random.default_rng(seq)
+
+
+def realization_normals(study_seed: int, realizations, sizes) -> tuple[np.ndarray, ...]:
+    """White noise for the fields of a chunk of realisations.
+
+    ``realizations``: the realisation indices of the chunk; ``sizes``: standard normals
+    per realisation for each field input, in a fixed order (e.g. ``inp.n_variables``).
+    Returns one array of shape (len(realizations), size) per entry of ``sizes``; row k
+    comes from :func:`realization_rng` (study_seed, realizations[k]) alone.
+    """
+    sizes = [_non_negative_int("sizes entry", s) for s in sizes]
+    out = [np.empty((len(realizations), s)) for s in sizes]
+    for k, r in enumerate(realizations):
+        rng = realization_rng(study_seed, r)
+        for arr, s in zip(out, sizes):
+            arr[k] = rng.standard_normal(s)
+    return tuple(out)
