@@ -1,0 +1,222 @@
+"""Sensitivity indices from a design and its model outputs, as xarray Datasets.
+
+SALib's estimators are called once per output column (scalar QoI or net node). The
+``factor`` dimension holds SALib's labels: group names when the problem has groups (a
+random field is one label), otherwise variable names.
+
+Outputs that are constant over the design (range <= ``CONSTANT_RTOL`` x max |y|, e.g.
+blank-holder energy at F_BH = 0) have zero variance to apportion: their indices and
+confidence half-widths are set to 0 and ``output_constant`` is True.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from importlib.metadata import version
+
+import numpy as np
+import pandas as pd
+import xarray as xr
+from SALib.analyze import morris as morris_analyze
+from SALib.analyze import sobol as sobol_analyze
+from SALib.util import compute_groups_matrix
+
+from .design import MORRIS_NUM_LEVELS, check_method, check_seed
+from .problem import check_problem
+
+CONSTANT_RTOL = 1e-12
+
+VARIABLES = {
+    "sobol": ("S1", "S1_conf", "ST", "ST_conf"),
+    "morris": ("mu", "mu_star", "mu_star_conf", "sigma"),
+}
+
+
+def _long_names(conf_level: float) -> dict[str, str]:
+    ci = f"half-width of the {100 * conf_level:g} % bootstrap confidence interval of"
+    return {
+        "S1": "first-order Sobol' index",
+        "S1_conf": f"{ci} S1",
+        "ST": "total-order Sobol' index",
+        "ST_conf": f"{ci} ST",
+        "mu": "mean elementary effect per unit step in the factor's quantile",
+        "mu_star": "mean absolute elementary effect per unit step in the factor's quantile",
+        "mu_star_conf": f"{ci} mu_star",
+        "sigma": "standard deviation of the elementary effects (NaN for groups of several variables)",
+    }
+
+
+def _column_indices(problem, X, y, method, conf_level, seed, num_resamples):
+    """SALib result for one output column: {variable: array (n_labels,)}."""
+    if method == "sobol":
+        # SALib's sobol.analyze ignores a falsy seed (0); a Generator built from the
+        # seed gives the same stream as the int for seed >= 1 and works for 0.
+        result = sobol_analyze.analyze(
+            problem, y, calc_second_order=False, num_resamples=num_resamples,
+            conf_level=conf_level, seed=np.random.default_rng(seed),
+        )
+    else:
+        result = morris_analyze.analyze(
+            dict(problem), X, y, num_resamples=num_resamples, conf_level=conf_level,
+            num_levels=MORRIS_NUM_LEVELS, seed=seed,
+        )
+    return {name: np.asarray(result[name], dtype=float) for name in VARIABLES[method]}
+
+
+def _indices(problem, X, Y, method, conf_level, seed, num_resamples):
+    """Indices of every column of Y (n_evaluations, n_columns).
+
+    Returns ({variable: (n_labels, n_columns)}, constant (n_columns,) bool, attrs).
+    Columns with any NaN/inf get NaN indices (the estimators need every evaluation).
+    """
+    labels = check_problem(problem)
+    method = check_method(method)
+    seed = check_seed(seed)
+    if not 0 < conf_level < 1:
+        raise ValueError(f"conf_level={conf_level!r} must lie strictly between 0 and 1")
+    if isinstance(num_resamples, bool) or not isinstance(num_resamples, (int, np.integer)) or num_resamples < 2:
+        raise ValueError(f"num_resamples={num_resamples!r} must be an integer >= 2")
+    X = np.asarray(X, dtype=float)
+    if X.ndim != 2 or X.shape[1] != problem["num_vars"]:
+        raise ValueError(f"X has shape {X.shape}, expected (n_evaluations, {problem['num_vars']})")
+    if Y.shape[0] != X.shape[0]:
+        raise ValueError(f"Y has {Y.shape[0]} rows but X has {X.shape[0]} (one per evaluation)")
+    per_sample = len(labels) + (2 if method == "sobol" else 1)
+    if X.shape[0] % per_sample:
+        raise ValueError(
+            f"{X.shape[0]} evaluations do not form a {method} design for {len(labels)} "
+            f"factors/groups (need a multiple of {per_sample})"
+        )
+
+    n_cols = Y.shape[1]
+    out = {name: np.full((len(labels), n_cols), np.nan) for name in VARIABLES[method]}
+    finite = np.isfinite(Y).all(axis=0)
+    span = np.ptp(np.where(finite, Y, 0.0), axis=0)
+    constant = finite & (span <= CONSTANT_RTOL * np.max(np.abs(np.where(finite, Y, 0.0)), axis=0))
+    for name in out:
+        out[name][:, constant] = 0.0
+    if method == "morris":
+        # SALib leaves sigma undefined for groups of several variables.
+        group_sizes = compute_groups_matrix(problem.get("groups") or problem["names"])[0].sum(axis=0)
+        out["sigma"][group_sizes > 1, :] = np.nan
+    for col in np.flatnonzero(finite & ~constant):
+        result = _column_indices(problem, X, np.ascontiguousarray(Y[:, col]), method,
+                                 conf_level, seed, num_resamples)
+        for name, values in result.items():
+            out[name][:, col] = values
+
+    attrs = {
+        "method": method,
+        "base_samples": X.shape[0] // per_sample,
+        "n_evaluations": X.shape[0],
+        "conf_level": float(conf_level),
+        "num_resamples": int(num_resamples),
+        "analysis_seed": seed,
+        "salib_version": version("SALib"),
+    }
+    if method == "morris":
+        attrs["num_levels"] = MORRIS_NUM_LEVELS
+    return labels, out, constant, attrs
+
+
+def _dataset(labels, out, constant, attrs, dims, shape, coords) -> xr.Dataset:
+    """Assemble the indices Dataset with dims ("factor", *dims)."""
+    names = _long_names(attrs["conf_level"])
+    data_vars = {
+        name: (("factor", *dims), values.reshape(len(labels), *shape),
+               {"long_name": names[name], **({"units": "1"} if name.startswith("S") else {})})
+        for name, values in out.items()
+    }
+    data_vars["output_constant"] = (
+        dims, constant.reshape(shape),
+        {"long_name": "output constant over the design (indices set to 0)"},
+    )
+    ds = xr.Dataset(data_vars, coords={"factor": ("factor", labels, {
+        "long_name": "factor, or factor group (a random field is one group)"}), **coords},
+        attrs=attrs)
+    return ds
+
+
+def analyze(problem: Mapping, X, Y, *, method: str = "sobol",
+            qoi_names: Sequence[str] | None = None, conf_level: float = 0.95,
+            seed: int, num_resamples: int = 100) -> xr.Dataset:
+    """Indices of scalar outputs Y (n_evaluations,) or (n_evaluations, n_qoi).
+
+    Returns a Dataset with dims (factor, qoi): Sobol' S1, S1_conf, ST, ST_conf, or
+    Morris mu, mu_star, mu_star_conf, sigma; output_constant (qoi). Attributes: method,
+    base_samples, n_evaluations, conf_level, num_resamples, analysis_seed, salib_version
+    (+ num_levels for Morris). NaN or inf in Y is an error.
+    """
+    Y = np.asarray(Y, dtype=float)
+    if Y.ndim == 1:
+        Y = Y[:, None]
+    if Y.ndim != 2:
+        raise ValueError(f"Y has shape {Y.shape}, expected (n_evaluations,) or (n_evaluations, n_qoi)")
+    if qoi_names is None:
+        qoi_names = [f"y{k}" for k in range(Y.shape[1])]
+    qoi_names = [str(q) for q in qoi_names]
+    if len(qoi_names) != Y.shape[1] or len(set(qoi_names)) != len(qoi_names):
+        raise ValueError(f"qoi_names={qoi_names} must be {Y.shape[1]} unique names (one per column of Y)")
+    bad = (~np.isfinite(Y)).sum(axis=0)
+    if bad.any():
+        which = {q: int(b) for q, b in zip(qoi_names, bad) if b}
+        raise ValueError(f"Y contains NaN/inf (count per QoI: {which}); every evaluation must succeed")
+    labels, out, constant, attrs = _indices(problem, X, Y, method, conf_level, seed, num_resamples)
+    return _dataset(labels, out, constant, attrs, ("qoi",), (Y.shape[1],),
+                    {"qoi": ("qoi", qoi_names)})
+
+
+def analyze_map(problem: Mapping, X, Y: xr.DataArray, *, method: str = "sobol",
+                sample_dim: str = "realization", conf_level: float = 0.95,
+                seed: int, num_resamples: int = 100) -> xr.Dataset:
+    """Index maps of a field output, e.g. node shear (realization, i, j).
+
+    Every position along Y's other dims is analysed separately; the result has dims
+    (factor, *other dims) with Y's coordinates, the variables of ``analyze``, and
+    NaN indices where any evaluation of that position is NaN/inf (e.g. a node outside the
+    mould in some realisations). Y's name and units are kept as attributes.
+    """
+    if not isinstance(Y, xr.DataArray) or sample_dim not in Y.dims:
+        raise ValueError(f"Y must be an xarray DataArray with dimension sample_dim={sample_dim!r}")
+    Y = Y.transpose(sample_dim, ...)
+    dims = Y.dims[1:]
+    shape = Y.shape[1:]
+    values = np.asarray(Y.values, dtype=float).reshape(Y.shape[0], -1)
+    labels, out, constant, attrs = _indices(problem, X, values, method, conf_level, seed, num_resamples)
+    coords = {name: coord for name, coord in Y.coords.items() if sample_dim not in coord.dims}
+    ds = _dataset(labels, out, constant, attrs, dims, shape, coords)
+    ds.attrs["output"] = str(Y.name)
+    if "units" in Y.attrs:
+        ds.attrs["output_units"] = Y.attrs["units"]
+    return ds
+
+
+def indices_vs_levels(datasets: Sequence[xr.Dataset], level_values, *,
+                      dim: str = "blankholder_force", units: str = "N") -> xr.Dataset:
+    """Stack per-level index Datasets along a new last dim ``dim`` (e.g. F_BH in N).
+
+    All datasets must have the same factors, outputs and attributes (same design).
+    The result round-trips through netCDF (``ds.to_netcdf`` / ``xr.load_dataset``).
+    """
+    datasets = list(datasets)
+    levels = np.asarray(level_values, dtype=float)
+    if levels.ndim != 1 or len(levels) != len(datasets) or len(datasets) == 0:
+        raise ValueError(
+            f"level_values has {levels.size} values for {len(datasets)} datasets; "
+            "give one level per dataset (at least one)"
+        )
+    if len(np.unique(levels)) != len(levels):
+        raise ValueError(f"level_values={levels.tolist()} must be unique")
+    first = datasets[0]
+    for k, ds in enumerate(datasets[1:], start=1):
+        if not first["factor"].equals(ds["factor"]):
+            raise ValueError(f"dataset {k} has factors {ds['factor'].values.tolist()}, "
+                             f"dataset 0 has {first['factor'].values.tolist()}")
+        differing = sorted(key for key in set(first.attrs) | set(ds.attrs)
+                           if not np.array_equal(first.attrs.get(key), ds.attrs.get(key)))
+        if differing:
+            raise ValueError(f"dataset {k} differs from dataset 0 in attributes {differing}")
+    index = pd.Index(levels, name=dim)
+    stacked = xr.concat(datasets, dim=index, join="exact", combine_attrs="override")
+    stacked[dim].attrs.update(units=units, long_name=dim.replace("_", " "))
+    return stacked.transpose(..., dim)
