@@ -1,1 +1,27 @@
-"""uqdrape.stats"""
+"""uqdrape.stats: ensemble statistics of drape results.
+
+Per-node mean, sd, skewness, quantiles and their confidence limits; exceedance
+probability (wrinkle risk) with binomial intervals; summaries along the max/min-shear
+lines; node histograms with a fitted Normal; convergence with N. Every function
+reduces along ``realization`` (dask-friendly) and returns an in-memory xarray Dataset
+with CF ``units`` / ``long_name`` attributes.
+"""
+
+from .convergence import convergence, samples_needed
+from .exceedance import clopper_pearson_interval, exceedance_probability, wilson_interval
+from .histogram import node_histogram
+from .lines import line_scalars, line_statistics
+from .summary import mean_statistics, node_statistics
+
+__all__ = [
+    "node_statistics",
+    "mean_statistics",
+    "exceedance_probability",
+    "wilson_interval",
+    "clopper_pearson_interval",
+    "line_statistics",
+    "line_scalars",
+    "node_histogram",
+    "convergence",
+    "samples_needed",
+]

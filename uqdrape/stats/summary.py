@@ -1,0 +1,165 @@
+"""Per-node (or per-cell) ensemble statistics with confidence limits.
+
+Reductions run along ``realization`` only, so a dask-backed ensemble (``open_mfdataset``
+over chunk files) is processed chunk by chunk: moments in one pass of shifted power
+sums, quantiles per block of nodes holding every realisation of that block.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+
+import numpy as np
+import xarray as xr
+from scipy import stats
+
+from ._common import REALIZATION, check_confidence, get_variable, t_quantile
+
+MEAN_INTERVAL = "Student t: mean +- t_{(1+c)/2, n-1} * sd / sqrt(n) over the n valid realisations"
+QUANTILE_INTERVAL = (
+    "distribution-free order statistics: [X_(l), X_(u)] with l = binom.ppf((1-c)/2, n, p), "
+    "u = binom.ppf((1+c)/2, n, p) + 1 (1-based ranks, coverage >= c); NaN when n is too small"
+)
+QUANTILE_METHOD = "numpy 'linear' (Hyndman-Fan type 7) over the valid realisations"
+
+
+def _attrs(units, long_name: str, **extra) -> dict:
+    out = {"long_name": long_name}
+    if units is not None:
+        out["units"] = units
+    out.update(extra)
+    return out
+
+
+def moment_statistics(da: xr.DataArray, confidence: float, dim: str = REALIZATION) -> xr.Dataset:
+    """Lazy mean, sd, skewness, count and t interval of the mean of ``da`` along ``dim``.
+
+    NaN entries are invalid realisations and are left out. Values are shifted by the
+    first realisation (per node) before the power sums, which keeps the one-pass
+    variance accurate when the mean is large against the spread (e.g. coordinates in mm).
+    sd uses ddof = 1; skewness is the adjusted Fisher-Pearson G1 (scipy ``bias=False``),
+    NaN for n < 3 or zero spread.
+    """
+    units = da.attrs.get("units")
+    name = da.attrs.get("long_name", da.name)
+    valid = da.notnull()
+    shift = da.isel({dim: 0}, drop=True).fillna(0.0)
+    d = da - shift
+    n = valid.sum(dim)
+    nn = n.where(n > 0).astype(float)
+    a1 = d.sum(dim) / nn
+    a2 = (d**2).sum(dim) / nn
+    a3 = (d**3).sum(dim) / nn
+    m2 = (a2 - a1**2).clip(min=0.0)
+    m3 = a3 - 3.0 * a1 * a2 + 2.0 * a1**3
+    mean = shift + a1
+    sd = np.sqrt((m2 * nn / (nn - 1.0)).where(n > 1))
+    spread = (m2 > (np.finfo(float).resolution * mean) ** 2) & (n > 2)
+    m2s = m2.where(spread)
+    skew = (m3 / m2s**1.5 * np.sqrt(nn * (nn - 1.0)) / (nn - 2.0)).where(spread)
+    half = t_quantile(confidence, n - 1) * sd / np.sqrt(nn)
+    return xr.Dataset(
+        {
+            "mean": mean.assign_attrs(_attrs(units, f"ensemble mean of {name}")),
+            "sd": sd.assign_attrs(_attrs(units, f"ensemble standard deviation (ddof=1) of {name}")),
+            "skewness": skew.assign_attrs(_attrs("1", f"adjusted sample skewness G1 of {name}")),
+            "count": n.assign_attrs(_attrs("1", "number of valid (non-NaN) realisations")),
+            "mean_lower": (mean - half).assign_attrs(
+                _attrs(units, f"lower {confidence:.0%} confidence limit of the mean", method=MEAN_INTERVAL)
+            ),
+            "mean_upper": (mean + half).assign_attrs(
+                _attrs(units, f"upper {confidence:.0%} confidence limit of the mean", method=MEAN_INTERVAL)
+            ),
+        }
+    )
+
+
+def _quantile_block(x: np.ndarray, probs: np.ndarray, confidence: float):
+    """Quantiles and their order-statistic limits along the last axis of ``x`` (NaN = invalid)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN nodes give NaN, as wanted
+        q = np.moveaxis(np.nanquantile(x, probs, axis=-1), 0, -1)
+    xs = np.sort(x, axis=-1)  # NaN sorts last, so ranks 1..n are the valid values
+    n = np.count_nonzero(~np.isnan(x), axis=-1)[..., None]
+    alpha = 1.0 - confidence
+    with np.errstate(invalid="ignore"):
+        lo = stats.binom.ppf(alpha / 2.0, n, probs)
+        hi = stats.binom.ppf(1.0 - alpha / 2.0, n, probs) + 1.0
+    limits = []
+    for rank, ok in ((lo, (lo >= 1) & (n > 0)), (hi, (hi <= n) & (n > 0))):
+        idx = np.where(ok, rank - 1, 0).astype(np.intp)
+        limits.append(np.where(ok, np.take_along_axis(xs, idx, axis=-1), np.nan))
+    return q, limits[0], limits[1]
+
+
+def quantile_statistics(
+    da: xr.DataArray, quantiles: Sequence[float], confidence: float, dim: str = REALIZATION
+) -> xr.Dataset:
+    """Lazy quantiles of ``da`` along ``dim`` with distribution-free confidence limits.
+
+    A dask-backed input is rechunked to hold the whole ``dim`` per block and "auto"
+    (memory-bounded) blocks along the other dims, so memory stays at one block.
+    """
+    probs = np.asarray(quantiles, dtype=float)
+    if probs.ndim != 1 or probs.size == 0 or np.any(~(probs > 0) | ~(probs < 1)):
+        raise ValueError(f"quantiles must be a non-empty sequence of probabilities in (0, 1), got {quantiles!r}")
+    if da.chunks is not None:
+        da = da.chunk({d: (-1 if d == dim else "auto") for d in da.dims})
+    q, lo, hi = xr.apply_ufunc(
+        _quantile_block, da,
+        kwargs={"probs": probs, "confidence": confidence},
+        input_core_dims=[[dim]], output_core_dims=[["quantile"]] * 3,
+        dask="parallelized", output_dtypes=[float] * 3,
+        dask_gufunc_kwargs={"output_sizes": {"quantile": probs.size}},
+    )
+    units = da.attrs.get("units")
+    name = da.attrs.get("long_name", da.name)
+    out = xr.Dataset(
+        {
+            "quantile_value": q.assign_attrs(_attrs(units, f"ensemble quantile of {name}", method=QUANTILE_METHOD)),
+            "quantile_lower": lo.assign_attrs(
+                _attrs(units, f"lower {confidence:.0%} confidence limit of the quantile", method=QUANTILE_INTERVAL)
+            ),
+            "quantile_upper": hi.assign_attrs(
+                _attrs(units, f"upper {confidence:.0%} confidence limit of the quantile", method=QUANTILE_INTERVAL)
+            ),
+        },
+        coords={"quantile": ("quantile", probs, {"long_name": "probability level", "units": "1"})},
+    )
+    return out
+
+
+def mean_statistics(da: xr.DataArray, confidence: float = 0.95, dim: str = REALIZATION) -> xr.Dataset:
+    """Mean, sd, skewness, count and Student-t interval of the mean of any DataArray.
+
+    For per-realisation scalars (energies, line means, asymmetry) as well as fields.
+    Returns the computed Dataset (variables ``mean, sd, skewness, count, mean_lower,
+    mean_upper``) in the units of ``da``.
+    """
+    c = check_confidence(confidence)
+    if dim not in da.dims:
+        raise ValueError(f"dim={dim!r} is not a dim of the DataArray; dims: {da.dims}")
+    return moment_statistics(da.astype(float), c, dim).assign_attrs(confidence=c).compute()
+
+
+def node_statistics(
+    ds: xr.Dataset,
+    var: str = "shear",
+    quantiles: Sequence[float] = (0.05, 0.5, 0.95),
+    confidence: float = 0.95,
+) -> xr.Dataset:
+    """Per-node (or per-cell, for a cell variable) ensemble statistics of ``ds[var]``.
+
+    Reduces along ``realization``, keeping every other dim (i, j or cell_i, cell_j, and
+    a leading ``blankholder_force``). Only valid (non-NaN) realisations count. Variables:
+    ``mean, sd, skewness, count, mean_lower, mean_upper`` and, along dim ``quantile``,
+    ``quantile_value, quantile_lower, quantile_upper``; units those of ``var``. The mean
+    interval is Student t; quantile limits are distribution-free order statistics (see
+    each variable's ``method`` attr). Computed in one dask pass; returns in-memory data.
+    """
+    c = check_confidence(confidence)
+    da = get_variable(ds, var)
+    out = xr.merge([moment_statistics(da, c), quantile_statistics(da, quantiles, c)], combine_attrs="override")
+    out.attrs = {**ds.attrs, "variable": var, "confidence": c}
+    return out.compute()
