@@ -14,15 +14,16 @@ from scipy import stats
 
 from uqdrape.sensitivity import (
     MORRIS_TAIL_QUANTILE,
-    Factor,
     analyze,
     analyze_map,
+    check_problem,
     field_group,
     indices_vs_levels,
     make_problem,
     run_sensitivity,
     sample,
 )
+from uqdrape.stochastic import constant, lognormal, normal, truncnormal, uniform
 
 PI = np.pi
 # Ishigami (a=7, b=0.1) analytic indices.
@@ -32,7 +33,7 @@ ISHIGAMI_ST = np.array([0.5576, 0.4424, 0.2437])
 
 def ishigami_problem(dummy=False):
     names = ["x1", "x2", "x3"] + (["x4"] if dummy else [])
-    return make_problem([Factor(n, "unif", {"low": -PI, "high": PI}) for n in names])
+    return make_problem({name: uniform(-PI, PI) for name in names})
 
 
 def ishigami_with_dummy(X):
@@ -44,48 +45,53 @@ def ishigami_with_dummy(X):
 
 
 def test_problem_dists_follow_salib_conventions():
-    factors = [
-        Factor("force", "truncnorm", {"low": 0.0, "high": 400.0, "mean": 200.0, "sd": 50.0}),
-        Factor("friction", "unif", {"low": 0.15, "high": 0.3}),
-        Factor("orientation", "norm", {"mean": -45.0, "sd": 2.0}),
-        Factor("spacing_cv", "lognorm", {"mean_log": np.log(0.01), "sd_log": 0.2}),
-    ]
+    factors = {
+        "force": truncnormal(200.0, 50.0, 0.0, 400.0),
+        "friction": uniform(0.15, 0.3),
+        "pre_shear": constant(0.0),
+        "orientation": normal(-45.0, 2.0),
+        "spacing_cv": lognormal(0.01, 0.002),
+    }
     p = make_problem(factors)
-    assert p["names"] == ["force", "friction", "orientation", "spacing_cv"]
+    assert p["names"] == ["force", "friction", "orientation", "spacing_cv"]  # constant left out
     assert p["dists"] == ["truncnorm", "unif", "norm", "lognorm"]
     assert p["bounds"][0] == [0.0, 400.0, 200.0, 50.0]
     assert "groups" not in p
     X, _ = sample(p, base_samples=1024, seed=5)
     # Sobol' A rows are a (scrambled) QMC sample of the joint distribution.
-    A = X[:: len(factors) + 2]
+    A = X[:: 4 + 2]
     assert A[:, 1].min() >= 0.15 and A[:, 1].max() <= 0.3
     assert np.mean(A[:, 2]) == pytest.approx(-45.0, abs=0.05)
     assert np.std(A[:, 2]) == pytest.approx(2.0, rel=0.02)
-    assert np.median(A[:, 3]) == pytest.approx(0.01, rel=0.02)
+    # SALib's lognorm bounds are ln-space; the stochastic factor is given by mean and sd
+    assert np.mean(A[:, 3]) == pytest.approx(0.01, rel=0.01)
+    assert np.std(A[:, 3]) == pytest.approx(0.002, rel=0.03)
     truncated = stats.truncnorm(-4.0, 4.0, loc=200.0, scale=50.0)
     assert np.std(A[:, 0]) == pytest.approx(truncated.std(), rel=0.02)
 
 
-def test_field_group_is_standard_normal_group():
-    modes = field_group("zero_angle", 3)
-    assert [f.name for f in modes] == ["zero_angle[0]", "zero_angle[1]", "zero_angle[2]"]
-    p = make_problem([Factor("friction", "unif", {"low": 0.1, "high": 0.3})],
-                     fields={"zero_angle": 3, "spacing": 2})
+def test_fields_are_groups_of_standard_normals():
+    assert field_group("zero_angle", 3) == ["zero_angle[0]", "zero_angle[1]", "zero_angle[2]"]
+    p = make_problem({"friction": uniform(0.1, 0.3)}, fields={"zero_angle": 3, "spacing": 2})
+    assert p["names"][:2] == ["friction", "zero_angle[0]"]
     assert p["groups"] == ["friction"] + ["zero_angle"] * 3 + ["spacing"] * 2
     assert p["dists"][1:] == ["norm"] * 5
     assert p["bounds"][1:] == [[0.0, 1.0]] * 5  # SALib norm: [mean, sd]
 
 
 @pytest.mark.parametrize("build, message", [
-    (lambda: Factor("f", "uniform", {"low": 0, "high": 1}), "dist='uniform' is not supported"),
-    (lambda: Factor("f", "norm", {"mean": 0}), "expected exactly \\['mean', 'sd'\\]"),
-    (lambda: Factor("f", "norm", {"mean": 0, "sd": 0}), "'sd'\\]=0.0 must be > 0"),
-    (lambda: Factor("f", "unif", {"low": 1, "high": 1}), "low=1.0 must be < high=1.0"),
     (lambda: field_group("g", 0), "n_modes=0"),
-    (lambda: make_problem([Factor("a", "unif", {"low": 0, "high": 1})] * 2), "repeated: \\['a'\\]"),
-    (lambda: make_problem([Factor("spacing", "unif", {"low": 0, "high": 1})], fields={"spacing": 2}),
-     "also used as group"),
-    (lambda: make_problem([], fields={"g": 4}), "at least 2 factors or groups"),
+    (lambda: make_problem({"a": uniform(0, 1), "b": (0, 1)}), "'b' must be a uqdrape.stochastic Factor"),
+    (lambda: make_problem({"spacing": uniform(0, 1)}, fields={"spacing": 2}),
+     "'spacing' is both a scalar factor and a field name"),
+    (lambda: make_problem({"f[0]": uniform(0, 1)}, fields={"f": 2}), "clash with field 'f'"),
+    (lambda: make_problem({}, fields={"g": 4}), "at least 2 random factors or groups"),
+    (lambda: make_problem({"a": uniform(0, 1), "b": constant(2.0)}), "at least 2 random factors"),
+    (lambda: check_problem({"num_vars": 2, "names": ["a", "a"], "bounds": [[0, 1]] * 2}),
+     "repeated: \\['a'\\]"),
+    (lambda: check_problem({"num_vars": 2, "names": ["a", "b"]}), "missing key 'bounds'"),
+    (lambda: check_problem({"num_vars": 2, "names": ["a", "b"], "bounds": [[0, 1]] * 2,
+                            "dists": ["unif", "weibull"]}), "dist 'weibull' is not supported"),
 ])
 def test_problem_rejects_bad_input(build, message):
     with pytest.raises(ValueError, match=message):
@@ -112,7 +118,7 @@ def test_seed_must_be_non_negative_int():
 
 
 def test_morris_moves_unbounded_levels_to_tail_quantiles():
-    p = make_problem([Factor("friction", "unif", {"low": 0.1, "high": 0.3})], fields={"f": 2})
+    p = make_problem({"friction": uniform(0.1, 0.3)}, fields={"f": 2})
     X, meta = sample(p, "morris", base_samples=10, seed=3)
     assert meta["n_evaluations"] == 10 * 3 == X.shape[0]
     assert np.isfinite(X).all()
@@ -121,6 +127,10 @@ def test_morris_moves_unbounded_levels_to_tail_quantiles():
     assert np.isin(np.round(X[:, 1:], 12), np.round(stats.norm.ppf(levels), 12)).all()
     # uniform factors keep SALib's own levels, including the bounds
     assert np.isin(np.round(X[:, 0], 12), np.round(np.linspace(0.1, 0.3, 4), 12)).all()
+    ds = analyze(p, X, 3.0 * X[:, 1] - X[:, 2], method="morris", seed=3).sel(qoi="y0")
+    assert list(ds.factor.values) == ["friction", "f"]
+    assert ds.mu_star.sel(factor="friction") == 0.0 and ds.mu_star.sel(factor="f") > 1.0
+    assert np.isnan(ds.sigma.sel(factor="f")) and ds.sigma.sel(factor="friction") == 0.0
 
 
 # --- Sobol' ----------------------------------------------------------------------------
@@ -151,7 +161,7 @@ def test_ishigami_indices_within_ci_and_dummy_is_zero():
 
 
 def test_groups_only_the_active_group_matters():
-    p = make_problem([Factor("a", "unif", {"low": 0.0, "high": 1.0})], fields={"f": 4, "g": 3})
+    p = make_problem({"a": uniform(0.0, 1.0)}, fields={"f": 4, "g": 3})
     cols_f = [p["names"].index(f"f[{k}]") for k in range(4)]
     X, meta = sample(p, base_samples=256, seed=4)
     assert meta["n_evaluations"] == 256 * (3 + 2)
@@ -243,8 +253,7 @@ def test_analyze_map_per_node():
 
 
 def test_indices_vs_levels_and_netcdf_round_trip(tmp_path):
-    p = make_problem([Factor("friction", "unif", {"low": 0.15, "high": 0.3}),
-                      Factor("orientation", "norm", {"mean": 0.0, "sd": 2.0})],
+    p = make_problem({"friction": uniform(0.15, 0.3), "orientation": normal(0.0, 2.0)},
                      fields={"zero_angle": 2})
     forces = [0.0, 126.0, 252.0]
 
@@ -278,3 +287,5 @@ def test_indices_vs_levels_and_netcdf_round_trip(tmp_path):
     other.attrs["base_samples"] = 128
     with pytest.raises(ValueError, match="attributes \\['base_samples'\\]"):
         indices_vs_levels([per_level[0], other], forces[:2])
+    with pytest.raises(ValueError, match="coordinate 'qoi'"):
+        indices_vs_levels([per_level[0], per_level[1].isel(qoi=[0])], forces[:2])

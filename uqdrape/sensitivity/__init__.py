@@ -1,4 +1,4 @@
-"""uqdrape.sensitivity: SALib problems (scalar factors + random-field groups), designs,
+"""uqdrape.sensitivity: SALib problems (stochastic factors + random-field groups), designs,
 Sobol'/Morris indices as xarray Datasets, and indices versus blank-holder force.
 
 Flow (as SALib's): ``make_problem`` -> ``sample`` -> evaluate -> ``analyze``;
@@ -15,11 +15,11 @@ from .design import (
     sample,
 )
 from .pipeline import run_sensitivity
-from .problem import DIST_PARAMS, Factor, check_problem, field_group, make_problem
+from .problem import check_problem, field_group, make_problem
 
 __all__ = [
-    "CONSTANT_RTOL", "DIST_PARAMS", "METHODS", "MORRIS_MIN_TRAJECTORIES", "MORRIS_NUM_LEVELS",
-    "MORRIS_TAIL_QUANTILE", "SOBOL_MIN_BASE_SAMPLES", "VARIABLES", "Factor", "analyze",
+    "CONSTANT_RTOL", "METHODS", "MORRIS_MIN_TRAJECTORIES", "MORRIS_NUM_LEVELS",
+    "MORRIS_TAIL_QUANTILE", "SOBOL_MIN_BASE_SAMPLES", "VARIABLES", "analyze",
     "analyze_map", "check_problem", "field_group", "indices_vs_levels", "make_problem",
     "run_sensitivity", "sample",
 ]

@@ -195,7 +195,7 @@ def indices_vs_levels(datasets: Sequence[xr.Dataset], level_values, *,
                       dim: str = "blankholder_force", units: str = "N") -> xr.Dataset:
     """Stack per-level index Datasets along a new last dim ``dim`` (e.g. F_BH in N).
 
-    All datasets must have the same factors, outputs and attributes (same design).
+    All datasets must have the same coordinates (factors, outputs) and attributes.
     The result round-trips through netCDF (``ds.to_netcdf`` / ``xr.load_dataset``).
     """
     datasets = list(datasets)
@@ -209,9 +209,9 @@ def indices_vs_levels(datasets: Sequence[xr.Dataset], level_values, *,
         raise ValueError(f"level_values={levels.tolist()} must be unique")
     first = datasets[0]
     for k, ds in enumerate(datasets[1:], start=1):
-        if not first["factor"].equals(ds["factor"]):
-            raise ValueError(f"dataset {k} has factors {ds['factor'].values.tolist()}, "
-                             f"dataset 0 has {first['factor'].values.tolist()}")
+        for name in set(first.indexes) | set(ds.indexes):
+            if name not in first.indexes or not first.indexes[name].equals(ds.indexes.get(name)):
+                raise ValueError(f"dataset {k} differs from dataset 0 in coordinate {name!r}")
         differing = sorted(key for key in set(first.attrs) | set(ds.attrs)
                            if not np.array_equal(first.attrs.get(key), ds.attrs.get(key)))
         if differing:
