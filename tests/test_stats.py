@@ -97,6 +97,21 @@ def test_out_of_core_from_netcdf_chunk_files_in_one_pass(tmp_path):
         xr.testing.assert_allclose(st, node_statistics(ds), rtol=1e-12)
 
 
+def test_cell_variable_statistics_and_histogram():
+    rng = np.random.default_rng(9)
+    a = rng.normal(2.0, 1.0, size=(30, 4, 4))
+    centres = np.arange(-2, 2) + 0.5
+    ds = xr.Dataset(
+        {"cell_shear": (("realization", "cell_i", "cell_j"), a, SHEAR_ATTRS)},
+        coords={"cell_i": centres, "cell_j": centres},
+    )
+    st = node_statistics(ds.chunk({"realization": 7}), var="cell_shear")
+    assert st["mean"].dims == ("cell_i", "cell_j")
+    np.testing.assert_allclose(st["mean"].values, a.mean(axis=0), rtol=1e-12)
+    h = node_histogram(ds, (0.5, -1.5), var="cell_shear", bins=5)
+    assert h["count"].sum().item() == 30 and h["normal_mean"].item() == pytest.approx(a[:, 2, 0].mean())
+
+
 def test_order_statistic_interval_of_the_median_known_ranks():
     # n = 20: the distribution-free 95 % interval of the median is [X_(6), X_(15)] (coverage 95.86 %).
     rng = np.random.default_rng(3)
