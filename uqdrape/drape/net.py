@@ -1,0 +1,341 @@
+"""Building the pin-jointed net, batched over realisations.
+
+Two orders of construction share the node kernels:
+
+* ``build_geodesic``: the four generator arms are traced as discrete geodesics to the
+  last ring, then every other node is filled anti-diagonal by anti-diagonal
+  (|i| + |j| = d), so a drape costs about 3n Python steps whatever the batch size.
+* ``build_energy``: ring by ring (thesis Fig 5.1). At ring k each arm gets one segment
+  whose turn angle about the surface normal minimises the energy of the pattern so
+  far; the ring is filled from the arms towards the quadrant corners.
+
+Node (i, j) is stored at array index (i + n, j + n). Arms are ordered +i, +j, -i, -j.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .energy import BlankHolder, bending_energy
+from .kernels import arm_step, fill_node, quad_shear, unit
+from .status import Status
+
+ARM_STEPS = np.array([(1, 0), (0, 1), (-1, 0), (0, -1)])
+#: Per quadrant (sign i, sign j): its i-family arm and side, its j-family arm and side.
+QUADRANTS = {"++": (0, 0, 1, 0), "-+": (2, 0, 1, 1), "--": (2, 1, 3, 1), "+-": (0, 1, 3, 0)}
+QUADRANT_SIGNS = {"++": (1, 1), "-+": (-1, 1), "--": (-1, -1), "+-": (1, -1)}
+SIDES = np.array([1, -1])
+
+
+class NetProblem:
+    """Validated, broadcast inputs of a batch of R drapes (see ``uqdrape.drape.drape``)."""
+
+    def __init__(self, surface, spacing, rings, crossover, arm_angles, seg_i, seg_j, gamma0,
+                 flat_e1, flat_e2, blankholder, material, tol):
+        self.surface = surface
+        self.s = spacing
+        self.n = rings
+        self.size = 2 * rings + 1
+        self.crossover = crossover  # (R, 2) mm
+        self.arm_angles = arm_angles  # (R, 4) rad, plan angles of the first arm segments
+        self.seg_i = seg_i  # (R, 2n, 2n+1) mm
+        self.seg_j = seg_j  # (R, 2n+1, 2n) mm
+        self.gamma0 = gamma0  # (R, 2n, 2n) rad
+        self.blankholder = blankholder
+        self.material = material
+        self.tol = tol
+        self.R = crossover.shape[0]
+        idx = np.arange(-rings, rings + 1)
+        # Flat-blank node positions at nominal spacing (thesis Fig 5.2), (R, N, N, 2).
+        self.flat = (crossover[:, None, None, :]
+                     + spacing * idx[None, :, None, None] * flat_e1[:, None, None, :]
+                     + spacing * idx[None, None, :, None] * flat_e2[:, None, None, :])
+        self.cell_s1 = 0.5 * (seg_i[:, :, :-1] + seg_i[:, :, 1:])
+        self.cell_s2 = 0.5 * (seg_j[:, :-1, :] + seg_j[:, 1:, :])
+
+    # -- index helpers -----------------------------------------------------------------
+    def seg1(self, i_a, i_b, j):
+        """Lengths (R, ...) of fibre-1 segments between nodes (i_a, j) and (i_b, j)."""
+        return self.seg_i[:, np.minimum(i_a, i_b) + self.n, j + self.n]
+
+    def seg2(self, i, j_a, j_b):
+        return self.seg_j[:, i + self.n, np.minimum(j_a, j_b) + self.n]
+
+    def node(self, P, i, j):
+        return P[:, i + self.n, j + self.n]
+
+    # -- shared stages -----------------------------------------------------------------
+    def start(self):
+        """Arrays with the crossover placed: P (R, N, N, 3) mm, status (R, N, N)."""
+        P = np.full((self.R, self.size, self.size, 3), np.nan)
+        status = np.full((self.R, self.size, self.size), Status.DEPENDENT, np.int8)
+        x, y = self.crossover[:, 0], self.crossover[:, 1]
+        ok = np.isfinite(x) & np.isfinite(y) & self.surface.inside(x, y)
+        P[:, self.n, self.n] = np.stack([x, y, self.surface.height(x, y)], axis=-1)
+        P[~ok, self.n, self.n] = np.nan
+        status[:, self.n, self.n] = np.where(ok, Status.OK, Status.OFF_MOULD)
+        return P, status
+
+    def arm_nodes(self, P, k, turn):
+        """Arm nodes of ring k for turn angles ``turn`` (R, M, 4) rad -> (R, M, 4, 3), status."""
+        di, dj = ARM_STEPS[:, 0], ARM_STEPS[:, 1]
+        last = self.node(P, (k - 1) * di, (k - 1) * dj)[:, None]  # (R, 1, 4, 3)
+        if k == 1:
+            a = self.arm_angles
+            hx, hy = self.surface.gradient(self.crossover[:, 0:1], self.crossover[:, 1:2])
+            direction = np.stack([np.cos(a), np.sin(a), hx * np.cos(a) + hy * np.sin(a)], axis=-1)[:, None]
+        else:
+            direction = last - self.node(P, (k - 2) * di, (k - 2) * dj)[:, None]
+        return arm_step(self.surface, last, direction, turn, self.arm_lengths(k)[:, None], self.tol)
+
+    def arm_lengths(self, k):
+        """Lengths (R, 4) of the k-th segment of each arm."""
+        return np.stack([
+            self.seg1(k, k - 1, 0), self.seg2(0, k, k - 1),
+            self.seg1(-k, -k + 1, 0), self.seg2(0, -k, -k + 1),
+        ], axis=-1)
+
+    def cell_energy(self, gamma, ci, cj):
+        """Shear energy (J) of cells whose lower-left node is (ci, cj), shear ``gamma`` (rad)."""
+        a, b = np.broadcast_arrays(ci + self.n, cj + self.n)
+        lead = (self.R,) + (1,) * (gamma.ndim - 1 - a.ndim)  # candidate axes between R and the cells
+
+        def pick(field):
+            return field[:, a, b].reshape(lead + a.shape)
+
+        return self.material.cell_energy(gamma, pick(self.cell_s1), pick(self.cell_s2), pick(self.gamma0))
+
+    def ring_blankholder(self, P, k):
+        """Blank-holder energy (R, 4 quadrants) of the boundary polygon of ring k (J)."""
+        out = np.zeros((self.R, 4))
+        t = np.arange(-k, k)
+        centre = self.crossover[:, None, :]
+        force = self.blankholder.force[:, None]
+        mu = self.blankholder.friction[:, None]
+        for q, (si, sj) in enumerate(QUADRANT_SIGNS.values()):
+            jj = t[(t >= 0) == (sj > 0)]  # fibre-2 segments (si k, j)-(si k, j+1)
+            ii = t[(t >= 0) == (si > 0)]  # fibre-1 segments (i, sj k)-(i+1, sj k)
+            e = self.blankholder.segment_energy(
+                self.node(P, si * k, jj), self.node(P, si * k, jj + 1),
+                self.node(self.flat, si * k, jj), self.node(self.flat, si * k, jj + 1),
+                centre, force, mu)
+            e2 = self.blankholder.segment_energy(
+                self.node(P, ii, sj * k), self.node(P, ii + 1, sj * k),
+                self.node(self.flat, ii, sj * k), self.node(self.flat, ii + 1, sj * k),
+                centre, force, mu)
+            out[:, q] = np.nansum(e, axis=-1) + np.nansum(e2, axis=-1)
+        return out
+
+
+def build_geodesic(prob: NetProblem):
+    """Geodesic net: arms first, then anti-diagonal fill. Returns P, status."""
+    P, status = prob.start()
+    n = prob.n
+    di, dj = ARM_STEPS[:, 0], ARM_STEPS[:, 1]
+    zero = np.zeros((prob.R, 1, 4))
+    for k in range(1, n + 1):
+        q, st = prob.arm_nodes(P, k, zero)
+        P[:, n + k * di, n + k * dj] = q[:, 0]
+        status[:, n + k * di, n + k * dj] = st[:, 0]
+    for d in range(2, 2 * n + 1):
+        a = np.arange(max(1, d - n), min(n, d - 1) + 1)
+        i = np.concatenate([a, -a, -a, a])
+        j = np.concatenate([d - a, d - a, -(d - a), -(d - a)])
+        si, sj = np.sign(i), np.sign(j)
+        q, st = fill_node(
+            prob.surface, prob.node(P, i - si, j), prob.node(P, i, j - sj), prob.node(P, i - si, j - sj),
+            prob.seg1(i, i - si, j), prob.seg2(i, j, j - sj), si * sj, prob.tol)
+        P[:, i + n, j + n] = q
+        status[:, i + n, j + n] = st
+    return P, status
+
+
+class EnergyRings:
+    """Ring-by-ring construction with the per-step energy minimisation (thesis Fig 5.1).
+
+    The energy of ring k's pattern splits into one term per arm (its bending penalty,
+    the cells and blank-holder segments along its two sides) and one term per quadrant
+    corner (coupling the two arms that bound the quadrant). The four turn angles are
+    found by a batched Newton iteration per arm on three-point stencils, with the
+    corner coupling lagged (Jacobi) and a step-halving safeguard if the total rises.
+    """
+
+    STENCIL = 1e-3  # rad
+
+    def __init__(self, prob: NetProblem, bending_stiffness, tolerance, max_iterations, max_turn):
+        self.prob = prob
+        self.B = bending_stiffness
+        self.tol = tolerance
+        self.max_iterations = max_iterations
+        self.max_turn = max_turn
+
+    # -- geometry of ring k -------------------------------------------------------------
+    def sides(self, P, k, turn):
+        """Arm nodes and the side chains of ring k for turn angles (R, M, 4).
+
+        Returns chain nodes S (R, M, 4, 2, k, 3), their status, and the energy per arm
+        (R, M, 4): bending + side cells + side blank-holder segments.
+        """
+        prob = self.prob
+        R, M = turn.shape[:2]
+        arm_q, arm_st = prob.arm_nodes(P, k, turn)
+        S = np.empty((R, M, 4, 2, k, 3))
+        St = np.empty((R, M, 4, 2, k), np.int8)
+        S[..., 0, :] = arm_q[:, :, :, None, :]
+        St[..., 0] = arm_st[:, :, :, None]
+        di, dj = ARM_STEPS[:, 0, None], ARM_STEPS[:, 1, None]
+        ifam = (di != 0)  # (4, 1): arms along fibre 1
+        ei = np.where(ifam, 0, SIDES[None, :])  # (4, 2)
+        ej = np.where(ifam, SIDES[None, :], 0)
+        for m in range(1, k):
+            xi, xj = k * di + m * ei, k * dj + m * ej
+            fi, fj = (k - 1) * di + m * ei, (k - 1) * dj + m * ej  # fixed neighbour, ring k-1
+            pi, pj = k * di + (m - 1) * ei, k * dj + (m - 1) * ej  # predecessor in the chain
+            ci, cj = fi - ei, fj - ej
+            F = prob.node(P, fi, fj)[:, None]
+            Q = S[..., m - 1, :]
+            a = np.where(ifam[..., None], F, Q)
+            b = np.where(ifam[..., None], Q, F)
+            ai, bj = np.where(ifam, fi, pi), np.where(ifam, pj, fj)
+            q, st = fill_node(prob.surface, a, b, prob.node(P, ci, cj)[:, None],
+                              prob.seg1(xi, ai, xj)[:, None], prob.seg2(xi, xj, bj)[:, None],
+                              (xi - ai) * (xj - bj), prob.tol)
+            S[..., m, :] = q
+            St[..., m] = st
+        energy = bending_energy(turn, self.B, prob.s)
+        if k > 1:
+            m = np.arange(1, k)
+            inner = prob.node(P, (k - 1) * di[..., None] + m * ei[..., None],
+                              (k - 1) * dj[..., None] + m * ej[..., None])[:, None]
+            inner_prev = prob.node(P, (k - 1) * di[..., None] + (m - 1) * ei[..., None],
+                                   (k - 1) * dj[..., None] + (m - 1) * ej[..., None])[:, None]
+            eps0 = np.sign((di + ei) * (dj + ej))[..., None]
+            gamma = quad_shear(inner_prev, S[..., :-1, :], S[..., 1:, :], inner, eps0)
+            # lower-left node of each side cell
+            ci = np.minimum(k * di, (k - 1) * di)[..., None] + np.minimum((m - 1) * ei[..., None], m * ei[..., None])
+            cj = np.minimum(k * dj, (k - 1) * dj)[..., None] + np.minimum((m - 1) * ej[..., None], m * ej[..., None])
+            cells = prob.cell_energy(gamma, ci, cj)
+            xi = k * di[..., None] + m * ei[..., None]
+            xj = k * dj[..., None] + m * ej[..., None]
+            bh = prob.blankholder.segment_energy(
+                S[..., :-1, :], S[..., 1:, :],
+                prob.node(prob.flat, xi - ei[..., None], xj - ej[..., None])[:, None],
+                prob.node(prob.flat, xi, xj)[:, None],
+                prob.crossover[:, None, None, None, None, :],
+                prob.blankholder.force[:, None, None, None, None],
+                prob.blankholder.friction[:, None, None, None, None])
+            energy = energy + np.nansum(cells, axis=(-2, -1)) + np.nansum(bh, axis=(-2, -1))
+        return S, St, energy
+
+    def corners(self, P, k, S, combos):
+        """Quadrant corner nodes for candidate pairs ``combos`` [(cand of i-arm, cand of j-arm)].
+
+        Returns nodes (R, C, 4, 3), status (R, C, 4) and energy (R, C, 4): the corner cell
+        and the two blank-holder segments that end at the corner.
+        """
+        prob = self.prob
+        ca = np.array([c[0] for c in combos])
+        cb = np.array([c[1] for c in combos])
+        qa = np.array([QUADRANTS[q][0] for q in QUADRANTS])
+        sa = np.array([QUADRANTS[q][1] for q in QUADRANTS])
+        qb = np.array([QUADRANTS[q][2] for q in QUADRANTS])
+        sb = np.array([QUADRANTS[q][3] for q in QUADRANTS])
+        si = np.array([QUADRANT_SIGNS[q][0] for q in QUADRANTS])
+        sj = np.array([QUADRANT_SIGNS[q][1] for q in QUADRANTS])
+        a = S[:, cb[:, None], qb[None, :], sb[None, :], k - 1]  # fibre-1 neighbour (si(k-1), sj k)
+        b = S[:, ca[:, None], qa[None, :], sa[None, :], k - 1]  # fibre-2 neighbour (si k, sj(k-1))
+        c = prob.node(P, si * (k - 1), sj * (k - 1))[:, None]
+        x, st = fill_node(prob.surface, a, b, c,
+                          prob.seg1(si * k, si * (k - 1), sj * k)[:, None],
+                          prob.seg2(si * k, sj * k, sj * (k - 1))[:, None], si * sj, prob.tol)
+        gamma = quad_shear(c, a, x, b, si * sj)
+        cells = prob.cell_energy(gamma, np.minimum(si * k, si * (k - 1)), np.minimum(sj * k, sj * (k - 1)))
+        centre = prob.crossover[:, None, None, :]
+        force = prob.blankholder.force[:, None, None]
+        mu = prob.blankholder.friction[:, None, None]
+        fx = prob.node(prob.flat, si * k, sj * k)[:, None]
+        bh = (prob.blankholder.segment_energy(a, x, prob.node(prob.flat, si * (k - 1), sj * k)[:, None], fx,
+                                              centre, force, mu)
+              + prob.blankholder.segment_energy(b, x, prob.node(prob.flat, si * k, sj * (k - 1))[:, None], fx,
+                                                centre, force, mu))
+        return x, st, np.nan_to_num(cells) + np.nan_to_num(bh)
+
+    # -- the per-step minimisation --------------------------------------------------------
+    def run(self):
+        """Drape ring by ring. Returns P, status, turn angles (R, n, 4) rad, bending energy
+        (R,) J, total iterations (R,) and converged (R,)."""
+        prob = self.prob
+        n, R = prob.n, prob.R
+        P, status = prob.start()
+        turns = np.zeros((R, n, 4))
+        iterations = np.zeros(R, np.int32)
+        converged = np.ones(R, bool)
+        h = self.STENCIL
+        offsets = np.array([-h, 0.0, h])
+        stencil = [(0, 1), (1, 1), (2, 1), (1, 0), (1, 2)]  # (i-arm cand, j-arm cand) pairs
+        turn = np.zeros((R, 4))
+        for k in range(1, n + 1):
+            if k > 1 and self.max_iterations > 0:
+                turn, its, ok = self._minimise(P, k, turn, offsets, stencil)
+                iterations += its
+                converged &= ok
+            turns[:, k - 1] = turn
+            S, St, _ = self.sides(P, k, turn[:, None, :])
+            x, xs, _ = self.corners(P, k, S, [(0, 0)])
+            self._store(P, status, k, S[:, 0], St[:, 0], x[:, 0], xs[:, 0])
+        bending = bending_energy(turns, self.B, prob.s).sum(axis=(1, 2))
+        return P, status, turns, bending, iterations, converged
+
+    def _minimise(self, P, k, turn, offsets, stencil):
+        R = turn.shape[0]
+        h = offsets[2]
+        bound = self.max_turn
+        best = turn.copy()
+        best_energy = np.full(R, np.inf)
+        active = np.ones(R, bool)
+        done = np.zeros(R, bool)
+        its = np.zeros(R, np.int32)
+        for _ in range(self.max_iterations):
+            cand = turn[:, None, :] + offsets[None, :, None]
+            S, _, e_arm = self.sides(P, k, cand)
+            _, _, e_corner = self.corners(P, k, S, stencil)
+            e_arm = np.nan_to_num(e_arm, nan=np.inf)
+            total = e_arm[:, 1].sum(-1) + e_corner[:, 1].sum(-1)
+            per_arm = e_arm.copy()
+            for q, (a, _, b, _) in enumerate(QUADRANTS.values()):
+                per_arm[:, :, a] += e_corner[:, [0, 1, 2], q]
+                per_arm[:, :, b] += e_corner[:, [3, 1, 4], q]
+            its += active
+            better = total <= best_energy
+            best = np.where((active & better)[:, None], turn, best)
+            best_energy = np.where(active & better, total, best_energy)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                grad = (per_arm[:, 2] - per_arm[:, 0]) / (2 * h)
+                curv = (per_arm[:, 2] - 2 * per_arm[:, 1] + per_arm[:, 0]) / h**2
+                step = np.where(curv > 0, -grad / curv, -np.sign(grad) * 0.1)
+            step = np.clip(np.nan_to_num(step), -0.1, 0.1)
+            newton = np.clip(turn + step, -bound, bound)
+            halved = 0.5 * (best + turn)
+            nxt = np.where(better[:, None], newton, halved)
+            moved = np.abs(nxt - turn).max(-1)
+            finished = active & (moved < self.tol)
+            done |= finished
+            active &= ~finished
+            turn = np.where(active[:, None], nxt, best)
+            if not active.any():
+                break
+        return best, its, done
+
+    def _store(self, P, status, k, S, St, x, xs):
+        """Write ring k (one candidate) into the net arrays."""
+        n = self.prob.n
+        di, dj = ARM_STEPS[:, 0, None, None], ARM_STEPS[:, 1, None, None]
+        ifam = di != 0
+        m = np.arange(k)
+        ei = np.where(ifam, 0, SIDES[None, :, None] * m)
+        ej = np.where(ifam, SIDES[None, :, None] * m, 0)
+        P[:, n + k * di + ei, n + k * dj + ej] = S
+        status[:, n + k * di + ei, n + k * dj + ej] = St
+        for q, (si, sj) in enumerate(QUADRANT_SIGNS.values()):
+            P[:, n + si * k, n + sj * k] = x[:, q]
+            status[:, n + si * k, n + sj * k] = xs[:, q]

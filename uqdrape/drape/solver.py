@@ -1,0 +1,210 @@
+"""``drape``: a batch of pin-jointed-net drapes over one mould, as an xarray Dataset."""
+
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+import xarray as xr
+
+from .. import __version__
+from .energy import BlankHolder
+from .kernels import quad_shear
+from .net import QUADRANTS, EnergyRings, NetProblem, build_geodesic
+from .status import Status
+
+MODES = ("geodesic", "energy")
+
+
+def _per_realisation(name, value, tail, R):
+    """Broadcast ``value`` to (R, *tail) float64, or raise naming the argument."""
+    a = np.asarray(value, dtype=float)
+    if a.shape == tail:
+        a = np.broadcast_to(a, (R, *tail))
+    elif a.shape[1:] != tail or (R is not None and a.shape[0] != R):
+        want = f"{tail}" if not tail else f"{tail} or (R, *{tail})"
+        raise ValueError(f"{name} has shape {a.shape}; expected {want} with R = {R} realisations")
+    return np.array(a)
+
+
+def _batch_size(**arrays):
+    """Number of realisations implied by the leading axes of the batched arguments."""
+    sizes = {name: np.shape(v)[0] for name, (v, ndim) in arrays.items()
+             if v is not None and np.ndim(v) == ndim + 1}
+    distinct = set(sizes.values())
+    if len(distinct) > 1:
+        raise ValueError(f"batched arguments disagree on the number of realisations: {sizes}")
+    return distinct.pop() if distinct else 1
+
+
+def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
+          crossover=(0.0, 0.0), seg_i=None, seg_j=None, gamma0=None, mode="geodesic",
+          material=None, blankholder_force=0.0, friction=0.2, sectors=None,
+          tolerance=1e-3, max_iterations=30, max_turn=10.0, factors=None) -> xr.Dataset:
+    """Drape a batch of pin-jointed nets over ``surface``; one Python loop for the batch.
+
+    Arguments that may differ per realisation take a scalar (or base shape) or an array
+    with a leading realisation axis of length R:
+
+    spacing            nominal fibre spacing s (mm) of the flat blank, scalar
+    rings              n: the net has nodes (i, j), |i|, |j| <= n
+    orientation        plan angle (deg) of fibre 1 (+i) from the x axis at the crossover
+    pre_shear          shear (deg) of the flat blank: fibre 2 at orientation + 90 - pre_shear
+    skew               extra angle (deg) closed between the generator paths at the crossover,
+                       split equally between them; the flat blank is unchanged (thesis Fig 5.5)
+    crossover          plan position (mm) of node (0, 0), the first point of contact, (2,) or (R, 2)
+    seg_i, seg_j       fibre-1 / fibre-2 segment lengths (mm), (2n, 2n+1) / (2n+1, 2n); default s
+    gamma0             zero-energy shear angle per cell (deg), (2n, 2n); default 0
+    mode               "geodesic" (straightest arms) or "energy" (arms steered per step)
+    material           a ``uqdrape.material.Material``; needed for mode="energy"
+    blankholder_force  total blank-holder force F_BH (N); friction: mu_BH (-)
+    sectors            relative blank-holder force per equal angular sector (None: uniform)
+    tolerance          minimiser tolerance on the turn angles (deg)
+    max_iterations     minimiser iterations per step; max_turn: bound on a turn (deg)
+    factors            dict of extra per-realisation values stored along ``realization``
+
+    Nodes that cannot be placed are NaN with a ``status`` code (``Status``); the call
+    does not raise for them. Impossible arguments raise ValueError naming the argument.
+    """
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+    if not isinstance(spacing, numbers.Real) or not np.isfinite(spacing) or spacing <= 0:
+        raise ValueError(f"spacing must be a finite number > 0 (mm), got {spacing!r}")
+    if not isinstance(rings, numbers.Integral) or rings < 1:
+        raise ValueError(f"rings must be an integer >= 1, got {rings!r}")
+    if mode == "energy" and material is None:
+        raise ValueError("mode='energy' needs a material (e.g. load_material('generic_woven'))")
+    for name, v in (("tolerance", tolerance), ("max_turn", max_turn)):
+        if not np.isfinite(v) or v <= 0:
+            raise ValueError(f"{name} must be > 0 (deg), got {v!r}")
+    n = int(rings)
+    shapes = dict(orientation=(orientation, 0), pre_shear=(pre_shear, 0), skew=(skew, 0),
+                  crossover=(crossover, 1), seg_i=(seg_i, 2), seg_j=(seg_j, 2), gamma0=(gamma0, 2),
+                  blankholder_force=(blankholder_force, 0), friction=(friction, 0))
+    R = _batch_size(**shapes)
+    orientation = _per_realisation("orientation", orientation, (), R)
+    pre_shear = _per_realisation("pre_shear", pre_shear, (), R)
+    skew = _per_realisation("skew", skew, (), R)
+    crossover = _per_realisation("crossover", crossover, (2,), R)
+    seg_i = _per_realisation("seg_i", spacing if seg_i is None else seg_i, (2 * n, 2 * n + 1), R) \
+        if seg_i is not None else np.full((R, 2 * n, 2 * n + 1), float(spacing))
+    seg_j = _per_realisation("seg_j", seg_j, (2 * n + 1, 2 * n), R) \
+        if seg_j is not None else np.full((R, 2 * n + 1, 2 * n), float(spacing))
+    gamma0 = np.zeros((R, 2 * n, 2 * n)) if gamma0 is None else _per_realisation("gamma0", gamma0, (2 * n, 2 * n), R)
+    force = _per_realisation("blankholder_force", blankholder_force, (), R)
+    mu = _per_realisation("friction", friction, (), R)
+    if np.isnan(crossover).any():
+        raise ValueError(f"crossover must be finite (mm), got NaN in {crossover[np.isnan(crossover).any(-1)][0]}")
+    for name, a in (("seg_i", seg_i), ("seg_j", seg_j)):
+        if not (np.isfinite(a).all() and (a > 0).all()):
+            raise ValueError(f"{name}: every segment length must be finite and > 0 mm")
+    for name, a, lo in (("blankholder_force", force, 0.0), ("friction", mu, 0.0)):
+        if not (np.isfinite(a).all() and (a >= lo).all()):
+            raise ValueError(f"{name} must be finite and >= {lo}, got {a[~((a >= lo) & np.isfinite(a))][0]!r}")
+    for name, a in (("orientation", orientation), ("pre_shear", pre_shear), ("skew", skew), ("gamma0", gamma0)):
+        if not np.isfinite(a).all():
+            raise ValueError(f"{name} must be finite (deg)")
+    if (np.abs(pre_shear + skew) >= 90).any():
+        raise ValueError("pre_shear + skew must lie strictly between -90 and 90 deg")
+
+    psi = np.deg2rad(orientation)
+    a1 = psi + 0.5 * np.deg2rad(skew)
+    a2 = psi + np.deg2rad(90.0 - pre_shear) - 0.5 * np.deg2rad(skew)
+    arm_angles = np.stack([a1, a2, a1 + np.pi, a2 + np.pi], axis=-1)
+    e1 = np.stack([np.cos(psi), np.sin(psi)], -1)
+    b = psi + np.deg2rad(90.0 - pre_shear)
+    e2 = np.stack([np.cos(b), np.sin(b)], -1)
+    tol = 1e-11 * max(float(surface.size), 1.0)
+    prob = NetProblem(surface, float(spacing), n, crossover, arm_angles, seg_i, seg_j,
+                      np.deg2rad(gamma0), e1, e2, BlankHolder(force, mu, sectors), material, tol)
+
+    if mode == "geodesic":
+        P, status = build_geodesic(prob)
+        turns = np.zeros((R, n, 4))
+        bending = np.zeros(R)
+        iterations = np.zeros(R, np.int32)
+        converged = np.ones(R, bool)
+    else:
+        rings_solver = EnergyRings(prob, material.bending_stiffness, np.deg2rad(tolerance),
+                                   int(max_iterations), np.deg2rad(max_turn))
+        P, status, turns, bending, iterations, converged = rings_solver.run()
+
+    return _dataset(prob, P, status, turns, bending, iterations, converged, mode,
+                    dict(orientation=orientation, pre_shear=pre_shear, skew=skew,
+                         crossover_x=crossover[:, 0], crossover_y=crossover[:, 1],
+                         blankholder_force=force, friction=mu, **(factors or {})))
+
+
+def cell_shear(P):
+    """Signed cell shear (rad), (R, 2n, 2n), of net positions P (R, N, N, 3)."""
+    return quad_shear(P[:, :-1, :-1], P[:, 1:, :-1], P[:, 1:, 1:], P[:, :-1, 1:], 1.0)
+
+
+def node_shear(cells):
+    """Node shear: mean of the valid cells around each node; cells (R, 2n, 2n) -> (R, N, N)."""
+    R, m, _ = cells.shape
+    total = np.zeros((R, m + 1, m + 1))
+    count = np.zeros((R, m + 1, m + 1))
+    valid = np.isfinite(cells)
+    c = np.where(valid, cells, 0.0)
+    for da in (0, 1):
+        for db in (0, 1):
+            total[:, da:da + m, db:db + m] += c
+            count[:, da:da + m, db:db + m] += valid
+    with np.errstate(invalid="ignore"):
+        return np.where(count > 0, total / np.maximum(count, 1), np.nan)
+
+
+def _dataset(prob, P, status, turns, bending, iterations, converged, mode, factors):
+    n = prob.n
+    gamma = cell_shear(P)
+    material = prob.material
+    if material is not None:
+        cell_e = material.cell_energy(gamma, prob.cell_s1, prob.cell_s2, prob.gamma0)
+        shear_energy = np.nansum(cell_e, axis=(1, 2))
+        locked = material.is_locked(gamma - prob.gamma0)
+    else:
+        shear_energy = np.full(prob.R, np.nan)
+        locked = np.zeros(gamma.shape, bool)
+    bh = prob.ring_blankholder(P, n)
+    idx = np.arange(-n, n + 1)
+    cidx = np.arange(-n, n) + 0.5
+    node = ("realization", "i", "j")
+    cell = ("realization", "cell_i", "cell_j")
+    total = np.nan_to_num(shear_energy) + bending + bh.sum(-1)
+    ds = xr.Dataset(
+        {
+            "x": (node, P[..., 0], {"units": "mm", "long_name": "node x"}),
+            "y": (node, P[..., 1], {"units": "mm", "long_name": "node y"}),
+            "z": (node, P[..., 2], {"units": "mm", "long_name": "node z (height)"}),
+            "shear": (node, np.rad2deg(node_shear(gamma)),
+                      {"units": "degree", "long_name": "node shear angle (mean of adjacent cells)"}),
+            "status": (node, status, {"long_name": "node status", "flag_values": [s.value for s in Status],
+                                      "flag_meanings": " ".join(s.name.lower() for s in Status)}),
+            "cell_shear": (cell, np.rad2deg(gamma), {"units": "degree", "long_name": "signed cell shear angle"}),
+            "cell_locked": (cell, locked, {"long_name": "cell sheared beyond the locking angle"}),
+            "gamma0": (cell, np.rad2deg(prob.gamma0), {"units": "degree", "long_name": "zero-energy shear angle"}),
+            "turn": (("realization", "ring", "arm"), np.rad2deg(turns),
+                     {"units": "degree", "long_name": "generator-arm turn angle about the surface normal"}),
+            "energy_shear": ("realization", shear_energy, {"units": "J", "long_name": "shear energy"}),
+            "energy_bending": ("realization", bending, {"units": "J", "long_name": "generator-path bending energy"}),
+            "energy_blankholder": ("realization", bh.sum(-1), {"units": "J", "long_name": "blank-holder friction energy"}),
+            "energy_blankholder_quadrant": (("realization", "quadrant"), bh,
+                                            {"units": "J", "long_name": "blank-holder energy per quadrant"}),
+            "energy_total": ("realization", total, {"units": "J", "long_name": "total forming energy"}),
+            "iterations": ("realization", iterations, {"long_name": "minimiser iterations, all steps"}),
+            "converged": ("realization", converged, {"long_name": "minimiser converged at every step"}),
+        },
+        coords={"realization": np.arange(prob.R), "i": idx, "j": idx, "cell_i": cidx, "cell_j": cidx,
+                "ring": np.arange(1, n + 1), "arm": ["+i", "+j", "-i", "-j"], "quadrant": list(QUADRANTS)},
+        attrs={"spacing_mm": prob.s, "rings": n, "mode": mode, "geometry": prob.surface.describe(),
+               "material": getattr(material, "name", "none"),
+               "locking_angle_deg": float(getattr(material, "locking_angle_deg", np.nan) or np.nan),
+               "status_codes": Status.describe(), "uqdrape_version": __version__,
+               "Conventions": "CF-1.8"},
+    )
+    units = {"orientation": "degree", "pre_shear": "degree", "skew": "degree", "crossover_x": "mm",
+             "crossover_y": "mm", "blankholder_force": "N", "friction": "1"}
+    for name, value in factors.items():
+        ds[name] = ("realization", np.asarray(value, dtype=float), {"units": units.get(name, "1")})
+    return ds
