@@ -1,0 +1,766 @@
+"""The study file: parse a study TOML, validate it, explain what is wrong.
+
+``load_study(path)`` reads a study file (TOML, via ``tomllib``) into a frozen
+:class:`Study`; ``validate_study(path)`` returns a short human summary;
+``main_validate(argv)`` is the ``uqdrape validate FILE...`` command.
+
+Sections and keys (units: mm, N, degrees)::
+
+    [study]        name, seed, realizations, chunk_size = 64, description = ""
+    [geometry]     kind + that kind's shape parameters (see uqdrape.geometry.KINDS)
+    [fabric]       material, spacing_mm, orientation_deg = 0, pre_shear_deg = 0, crossover = [0, 0]
+    [process]      blankholder_force_N (a number, or a list: a sweep), friction = 0.2, sectors
+    [solver]       mode = "energy", rings, tolerance_deg = 1e-3, max_iterations = 30
+    [uncertainty.spacing]     cv, correlation = "iid", length_mm, kl_retained = 0.95
+    [uncertainty.zero_angle]  mean_deg = 0, sd_deg, correlation = "iid", length_mm, kl_retained = 0.95
+    [uncertainty.<factor>]    dist + parameters, factor in FACTOR_SETTINGS
+    [sampling]     plan = "monte_carlo"
+    [sensitivity]  method = "none", base_samples, qoi = all of QOIS
+    [report]       lines = "max_shear", histogram_nodes = [], experimental_csv
+    [output]       directory = "results/<study name>"
+
+Factor distributions (values in the units of the setting they override): normal
+(mean, sd), truncnormal (mean, sd, bounds = [lo, hi]; mean/sd of the parent normal),
+uniform (bounds = [lo, hi]), lognormal (mean, sd of the value itself, as in
+uqdrape.stochastic). A factor overrides its fixed setting in the ensemble; the fixed
+value stays the nominal one.
+
+Paths in the file (stl ``path``, a material card, ``experimental_csv``) are relative to
+the study file; ``output.directory`` is relative to the current working directory.
+
+Errors. Every problem raises :class:`StudyError` naming the file, the dotted key, the
+bad value and what is valid, e.g.
+``studies/x.toml: uncertainty.spacing.cv = 1.2 is invalid: cv must satisfy 0 <= cv < 1``.
+Only the **first** problem is reported, in a fixed order (unknown sections; then the
+sections in the order above; within a section unknown keys first, then the keys in the
+order above), because later checks need earlier values (the crossover check builds the
+mould, histogram nodes need ``rings``, random fields need ``spacing_mm``). Range checks of
+moulds, materials, distributions, random fields and sampling plans are those of
+uqdrape.geometry / .material / .stochastic; this module checks TOML types, keys and
+the rules that tie sections together. A key that would be silently ignored
+(``length_mm`` of an iid field, ``base_samples`` without a sensitivity method) is an
+error too, because it usually means another key was forgotten.
+"""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+import json
+import math
+import re
+import sys
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import geometry as _geometry
+from . import material as _material
+from . import stochastic as _stochastic
+
+
+class StudyError(ValueError):
+    """A problem in a study file; the message names the file, the key, the value and what is valid."""
+
+
+#: Scalar factors of [uncertainty.<factor>] -> the fixed setting each one overrides.
+FACTOR_SETTINGS = {
+    "blankholder_force": "process.blankholder_force_N",
+    "friction": "process.friction",
+    "orientation": "fabric.orientation_deg",
+    "crossover_x": "fabric.crossover[0]",
+    "crossover_y": "fabric.crossover[1]",
+    "pre_shear": "fabric.pre_shear_deg",
+}
+#: Random fields of [uncertainty.<field>].
+FIELDS = ("spacing", "zero_angle")
+#: Scalar quantities of interest for [sensitivity] qoi.
+QOIS = (
+    "max_abs_shear",
+    "mean_shear_positive",
+    "mean_shear_negative",
+    "asymmetry",
+    "blankholder_energy",
+    "locked_fraction",
+)
+MODES = ("geodesic", "energy")
+SENSITIVITY_METHODS = ("sobol", "morris", "none")
+LINES = ("max_shear",)
+SECTIONS = (
+    "study", "geometry", "fabric", "process", "solver",
+    "uncertainty", "sampling", "sensitivity", "report", "output",
+)
+# factor distributions offered in a study file (a constant is the fixed setting itself)
+_DISTS = tuple(d for d in _stochastic.DISTRIBUTIONS if d != "constant")
+# study-file parameter names of each distribution; "bounds" = [lower, upper]
+_DIST_KEYS = {"normal": ("mean", "sd"), "truncnormal": ("mean", "sd", "bounds"),
+              "uniform": ("bounds",), "lognormal": ("mean", "sd")}
+_NAME_RE = re.compile(r"^[A-Za-z0-9_-]+$")
+_REQUIRED = object()
+
+
+# ----------------------------------------------------------------------------- the Study
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """The mould: ``kind`` (a key of uqdrape.geometry.KINDS) and its full shape parameters."""
+
+    kind: str
+    params: dict
+
+    def describe(self) -> str:
+        return f"{self.kind}(" + ", ".join(f"{k}={v}" for k, v in self.params.items()) + ")"
+
+    def build_mould(self):
+        """A new Surface for this mould (an STL mould is re-read: keep the result)."""
+        return _geometry.build(self.kind, **self.params)
+
+
+@dataclass(frozen=True)
+class Fabric:
+    """Fabric and blank: material (shipped card name or absolute card path), mm, degrees."""
+
+    material: str
+    spacing_mm: float
+    orientation_deg: float
+    pre_shear_deg: float
+    crossover: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class Process:
+    """Blank-holder force levels (N; one level unless a sweep), friction (-), sector weights."""
+
+    blankholder_force_N: tuple[float, ...]
+    friction: float
+    sectors: tuple[float, ...] | None
+
+
+@dataclass(frozen=True)
+class Solver:
+    mode: str
+    rings: int
+    tolerance_deg: float
+    max_iterations: int
+
+
+@dataclass(frozen=True)
+class RandomField:
+    """A random fabric field (``name`` in FIELDS) and its correlation model.
+
+    ``params`` is ``{"cv": ...}`` for spacing, ``{"mean_deg": ..., "sd_deg": ...}`` for the
+    zero-energy angle; ``length_mm`` (along fibre 1, fibre 2) is None for iid.
+    """
+
+    name: str
+    params: dict
+    correlation: str
+    length_mm: tuple[float, float] | None
+    kl_retained: float
+
+    def build_input(self, rings: int, spacing_mm: float):
+        """The exact-sampling input map (uqdrape.stochastic SpacingInput / ZeroAngleInput);
+        call ``.kl(self.kl_retained)`` on it for a design that needs a finite variable set."""
+        cls = _stochastic.SpacingInput if self.name == "spacing" else _stochastic.ZeroAngleInput
+        return cls(rings, spacing_mm, correlation=self.correlation, length_mm=self.length_mm, **self.params)
+
+
+@dataclass(frozen=True)
+class Uncertainty:
+    """Random fields by name (FIELDS) and scalar factors by name (FACTOR_SETTINGS)."""
+
+    fields: dict
+    factors: dict
+
+    @property
+    def varying(self) -> tuple[str, ...]:
+        return tuple(self.fields) + tuple(self.factors)
+
+
+@dataclass(frozen=True)
+class Sampling:
+    plan: str
+
+
+@dataclass(frozen=True)
+class Sensitivity:
+    method: str
+    base_samples: int | None
+    qoi: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Report:
+    lines: str
+    histogram_nodes: tuple[tuple[int, int], ...]
+    experimental_csv: Path | None
+
+
+@dataclass(frozen=True)
+class Study:
+    """A validated study; ``path`` is the study file, ``output_dir`` relative to the cwd."""
+
+    path: Path
+    name: str
+    seed: int
+    realizations: int
+    chunk_size: int
+    description: str
+    geometry: Geometry
+    fabric: Fabric
+    process: Process
+    solver: Solver
+    uncertainty: Uncertainty
+    sampling: Sampling
+    sensitivity: Sensitivity
+    report: Report
+    output_dir: Path
+
+    @property
+    def force_levels(self) -> tuple[float, ...]:
+        """Blank-holder force levels (N); length 1 unless the study is a sweep."""
+        return self.process.blankholder_force_N
+
+    @property
+    def is_sweep(self) -> bool:
+        return len(self.force_levels) > 1
+
+    def to_dict(self) -> dict:
+        """The study with defaults filled, in the file's own layout, as plain JSON types
+        (``json.dumps`` it for a netCDF attribute or a provenance record)."""
+        forces = self.force_levels
+        process = {"blankholder_force_N": list(forces) if self.is_sweep else forces[0],
+                   "friction": self.process.friction}
+        if self.process.sectors is not None:
+            process["sectors"] = list(self.process.sectors)
+        uncertainty = {}
+        for name, f in self.uncertainty.fields.items():
+            entry = dict(f.params, correlation=f.correlation, kl_retained=f.kl_retained)
+            if f.length_mm is not None:
+                entry["length_mm"] = list(f.length_mm)
+            uncertainty[name] = entry
+        for name, factor in self.uncertainty.factors.items():
+            p = dict(factor.params)
+            if "lower" in p:
+                p["bounds"] = [p.pop("lower"), p.pop("upper")]
+            uncertainty[name] = {"dist": factor.dist, **p}
+        sensitivity = {"method": self.sensitivity.method, "qoi": list(self.sensitivity.qoi)}
+        if self.sensitivity.base_samples is not None:
+            sensitivity["base_samples"] = self.sensitivity.base_samples
+        report = {"lines": self.report.lines,
+                  "histogram_nodes": [list(n) for n in self.report.histogram_nodes]}
+        if self.report.experimental_csv is not None:
+            report["experimental_csv"] = str(self.report.experimental_csv)
+        return {
+            "study": {"name": self.name, "seed": self.seed, "realizations": self.realizations,
+                      "chunk_size": self.chunk_size, "description": self.description},
+            "geometry": {"kind": self.geometry.kind, **self.geometry.params},
+            "fabric": {"material": self.fabric.material, "spacing_mm": self.fabric.spacing_mm,
+                       "orientation_deg": self.fabric.orientation_deg,
+                       "pre_shear_deg": self.fabric.pre_shear_deg,
+                       "crossover": list(self.fabric.crossover)},
+            "process": process,
+            "solver": {"mode": self.solver.mode, "rings": self.solver.rings,
+                       "tolerance_deg": self.solver.tolerance_deg,
+                       "max_iterations": self.solver.max_iterations},
+            "uncertainty": uncertainty,
+            "sampling": {"plan": self.sampling.plan},
+            "sensitivity": sensitivity,
+            "report": report,
+            "output": {"directory": str(self.output_dir)},
+        }
+
+
+# ----------------------------------------------------------------------------- messages
+
+
+def _fmt(value) -> str:
+    """A value as it would be written in TOML (shortened if long)."""
+    if isinstance(value, bool):
+        text = "true" if value else "false"
+    elif isinstance(value, str):
+        text = json.dumps(value)
+    elif isinstance(value, dict):
+        text = "{ " + ", ".join(f"{k} = {_fmt(v)}" for k, v in value.items()) + " }"
+    elif isinstance(value, (list, tuple)):
+        text = "[" + ", ".join(_fmt(v) for v in value) + "]"
+    else:
+        text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _is_int(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+class _Source:
+    """The study file being read: its label for messages and its folder for relative paths."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self.label = str(path)
+        self.folder = path.resolve().parent
+
+    def fail(self, text: str):
+        raise StudyError(f"{self.label}: {text}")
+
+    def invalid(self, key: str, value, why: str):
+        self.fail(f"{key} = {_fmt(value)} is invalid: {why}")
+
+    def missing(self, key: str, why: str):
+        self.fail(f"{key} is missing: {why}")
+
+    def relative_file(self, key: str, value) -> Path:
+        """An existing file named relative to the study file."""
+        if not isinstance(value, str) or not value:
+            self.invalid(key, value, "must be a file name (relative to the study file)")
+        path = self.folder / value
+        if not path.is_file():
+            self.invalid(key, value, f"file not found: {path}")
+        return path
+
+    def wrap(self, err: Exception, section: str, given: dict, required: dict | None = None):
+        """Re-raise another module's ValueError with file and key context.
+
+        ``given`` maps a name as the other module spells it to (dotted study key, value)
+        for keys present in the file; ``required`` maps names of absent required keys to
+        their dotted keys. The names in the message decide which study key is blamed: a
+        missing required key first, else every present key it names, else ``[section]``.
+        """
+        msg = str(err)
+
+        def named(name):
+            return re.search(rf"(?<![\w.]){re.escape(name)}(?!\w)", msg) is not None
+
+        for name, key in (required or {}).items():
+            if named(name):
+                self.missing(key, msg)
+        blamed = {}
+        for name, (key, value) in given.items():
+            if named(name):
+                blamed.setdefault(key, value)
+        if blamed:
+            lhs = ", ".join(f"{k} = {_fmt(v)}" for k, v in blamed.items())
+            self.fail(f"{lhs} is invalid: {msg}")
+        self.fail(f"[{section}] is invalid: {msg}")
+
+
+class _Table:
+    """One TOML table of the study: rejects unknown keys, reads typed values."""
+
+    def __init__(self, src: _Source, name: str, data, keys=None):
+        self.src, self.name = src, name
+        if not isinstance(data, dict):
+            src.invalid(name, data, f"{name} must be a table [{name}]")
+        self.data = data
+        if keys is not None:
+            self.only(keys)
+
+    def only(self, keys):
+        """Reject keys not in ``keys`` (called later when the valid keys depend on a value)."""
+        for key in self.data:
+            if key not in keys:
+                self.src.fail(f"unknown key {self.dotted(key)}; valid keys in [{self.name}]: {', '.join(keys)}")
+
+    def dotted(self, key: str) -> str:
+        return f"{self.name}.{key}"
+
+    def has(self, key: str) -> bool:
+        return key in self.data
+
+    def invalid(self, key: str, why: str):
+        self.src.invalid(self.dotted(key), self.data[key], why)
+
+    def raw(self, key: str, default, hint: str):
+        if key in self.data:
+            return self.data[key]
+        if default is _REQUIRED:
+            self.src.missing(self.dotted(key), hint)
+        return default
+
+    def number(self, key, default=_REQUIRED, *, integer=False, ge=None, gt=None, lt=None):
+        """A finite number (an int where ``integer``) with optional bounds."""
+        kind = "an integer" if integer else "a number"
+        low = f"{ge} <= " if ge is not None else f"{gt} < " if gt is not None else ""
+        if lt is not None:
+            hint = f"{key} must be {kind} with {low}{key} < {lt}"
+        elif low:
+            hint = f"{key} must be {kind} {'>=' if ge is not None else '>'} {ge if ge is not None else gt}"
+        else:
+            hint = f"{key} must be a finite number" if not integer else f"{key} must be an integer"
+        value = self.raw(key, default, hint)
+        if key not in self.data:
+            return value
+        if not (_is_int(value) if integer else _is_number(value)) or not math.isfinite(value):
+            self.invalid(key, hint)
+        if (ge is not None and value < ge) or (gt is not None and value <= gt) or (lt is not None and value >= lt):
+            self.invalid(key, hint)
+        return value if integer else float(value)
+
+    def string(self, key, default=_REQUIRED, *, choices=None, hint=None):
+        hint = hint or (f"{key} must be one of {', '.join(map(json.dumps, choices))}" if choices
+                        else f"{key} must be a string")
+        value = self.raw(key, default, hint)
+        if not isinstance(value, str) or (choices is not None and value not in choices):
+            self.invalid(key, hint)
+        return value
+
+    def numbers(self, key, default=_REQUIRED, *, length=None, hint):
+        """A list of finite numbers (of exactly ``length`` if given, else non-empty)."""
+        value = self.raw(key, default, hint)
+        if key not in self.data:
+            return value
+        ok = isinstance(value, list) and len(value) > 0 and (length is None or len(value) == length)
+        if not ok or not all(_is_number(v) and math.isfinite(v) for v in value):
+            self.invalid(key, hint)
+        return tuple(float(v) for v in value)
+
+
+# ----------------------------------------------------------------------------- sections
+
+
+def _read_toml(path: Path, src: _Source) -> dict:
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except tomllib.TOMLDecodeError as err:
+        src.fail(f"not valid TOML: {err}")
+    except OSError as err:
+        src.fail(f"cannot read the study file: {err.strerror or err}")
+
+
+def _study(src: _Source, doc: dict) -> dict:
+    t = _Table(src, "study", doc.get("study", {}), ("name", "seed", "realizations", "chunk_size", "description"))
+    name = t.string("name", hint="name must be a non-empty string of letters, digits, '-' and '_'")
+    if not _NAME_RE.match(name):
+        t.invalid("name", "name must be a non-empty string of letters, digits, '-' and '_'")
+    return {
+        "name": name,
+        "seed": t.number("seed", integer=True, ge=0),
+        "realizations": t.number("realizations", integer=True, ge=1),
+        "chunk_size": t.number("chunk_size", 64, integer=True, ge=1),
+        "description": t.string("description", ""),
+    }
+
+
+def _geometry_section(src: _Source, doc: dict):
+    """The mould spec and the built mould (needed for the crossover checks)."""
+    t = _Table(src, "geometry", doc["geometry"])
+    kind = t.string("kind", choices=tuple(_geometry.KINDS))  # first: it decides the valid keys
+    sig = inspect.signature(_geometry.KINDS[kind].__init__)
+    shape_keys = [p for p in sig.parameters if p != "self"]
+    t.only(("kind", *shape_keys))
+    params = {k: v for k, v in t.data.items() if k != "kind"}
+    if kind == "stl" and "path" in params:
+        params["path"] = str(src.relative_file("geometry.path", params["path"]))
+    required = {p: f"geometry.{p}" for p in shape_keys
+                if sig.parameters[p].default is inspect.Parameter.empty and p not in params}
+    try:
+        mould = _geometry.build(kind, **params)
+    except ValueError as err:
+        src.wrap(err, "geometry", {k: (f"geometry.{k}", t.data[k]) for k in params}, required)
+    return Geometry(kind, mould.params()), mould
+
+
+def _fabric(src: _Source, doc: dict, mould) -> Fabric:
+    t = _Table(src, "fabric", doc.get("fabric", {}),
+               ("material", "spacing_mm", "orientation_deg", "pre_shear_deg", "crossover"))
+    shipped = _material.available_materials()
+    hint = (f"material must be a shipped card ({', '.join(shipped)}) "
+            "or the path of a .toml/.csv card relative to the study file")
+    name = t.string("material", hint=hint)
+    if name in shipped:
+        material = name
+    elif Path(name).suffix.lower() in (".toml", ".csv"):
+        material = str(src.relative_file("fabric.material", name))
+    else:
+        t.invalid("material", hint)
+    try:
+        _material.load_material(material)
+    except ValueError as err:
+        t.invalid("material", str(err))
+    spacing = t.number("spacing_mm", gt=0)
+    orientation = t.number("orientation_deg", 0.0)
+    pre_shear = t.number("pre_shear_deg", 0.0, gt=-90, lt=90)
+    crossover = t.numbers("crossover", (0.0, 0.0), length=2,
+                          hint="crossover must be two numbers [x, y] in mm")
+    if not _inside(mould, *crossover):
+        src.invalid("fabric.crossover", list(crossover),
+                    f"the crossover must lie inside the mould's domain ({_describe(mould)})")
+    return Fabric(material, spacing, orientation, pre_shear, crossover)
+
+
+def _process(src: _Source, doc: dict) -> Process:
+    t = _Table(src, "process", doc.get("process", {}), ("blankholder_force_N", "friction", "sectors"))
+    hint = ("blankholder_force_N must be a number >= 0 (N), "
+            "or a non-empty list of distinct numbers >= 0 (a sweep)")
+    force = t.raw("blankholder_force_N", _REQUIRED, hint)
+    if _is_number(force):
+        levels = (float(force),)
+    else:
+        levels = t.numbers("blankholder_force_N", hint=hint)
+    if not all(math.isfinite(f) and f >= 0 for f in levels) or len(set(levels)) != len(levels):
+        t.invalid("blankholder_force_N", hint)
+    friction = t.number("friction", 0.2, ge=0)
+    sectors = None
+    if t.has("sectors"):
+        hint = "sectors must be a non-empty list of relative weights >= 0, not all zero"
+        sectors = t.numbers("sectors", hint=hint)
+        if any(w < 0 for w in sectors) or sum(sectors) <= 0:
+            t.invalid("sectors", hint)
+    return Process(levels, friction, sectors)
+
+
+def _solver(src: _Source, doc: dict) -> Solver:
+    t = _Table(src, "solver", doc.get("solver", {}), ("mode", "rings", "tolerance_deg", "max_iterations"))
+    return Solver(
+        mode=t.string("mode", "energy", choices=MODES),
+        rings=t.number("rings", integer=True, ge=1),
+        tolerance_deg=t.number("tolerance_deg", 1e-3, gt=0),
+        max_iterations=t.number("max_iterations", 30, integer=True, ge=1),
+    )
+
+
+def _field(src: _Source, name: str, data, rings: int, spacing_mm: float) -> RandomField:
+    own = ("cv",) if name == "spacing" else ("mean_deg", "sd_deg")
+    section = f"uncertainty.{name}"
+    t = _Table(src, section, data, (*own, "correlation", "length_mm", "kl_retained"))
+    if name == "spacing":
+        params = {"cv": t.number("cv")}  # its range is checked by SpacingInput
+    else:
+        params = {"mean_deg": t.number("mean_deg", 0.0), "sd_deg": t.number("sd_deg")}
+    correlation = t.string("correlation", "iid", choices=_stochastic.CORRELATIONS)
+    length = None
+    if t.has("length_mm"):
+        if correlation == "iid":
+            t.invalid("length_mm", 'length_mm is only used by a correlated field: set correlation = '
+                      '"exponential" or "squared_exponential", or remove length_mm')
+        length = t.numbers("length_mm", length=2, hint="length_mm must be two numbers [L1, L2] in mm, > 0")
+    retained = t.number("kl_retained", 0.95)
+    spec = RandomField(name, params, correlation, length, retained)
+    given = {k: (t.dotted(k), v) for k, v in t.data.items()}
+    given["retained"] = (t.dotted("kl_retained"), retained)
+    required = {"length_mm": t.dotted("length_mm")} if length is None and correlation != "iid" else {}
+    try:
+        spec.build_input(rings, spacing_mm).kl(retained)
+    except ValueError as err:
+        src.wrap(err, section, given, required)
+    return spec
+
+
+def _factor(src: _Source, name: str, data):
+    section = f"uncertainty.{name}"
+    t = _Table(src, section, data)
+    dist = t.string("dist", choices=_DISTS)  # first: it decides the valid keys
+    keys = _DIST_KEYS[dist]
+    t.only(("dist", *keys))
+    params = {}
+    for key in keys:
+        if key == "bounds":
+            params["lower"], params["upper"] = t.numbers(
+                "bounds", length=2, hint="bounds must be two numbers [lo, hi] with lo < hi")
+        else:
+            params[key] = t.number(key)
+    try:
+        return _stochastic.make_factor(dist, **params)
+    except ValueError as err:
+        given = {k: (t.dotted(k), t.data[k]) for k in keys}
+        if "bounds" in keys:
+            given["lower"] = given["upper"] = given["bounds"]
+        src.wrap(err, section, given)
+
+
+def _uncertainty(src: _Source, doc: dict, fabric: Fabric, process: Process, solver: Solver, mould) -> Uncertainty:
+    names = (*FIELDS, *FACTOR_SETTINGS)
+    t = _Table(src, "uncertainty", doc.get("uncertainty", {}), names)
+    fields, factors = {}, {}
+    for name in names:  # schema order, not file order: deterministic messages
+        if not t.has(name):
+            continue
+        if name in FIELDS:
+            fields[name] = _field(src, name, t.data[name], solver.rings, fabric.spacing_mm)
+        else:
+            factors[name] = _factor(src, name, t.data[name])
+    if "blankholder_force" in factors and len(process.blankholder_force_N) > 1:
+        src.invalid("process.blankholder_force_N", list(process.blankholder_force_N),
+                    "a sweep cannot be combined with [uncertainty.blankholder_force]; "
+                    "give one nominal force or remove the factor")
+    ranges = {"blankholder_force": (0.0, math.inf, "must be >= 0 N"),
+              "friction": (0.0, math.inf, "must be >= 0"),
+              "pre_shear": (-90.0, 90.0, "must lie in (-90, 90) degrees")}
+    for name, factor in factors.items():
+        lo, hi = _extent(factor)
+        if name in ranges:
+            rlo, rhi, why = ranges[name]
+            open_ends = name == "pre_shear"
+            bad = (lo <= rlo or hi >= rhi) if open_ends else (lo < rlo or hi > rhi)
+            if bad:
+                src.invalid(f"uncertainty.{name}", t.data[name],
+                            f"its values reach [{lo:g}, {hi:g}] but {name} {why}; "
+                            "use bounds (uniform/truncnormal) or a smaller sd")
+    if {"crossover_x", "crossover_y"} & set(factors):
+        xs = _extent(factors["crossover_x"]) if "crossover_x" in factors else (fabric.crossover[0],) * 2
+        ys = _extent(factors["crossover_y"]) if "crossover_y" in factors else (fabric.crossover[1],) * 2
+        corners = [(x, y) for x in xs for y in ys]
+        if not all(_inside(mould, x, y) for x, y in corners):
+            key = "crossover_x" if "crossover_x" in factors else "crossover_y"
+            src.invalid(f"uncertainty.{key}", t.data[key],
+                        f"crossovers up to x in [{xs[0]:g}, {xs[1]:g}], y in [{ys[0]:g}, {ys[1]:g}] mm "
+                        f"leave the mould's domain ({_describe(mould)})")
+    return Uncertainty(fields, factors)
+
+
+def _extent(factor) -> tuple[float, float]:
+    """The range of values a design can give (u = 0 and 1; about ±7 sd for a normal)."""
+    lo, hi = factor.ppf(np.array([0.0, 1.0]))
+    return float(lo), float(hi)
+
+
+def _inside(mould, x: float, y: float) -> bool:
+    return bool(np.asarray(mould.inside(np.float64(x), np.float64(y))))
+
+
+def _describe(mould) -> str:
+    bounds = getattr(mould, "bounds", None)
+    if bounds is None:
+        return mould.describe()
+    return f"{mould.name}, plan x in [{bounds[0]:g}, {bounds[1]:g}], y in [{bounds[2]:g}, {bounds[3]:g}] mm"
+
+
+def _sampling(src: _Source, doc: dict, realizations: int, seed: int) -> Sampling:
+    t = _Table(src, "sampling", doc.get("sampling", {}), ("plan",))
+    plan = t.string("plan", "monte_carlo", choices=_stochastic.PLANS)
+    try:
+        _stochastic.sample_uniforms(plan, realizations, 1, seed)
+    except ValueError as err:
+        src.wrap(err, "sampling", {"plan": ("sampling.plan", plan), "n": ("study.realizations", realizations)})
+    return Sampling(plan)
+
+
+def _sensitivity(src: _Source, doc: dict, uncertainty: Uncertainty) -> Sensitivity:
+    t = _Table(src, "sensitivity", doc.get("sensitivity", {}), ("method", "base_samples", "qoi"))
+    method = t.string("method", "none", choices=SENSITIVITY_METHODS)
+    base = None
+    if method == "none":
+        if t.has("base_samples"):
+            t.invalid("base_samples", 'base_samples is only used by a sensitivity method: set method = '
+                      '"sobol" or "morris", or remove base_samples')
+    else:
+        base = t.number("base_samples", integer=True, ge=1)
+        if not uncertainty.varying:
+            src.invalid("sensitivity.method", method,
+                        "a sensitivity analysis needs at least one [uncertainty.*] input")
+    hint = f"qoi must be a non-empty list of distinct names from {', '.join(QOIS)}"
+    qoi = t.raw("qoi", list(QOIS), hint)
+    if not isinstance(qoi, list) or not qoi or len(set(map(repr, qoi))) != len(qoi) or any(q not in QOIS for q in qoi):
+        t.invalid("qoi", hint)
+    return Sensitivity(method, base, tuple(qoi))
+
+
+def _report(src: _Source, doc: dict, rings: int) -> Report:
+    t = _Table(src, "report", doc.get("report", {}), ("lines", "histogram_nodes", "experimental_csv"))
+    lines = t.string("lines", "max_shear", choices=LINES)
+    hint = f"histogram_nodes must be a list of [i, j] integer pairs with |i|, |j| <= rings = {rings}"
+    nodes = t.raw("histogram_nodes", [], hint)
+    ok = isinstance(nodes, list) and all(
+        isinstance(n, list) and len(n) == 2 and all(_is_int(v) and abs(v) <= rings for v in n) for n in nodes)
+    if not ok:
+        t.invalid("histogram_nodes", hint)
+    csv = None
+    if t.has("experimental_csv"):
+        csv = src.relative_file("report.experimental_csv", t.data["experimental_csv"])
+    return Report(lines, tuple((int(i), int(j)) for i, j in nodes), csv)
+
+
+def _output(src: _Source, doc: dict, name: str) -> Path:
+    t = _Table(src, "output", doc.get("output", {}), ("directory",))
+    directory = t.string("directory", f"results/{name}", hint="directory must be a non-empty path")
+    if not directory:
+        t.invalid("directory", "directory must be a non-empty path")
+    return Path(directory)
+
+
+# ----------------------------------------------------------------------------- public API
+
+
+def load_study(path) -> Study:
+    """Read and validate a study file; raises StudyError (first problem found)."""
+    path = Path(path)
+    src = _Source(path)
+    doc = _read_toml(path, src)
+    for key, value in doc.items():
+        if key not in SECTIONS:
+            what = f"section [{key}]" if isinstance(value, dict) else f"top-level key {key} (outside any section)"
+            src.fail(f"unknown {what}; valid sections: {', '.join(SECTIONS)}")
+    for key in ("study", "geometry", "fabric", "process", "solver"):
+        if key not in doc:
+            src.fail(f"section [{key}] is missing (required: study, geometry, fabric, process, solver)")
+    head = _study(src, doc)
+    geometry, mould = _geometry_section(src, doc)
+    fabric = _fabric(src, doc, mould)
+    process = _process(src, doc)
+    solver = _solver(src, doc)
+    uncertainty = _uncertainty(src, doc, fabric, process, solver, mould)
+    return Study(
+        path=path,
+        **head,
+        geometry=geometry,
+        fabric=fabric,
+        process=process,
+        solver=solver,
+        uncertainty=uncertainty,
+        sampling=_sampling(src, doc, head["realizations"], head["seed"]),
+        sensitivity=_sensitivity(src, doc, uncertainty),
+        report=_report(src, doc, solver.rings),
+        output_dir=_output(src, doc, head["name"]),
+    )
+
+
+def validate_study(path) -> str:
+    """Validate a study file and return a short summary of it; raises StudyError."""
+    s = load_study(path)
+    material = Path(s.fabric.material).name
+    levels = ", ".join(f"{f:g}" for f in s.force_levels)
+    force = f"sweep {levels} N" if s.is_sweep else f"{levels} N"
+    varying = []
+    for name, f in s.uncertainty.fields.items():
+        what = ", ".join(f"{k} {v:g}" for k, v in f.params.items())
+        length = f", L = {f.length_mm[0]:g} x {f.length_mm[1]:g} mm" if f.length_mm else ""
+        varying.append(f"{name} field ({what}; {f.correlation}{length})")
+    varying += [f"{name} ~ {factor.describe()}" for name, factor in s.uncertainty.factors.items()]
+    sens = s.sensitivity.method
+    if sens != "none":
+        sens += f", {s.sensitivity.base_samples} base samples"
+    return "\n".join([
+        f"{s.name}: {s.realizations} realisations, seed {s.seed}, {s.sampling.plan} plan, chunks of {s.chunk_size}",
+        f"  mould {s.geometry.describe()}; "
+        f"material {material}; spacing {s.fabric.spacing_mm:g} mm, {s.solver.rings} rings, {s.solver.mode} mode",
+        f"  blank-holder force {force}, friction {s.process.friction:g}",
+        f"  varying: {'; '.join(varying) if varying else 'nothing (deterministic)'}",
+        f"  sensitivity: {sens}; output: {s.output_dir}",
+    ])
+
+
+def main_validate(argv) -> int:
+    """``uqdrape validate FILE...``: print each summary and return 0, or print the first
+    error (no traceback) to stderr and return 2."""
+    parser = argparse.ArgumentParser(prog="uqdrape validate", description="Check study files.")
+    parser.add_argument("files", nargs="+", metavar="FILE", help="study TOML file(s)")
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:  # argparse already printed usage or help
+        return int(stop.code or 0)
+    for name in args.files:
+        try:
+            print(validate_study(name))
+        except StudyError as err:
+            print(f"error: {err}", file=sys.stderr)
+            return 2
+    return 0
