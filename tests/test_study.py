@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from uqdrape.study import QOIS, StudyError, load_study, main_validate, validate_study
+from uqdrape.study import QOIS, SENSITIVITY_METHODS, StudyError, load_study, main_validate, validate_study
 
 STUDIES = Path(__file__).resolve().parents[1] / "studies"
 
@@ -230,6 +230,10 @@ BAD = [
      ['sampling.plan = "sobol"', "study.realizations = 10", "power-of-two"]),
     ("sensitivity-needs-base-samples", BASE + SPACING + '\n[sensitivity]\nmethod = "sobol"\n',
      ["sensitivity.base_samples is missing", "integer >= 1"]),
+    ("sobol-base-samples", BASE + SPACING + '\n[sensitivity]\nmethod = "sobol"\nbase_samples = 100\n',
+     ["sensitivity.base_samples = 100", "power of 2"]),
+    ("morris-base-samples", BASE + SPACING + '\n[sensitivity]\nmethod = "morris"\nbase_samples = 4\n',
+     ["sensitivity.base_samples = 4", "minimum is 10"]),
     ("sensitivity-needs-inputs", BASE + '\n[sensitivity]\nmethod = "morris"\nbase_samples = 10\n',
      ['sensitivity.method = "morris"', "[uncertainty.*]"]),
     ("base-samples-without-method", BASE + "\n[sensitivity]\nbase_samples = 64\n",
@@ -270,6 +274,12 @@ def test_first_error_in_schema_order(tmp_path):
 def test_missing_file_is_a_study_error(tmp_path):
     with pytest.raises(StudyError, match="nothere.toml: cannot read"):
         load_study(tmp_path / "nothere.toml")
+
+
+def test_sensitivity_methods_match_the_sensitivity_package():
+    import uqdrape.sensitivity
+
+    assert set(SENSITIVITY_METHODS) == {*uqdrape.sensitivity.METHODS, "none"}
 
 
 # ---------------------------------------------------------------- the validate command

@@ -29,16 +29,18 @@ Paths in the file (stl ``path``, a material card, ``experimental_csv``) are rela
 the study file; ``output.directory`` is relative to the current working directory.
 
 Errors. Every problem raises :class:`StudyError` naming the file, the dotted key, the
-bad value and what is valid, e.g.
-``studies/x.toml: uncertainty.spacing.cv = 1.2 is invalid: cv must satisfy 0 <= cv < 1``.
-Only the **first** problem is reported, in a fixed order (unknown sections; then the
-sections in the order above; within a section unknown keys first, then the keys in the
-order above), because later checks need earlier values (the crossover check builds the
-mould, histogram nodes need ``rings``, random fields need ``spacing_mm``). Range checks of
-moulds, materials, distributions, random fields and sampling plans are those of
-uqdrape.geometry / .material / .stochastic; this module checks TOML types, keys and
-the rules that tie sections together. A key that would be silently ignored
-(``length_mm`` of an iid field, ``base_samples`` without a sensitivity method) is an
+bad value and what is valid, in one line, e.g. ``studies/x.toml:
+uncertainty.spacing.cv = 1.2 is invalid: cv (spacing coefficient of variation) must be
+in [0, 1), got 1.2``. Only the **first** problem is reported, in a fixed order: unknown
+sections; then the sections in the order above; within a section unknown keys, then the
+keys in the order above (``geometry.kind`` and a factor's ``dist`` first: they decide
+which keys are valid). Stopping at the first is deliberate: later checks need earlier
+values (the crossover check builds the mould, histogram nodes need ``rings``, random
+fields need ``spacing_mm``). Range checks of moulds, materials, distributions, random
+fields, sampling plans and sensitivity designs are those of uqdrape.geometry, .material,
+.stochastic and .sensitivity; this module checks TOML types and keys and the rules that
+tie sections together. A key that would be silently ignored (``length_mm`` of an iid
+field, ``base_samples`` without a sensitivity method) is an
 error too, because it usually means another key was forgotten.
 """
 
@@ -110,9 +112,6 @@ class Geometry:
 
     kind: str
     params: dict
-
-    def describe(self) -> str:
-        return f"{self.kind}(" + ", ".join(f"{k}={v}" for k, v in self.params.items()) + ")"
 
     def build_mould(self):
         """A new Surface for this mould (an STL mould is re-read: keep the result)."""
@@ -653,7 +652,15 @@ def _sensitivity(src: _Source, doc: dict, uncertainty: Uncertainty) -> Sensitivi
             t.invalid("base_samples", 'base_samples is only used by a sensitivity method: set method = '
                       '"sobol" or "morris", or remove base_samples')
     else:
+        # imported here: SALib is slow to import and only needed for a sensitivity study.
+        # _check_base_samples holds the design's minimum and power-of-two rules.
+        from .sensitivity.design import _check_base_samples
+
         base = t.number("base_samples", integer=True, ge=1)
+        try:
+            _check_base_samples(method, base)
+        except ValueError as err:
+            src.wrap(err, "sensitivity", {"base_samples": ("sensitivity.base_samples", base)})
         if not uncertainty.varying:
             src.invalid("sensitivity.method", method,
                         "a sensitivity analysis needs at least one [uncertainty.*] input")
@@ -740,7 +747,7 @@ def validate_study(path) -> str:
         sens += f", {s.sensitivity.base_samples} base samples"
     return "\n".join([
         f"{s.name}: {s.realizations} realisations, seed {s.seed}, {s.sampling.plan} plan, chunks of {s.chunk_size}",
-        f"  mould {s.geometry.describe()}; "
+        f"  mould {s.geometry.build_mould().describe()}; "
         f"material {material}; spacing {s.fabric.spacing_mm:g} mm, {s.solver.rings} rings, {s.solver.mode} mode",
         f"  blank-holder force {force}, friction {s.process.friction:g}",
         f"  varying: {'; '.join(varying) if varying else 'nothing (deterministic)'}",
