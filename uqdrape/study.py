@@ -59,6 +59,7 @@ from pathlib import Path
 import numpy as np
 
 from . import geometry as _geometry
+from .drape import MODES
 from . import material as _material
 from . import stochastic as _stochastic
 
@@ -87,7 +88,6 @@ QOIS = (
     "blankholder_energy",
     "locked_fraction",
 )
-MODES = ("geodesic", "energy")
 SENSITIVITY_METHODS = ("sobol", "morris", "none")
 LINES = ("max_shear",)
 SECTIONS = (
