@@ -1,0 +1,101 @@
+"""Measured shear along the max-shear lines, read from a CSV, for overlay on line plots.
+
+Format (header row required, extra columns ignored)::
+
+    distance_mm,shear_deg,quadrant_sign[,blankholder_force_N]
+    12.5,8.1,1
+    12.5,-10.4,-1
+
+``quadrant_sign`` is +1 for the i*j > 0 (positive-shear) quadrants and -1 for the
+others; the optional ``blankholder_force_N`` assigns a point to one panel of a
+blank-holder force sweep (without it every point is shown on every panel).
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+REQUIRED_COLUMNS = ("distance_mm", "shear_deg", "quadrant_sign")
+FORCE_COLUMN = "blankholder_force_N"
+
+
+@dataclass(frozen=True)
+class ExperimentalPoints:
+    """Measured points: distance from the tip (mm), shear (deg), quadrant sign (+1/-1), force (N or NaN)."""
+
+    distance_mm: np.ndarray
+    shear_deg: np.ndarray
+    quadrant_sign: np.ndarray
+    blankholder_force_N: np.ndarray
+    source: str
+
+    def at_force(self, force: float | None) -> "ExperimentalPoints":
+        """The points measured at blank-holder force ``force`` (N) plus those with no force given."""
+        if force is None:
+            return self
+        keep = np.isnan(self.blankholder_force_N) | np.isclose(self.blankholder_force_N, force)
+        return ExperimentalPoints(self.distance_mm[keep], self.shear_deg[keep], self.quadrant_sign[keep],
+                                  self.blankholder_force_N[keep], self.source)
+
+
+def read_experimental(path) -> ExperimentalPoints:
+    """Read and check an experimental CSV (see module docstring); ValueError naming file, row and column."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"experimental CSV {str(path)!r} does not exist")
+    with path.open(newline="", encoding="utf-8-sig") as fh:
+        reader = csv.DictReader(fh)
+        header = [h.strip() for h in (reader.fieldnames or [])]
+        missing = [c for c in REQUIRED_COLUMNS if c not in header]
+        if missing:
+            raise ValueError(
+                f"experimental CSV {str(path)!r}: missing column(s) {missing}; header is {header}, "
+                f"required: {', '.join(REQUIRED_COLUMNS)} (optional: {FORCE_COLUMN})"
+            )
+        reader.fieldnames = header
+        columns = {c: [] for c in (*REQUIRED_COLUMNS, FORCE_COLUMN)}
+        for row_number, row in enumerate(reader, start=2):
+            for name in columns:
+                text = (row.get(name) or "").strip()
+                if name == FORCE_COLUMN and not text:
+                    columns[name].append(np.nan)
+                    continue
+                try:
+                    value = float(text)
+                except ValueError:
+                    raise ValueError(
+                        f"experimental CSV {str(path)!r} row {row_number}: column {name!r} = {text!r} is not a number"
+                    ) from None
+                if not np.isfinite(value):
+                    raise ValueError(
+                        f"experimental CSV {str(path)!r} row {row_number}: column {name!r} = {text!r} is not finite"
+                    )
+                if name == "quadrant_sign" and value not in (1.0, -1.0):
+                    raise ValueError(
+                        f"experimental CSV {str(path)!r} row {row_number}: quadrant_sign = {text!r}; "
+                        "valid: +1 (i*j > 0 quadrants) or -1"
+                    )
+                if name == "distance_mm" and value < 0:
+                    raise ValueError(
+                        f"experimental CSV {str(path)!r} row {row_number}: distance_mm = {text!r} must be >= 0 (mm)"
+                    )
+                columns[name].append(value)
+    if not columns["distance_mm"]:
+        raise ValueError(f"experimental CSV {str(path)!r} has a header but no data rows")
+    return ExperimentalPoints(*(np.asarray(columns[c], dtype=float) for c in (*REQUIRED_COLUMNS, FORCE_COLUMN)),
+                              source=path.name)
+
+
+def as_experimental(experimental) -> ExperimentalPoints | None:
+    """``None``, an ``ExperimentalPoints`` or a CSV path -> ``ExperimentalPoints`` (or None)."""
+    if experimental is None or isinstance(experimental, ExperimentalPoints):
+        return experimental
+    if isinstance(experimental, (str, Path)):
+        return read_experimental(experimental)
+    raise ValueError(
+        f"experimental must be None, a CSV path or ExperimentalPoints, got {type(experimental).__name__}"
+    )

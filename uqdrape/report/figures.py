@@ -1,0 +1,255 @@
+"""Figures of single drapes: the draped net in 3-D and shear along the max-shear lines.
+
+Every figure is drawn on a ``matplotlib.figure.Figure`` with the Agg canvas (no pyplot,
+no screen, no global state), written as a PNG and its path returned. The helpers at the
+top (style, panels, labels, blank-holder levels) are shared with ``ensemble_figures``.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import textwrap
+from pathlib import Path
+
+import matplotlib as mpl
+import numpy as np
+import xarray as xr
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+from uqdrape.drape.lines import QUADRANTS, max_shear_lines
+
+from .experimental import as_experimental
+
+FORCE = "blankholder_force"
+REALIZATION = "realization"
+#: Line style per max-shear quadrant: i*j > 0 (positive-shear) quadrants red, the others blue.
+QUADRANT_STYLE = {
+    "++": dict(color="tab:red", marker="o", linestyle="-"),
+    "--": dict(color="tab:red", marker="s", linestyle="--"),
+    "-+": dict(color="tab:blue", marker="^", linestyle="-"),
+    "+-": dict(color="tab:blue", marker="v", linestyle="--"),
+}
+PLUS_COLOR, MINUS_COLOR = "tab:red", "tab:blue"
+DISTANCE_LABEL = "distance from the tip (mm)"
+SHEAR_LABEL = "shear angle γ (deg)"
+_RC = {"font.size": 11, "axes.titlesize": 12, "axes.labelsize": 11, "legend.fontsize": 9,
+       "xtick.labelsize": 10, "ytick.labelsize": 10, "figure.titlesize": 13}
+DPI = 110
+
+
+def styled(func):
+    """Run a figure function under the report's font sizes (a local rc context)."""
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        with mpl.rc_context(_RC):
+            return func(*args, **kwargs)
+    return wrapper
+
+
+def panels(n: int, *, size=(5.4, 4.2), max_cols: int = 4, **subplot_kw):
+    """A constrained-layout Figure with ``n`` panels in a near-square grid; returns (fig, axes list)."""
+    cols = n if n <= 3 else min(max_cols, math.ceil(math.sqrt(n)))
+    rows = math.ceil(n / cols)
+    fig = Figure(figsize=(size[0] * cols, size[1] * rows), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = [fig.add_subplot(rows, cols, k + 1, **subplot_kw) for k in range(n)]
+    return fig, axes
+
+
+def shared_ylim(axes) -> None:
+    """Give every panel the union of their y ranges, so levels compare at a glance."""
+    lows, highs = zip(*(ax.get_ylim() for ax in axes))
+    for ax in axes:
+        ax.set_ylim(min(lows), max(highs))
+
+
+def save(fig: Figure, path) -> Path:
+    """Write ``fig`` as a PNG at ``path`` (parent folders created) and return the Path."""
+    path = Path(path)
+    if path.suffix.lower() != ".png":
+        raise ValueError(f"path must end in .png, got {str(path)!r}")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=DPI)
+    return path
+
+
+def unit_text(units: str | None) -> str:
+    """CF unit string -> axis-label text ("degree" -> "deg", "1" -> "-")."""
+    return {"degree": "deg", "degrees": "deg", "1": "-", None: "-", "": "-"}.get(units, units)
+
+
+def label(da: xr.DataArray, fallback: str | None = None) -> str:
+    """Axis/colour-bar label "long name (units)" from CF attrs."""
+    name = fallback or da.attrs.get("long_name", da.name)
+    return f"{name} ({unit_text(da.attrs.get('units'))})"
+
+
+def force_title(force) -> str:
+    return f"F_BH = {float(force):g} N"
+
+
+def levels(ds: xr.Dataset) -> list:
+    """[(force N or None, Dataset at that level)] over a leading ``blankholder_force`` dim, if any."""
+    if FORCE in ds.dims:
+        return [(float(f), ds.sel({FORCE: f})) for f in ds[FORCE].values]
+    return [(None, ds)]
+
+
+def check_realization(ds: xr.Dataset, realization) -> int:
+    """Check ``realization`` is a valid position along ``realization``; return it as int."""
+    if REALIZATION not in ds.dims:
+        raise ValueError(f"the Dataset has no {REALIZATION!r} dim (dims: {dict(ds.sizes)})")
+    size = ds.sizes[REALIZATION]
+    if isinstance(realization, bool) or not isinstance(realization, (int, np.integer)) \
+            or not 0 <= realization < size:
+        raise ValueError(f"realization must be a position 0..{size - 1} along {REALIZATION!r}, got {realization!r}")
+    return int(realization)
+
+
+def describe(ds: xr.Dataset, width: int = 90) -> str:
+    """Description of a drape Dataset for figure titles (geometry, material, mode), wrapped."""
+    parts = [ds.attrs.get("geometry"), ds.attrs.get("material"), ds.attrs.get("mode")]
+    return textwrap.fill(", ".join(str(p) for p in parts if p not in (None, "", "none")), width)
+
+
+def _site_dims(da: xr.DataArray) -> tuple[str, str]:
+    for dims in (("i", "j"), ("cell_i", "cell_j")):
+        if set(dims) <= set(da.dims):
+            return dims
+    raise ValueError(f"variable {da.name!r} has dims {da.dims}; plot_net needs a node (i, j) or cell "
+                     "(cell_i, cell_j) variable")
+
+
+def signed_norm(values: np.ndarray, units: str | None):
+    """(norm, cmap): diverging and centred on 0 for angles or signed data, else sequential."""
+    finite = values[np.isfinite(values)]
+    lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
+    if units in ("degree", "degrees") or lo < 0:
+        vmax = max(abs(lo), abs(hi)) or 1.0
+        return mpl.colors.Normalize(-vmax, vmax), mpl.colormaps["RdBu_r"]
+    return mpl.colors.Normalize(lo, hi if hi > lo else lo + 1.0), mpl.colormaps["viridis"]
+
+
+@styled
+def plot_net(ds: xr.Dataset, path, var: str = "shear", realization: int = 0, title: str | None = None) -> Path:
+    """Draw one draped net in 3-D, cells coloured by ``var``, and write a PNG.
+
+    ``ds`` is a drape Dataset (dims realization, i, j; a ``blankholder_force`` level must be
+    selected first); ``realization`` is a position along ``realization``. Cells are the
+    quads between valid nodes (fibre lines are their edges); a node variable (e.g. shear)
+    colours a cell by the mean of its four corners, a cell variable (e.g. cell_shear)
+    directly. Angles get a diverging colour map centred on 0 with a colour bar in deg.
+    Axes are x, y, z in mm with equal scales. Returns the path.
+    """
+    if var not in ds.data_vars:
+        raise ValueError(f"var={var!r} is not a data variable; valid: {sorted(map(str, ds.data_vars))}")
+    missing = [v for v in ("x", "y", "z") if v not in ds.data_vars]
+    if missing:
+        raise ValueError(f"plot_net needs node positions x, y, z; missing {missing}")
+    r = check_realization(ds, realization)
+    one = ds[["x", "y", "z", var]].isel({REALIZATION: r})
+    site = _site_dims(one[var])
+    extra = [d for d in (*one["x"].dims, *one[var].dims) if d not in ("i", "j", *site)]
+    if extra:
+        raise ValueError(f"plot_net draws one net; the Dataset also has dims {sorted(set(extra))}: "
+                         f"select one level first, e.g. ds.sel({extra[0]}=...)")
+    P = np.stack([one[c].transpose("i", "j").values for c in ("x", "y", "z")], axis=-1)
+    quads = np.stack([P[:-1, :-1], P[1:, :-1], P[1:, 1:], P[:-1, 1:]], axis=2)  # (2n, 2n, 4, 3)
+    values = one[var].transpose(*site).values.astype(float)
+    if site == ("i", "j"):
+        values = np.mean(np.stack([values[:-1, :-1], values[1:, :-1], values[1:, 1:], values[:-1, 1:]]), axis=0)
+    keep = np.isfinite(quads).all(axis=(2, 3)) & np.isfinite(values)
+    if not keep.any():
+        raise ValueError(f"realization {r} has no cell with four valid nodes and a finite {var!r}; nothing to draw")
+    norm, cmap = signed_norm(values[keep], one[var].attrs.get("units"))
+
+    fig, (ax,) = panels(1, size=(7.6, 6.4), projection="3d")
+    lw = 0.35 if quads.shape[0] <= 40 else 0.15
+    ax.add_collection3d(Poly3DCollection(quads[keep], facecolors=cmap(norm(values[keep])),
+                                         edgecolors="0.15", linewidths=lw))
+    pts = quads[keep].reshape(-1, 3)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    span = np.maximum(hi - lo, 1e-6)
+    span[2] = max(span[2], 0.05 * span[:2].max())
+    ax.set(xlim=(lo[0], lo[0] + span[0]), ylim=(lo[1], lo[1] + span[1]), zlim=(lo[2], lo[2] + span[2]),
+           xlabel="x (mm)", ylabel="y (mm)", zlabel="z (mm)")
+    ax.set_box_aspect(tuple(span))
+    ax.view_init(elev=32, azim=-60)
+    fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.65, pad=0.08,
+                 label=label(one[var]))
+    n_bad = int((~np.isfinite(P).all(axis=-1)).sum())
+    ax.set_title(title or f"draped net, realisation {int(one[REALIZATION])}"
+                 + (f" ({n_bad} invalid nodes)" if n_bad else "") + f"\n{describe(ds, 70)}", fontsize=10)
+    return save(fig, path)
+
+
+def _line_panels(ds: xr.Dataset, realization):
+    """[(force or None, Dataset over the realisations drawn in that panel)]."""
+    groups = []
+    if FORCE in ds.dims:
+        groups = levels(ds)
+    elif FORCE in ds.data_vars and ds[FORCE].dims == (REALIZATION,):
+        forces = ds[FORCE].values
+        distinct = np.unique(forces[np.isfinite(forces)])
+        if distinct.size > 1:
+            groups = [(float(f), ds.isel({REALIZATION: np.flatnonzero(forces == f)})) for f in distinct]
+        else:
+            groups = [(float(distinct[0]) if distinct.size else None, ds)]
+    else:
+        groups = [(None, ds)]
+    if realization is None:
+        return groups
+    return [(f, sub.isel({REALIZATION: [check_realization(sub, realization)]})) for f, sub in groups]
+
+
+def overlay_experimental(ax, points, force) -> None:
+    """Scatter measured points (+ quadrants red, - quadrants blue, black edges) on a line plot."""
+    if points is None:
+        return
+    pts = points.at_force(force)
+    for sign, color, text in ((1.0, PLUS_COLOR, "+"), (-1.0, MINUS_COLOR, "−")):
+        sel = pts.quadrant_sign == sign
+        if sel.any():
+            ax.scatter(pts.distance_mm[sel], pts.shear_deg[sel], marker="D", s=30, facecolor=color,
+                       edgecolor="black", linewidth=0.8, zorder=5,
+                       label=f"experiment, {text} quadrants ({pts.source})")
+
+
+@styled
+def plot_lines(ds: xr.Dataset, path, realization: int | None = 0, experimental=None) -> Path:
+    """Shear (deg) against distance from the tip (mm) along the four max-shear lines (thesis Fig 5.9).
+
+    Quadrants with i*j > 0 (++, --) are red, the others (-+, +-) blue. One panel per
+    blank-holder force: per level of a ``blankholder_force`` dim, or per distinct force
+    when realisations of one batch carry different forces (one drape per level, as in the
+    thesis). ``realization`` is the position of the drape drawn within each panel's
+    realisations (None: all of them, thin). ``experimental`` (a CSV path, see
+    ``uqdrape.report.experimental``) overlays measured points. Returns the path.
+    """
+    points = as_experimental(experimental)
+    groups = _line_panels(ds, realization)
+    fig, axes = panels(len(groups), size=(5.6, 4.4))
+    for ax, (force, sub) in zip(axes, groups):
+        lines = max_shear_lines(sub).transpose(REALIZATION, "quadrant", "k")
+        many = lines.sizes[REALIZATION] > 1
+        for q in QUADRANTS:
+            style = QUADRANT_STYLE[q]
+            for r in range(lines.sizes[REALIZATION]):
+                line = lines.sel(quadrant=q).isel({REALIZATION: r})
+                ax.plot(line["distance"].values, line["shear"].values, color=style["color"],
+                        linestyle=style["linestyle"], marker=None if many else style["marker"],
+                        markersize=4, linewidth=0.8 if many else 1.5, alpha=0.6 if many else 1.0,
+                        label=None if r else f"{q} ({'+' if q in ('++', '--') else '−'} quadrant)")
+        overlay_experimental(ax, points, force)
+        ax.axhline(0.0, color="0.6", linewidth=0.8)
+        ax.set(xlabel=DISTANCE_LABEL, ylabel=SHEAR_LABEL)
+        ax.grid(alpha=0.3)
+        if force is not None:
+            ax.set_title(force_title(force))
+        ax.legend(loc="best")
+    shared_ylim(axes)
+    fig.suptitle(f"shear along the max-shear lines — {describe(ds)}")
+    return save(fig, path)
