@@ -1,0 +1,76 @@
+"""One chunk of an ensemble: one batched drape of some realisations, and its netCDF file.
+
+A chunk Dataset is the drape Dataset (notes/schema.md) with the global realisation
+indices as the ``realization`` coordinate, every sampled input along ``realization``
+(scalar factors are stored by ``drape`` itself; a random spacing adds the segment
+lengths ``seg_i`` (realization, cell_i, j) and ``seg_j`` (realization, i, cell_j), mm;
+a random zero angle is ``gamma0``), and for one level of a blank-holder-force sweep a
+leading length-1 dimension ``blankholder_force`` (N) instead of the per-realisation
+variable of that name.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from ..drape import drape
+from ..material import load_material
+
+
+def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None, material=None) -> xr.Dataset:
+    """One batched drape of ``realizations`` (global indices) with ``inputs`` from
+    ``sampled_inputs`` / ``inputs_from_design``; settings a factor does not vary are the
+    study's fixed ones. ``force`` (N) is required for a sweep study and must be one of its
+    levels, and must be None otherwise. ``surface`` / ``material`` may be passed to reuse
+    them (default: built from the study)."""
+    r = np.asarray(realizations, dtype=np.int64)
+    levels = study.force_levels
+    if study.is_sweep:
+        if force is None or float(force) not in levels:
+            raise ValueError(f"force must be one of the sweep levels {list(levels)} N, got {force!r}")
+        force = float(force)
+    elif force is not None:
+        raise ValueError(f"force={force!r}: study {study.name!r} is not a blank-holder-force sweep; pass force=None")
+    fabric, process, solver = study.fabric, study.process, study.solver
+    R = len(r)
+    crossover = np.stack([np.broadcast_to(inputs.get("crossover_x", fabric.crossover[0]), (R,)),
+                          np.broadcast_to(inputs.get("crossover_y", fabric.crossover[1]), (R,))], axis=-1)
+    ds = drape(
+        study.geometry.build_mould() if surface is None else surface,
+        fabric.spacing_mm, solver.rings,
+        orientation=inputs.get("orientation", fabric.orientation_deg),
+        pre_shear=inputs.get("pre_shear", fabric.pre_shear_deg),
+        crossover=crossover,
+        seg_i=inputs.get("seg_i"), seg_j=inputs.get("seg_j"), gamma0=inputs.get("gamma0"),
+        mode=solver.mode,
+        material=load_material(fabric.material) if material is None else material,
+        blankholder_force=inputs.get("blankholder_force", levels[0]) if force is None else force,
+        friction=inputs.get("friction", process.friction),
+        sectors=process.sectors,
+        tolerance=solver.tolerance_deg, max_iterations=solver.max_iterations,
+    )
+    ds = ds.assign_coords(realization=r)
+    if "seg_i" in inputs:
+        ds["seg_i"] = (("realization", "cell_i", "j"), inputs["seg_i"],
+                       {"units": "mm", "long_name": "fibre-1 segment length (flat blank)"})
+        ds["seg_j"] = (("realization", "i", "cell_j"), inputs["seg_j"],
+                       {"units": "mm", "long_name": "fibre-2 segment length (flat blank)"})
+    if force is not None:
+        ds = ds.drop_vars("blankholder_force").expand_dims(blankholder_force=[force])
+        ds["blankholder_force"].attrs.update(units="N", long_name="total blank-holder force")
+    return ds
+
+
+def write_atomic(ds: xr.Dataset, path: Path) -> Path:
+    """Write ``ds`` to netCDF ``path`` via ``<path>.part`` in the same directory and a
+    rename, so ``path`` exists only complete. A leftover ``.part`` (a killed writer) is
+    overwritten, never read."""
+    path = Path(path)
+    part = path.with_name(path.name + ".part")
+    ds.to_netcdf(part, engine="netcdf4")
+    os.replace(part, path)
+    return path

@@ -1,0 +1,110 @@
+"""Per-realisation solver inputs of a study, from standard random variables.
+
+Every uncertain input is a function of *standard variables*: standard normals drive the
+random fields (spacing: segment lengths in mm; zero angle: gamma0 per cell in degrees)
+and standard uniforms drive the scalar factors (through ``Factor.ppf``, in the factor's
+own unit). Two sources of standard variables share one map (:func:`_inputs`):
+
+- :func:`sampled_inputs` -- the study's own ensemble. Realisation r's field noise comes
+  from its own stream (``realization_normals(seed, [r], ...)``, exact sampling). Its
+  factor uniforms come from the sampling plan: ``monte_carlo`` draws them from the same
+  stream right after the field noise (u = Phi(z) of further normals of that stream);
+  ``latin_hypercube`` / ``sobol`` take row r of the global design
+  ``sample_uniforms(plan, N, d, seed)`` (N = study realisations, d = number of
+  factors; cheap, recomputed wherever needed). Fields stay exact Monte Carlo under every
+  plan. Either way realisation r's numbers never depend on the chunk it is in or on
+  which worker runs it.
+- :func:`inputs_from_design` -- an explicit design matrix (e.g. a sensitivity design),
+  columns as named by :func:`design_variables`: factor uniforms first, then each field's
+  truncated Karhunen-Loeve mode variables (standard normals), ``name[k]``.
+
+Returned inputs are a dict of arrays with a leading realisation axis: ``seg_i``
+(R, 2n, 2n+1) and ``seg_j`` (R, 2n+1, 2n) in mm if spacing varies, ``gamma0``
+(R, 2n, 2n) in degrees if the zero angle varies, and one (R,) array per scalar factor
+named as in the study (``friction``, ``orientation``, ``crossover_x``, ...).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import ndtr
+
+from ..stochastic import realization_normals, sample_uniforms
+
+
+def _realizations(study, realizations) -> np.ndarray:
+    """Realisation indices as an int array, each in [0, study.realizations)."""
+    r = np.asarray(realizations)
+    if r.ndim != 1 or r.size == 0 or not np.issubdtype(r.dtype, np.integer):
+        raise ValueError(f"realizations must be a non-empty 1-D sequence of integers, got {realizations!r}")
+    bad = r[(r < 0) | (r >= study.realizations)]
+    if bad.size:
+        raise ValueError(f"realization index {int(bad[0])} is outside the study's 0..{study.realizations - 1}")
+    return r.astype(np.int64)
+
+
+def _field_inputs(study, kl: bool) -> dict:
+    """The study's random-field input maps by name (exact, or truncated KL for a design)."""
+    out = {}
+    for name, spec in study.uncertainty.fields.items():
+        inp = spec.build_input(study.solver.rings, study.fabric.spacing_mm)
+        out[name] = inp.kl(spec.kl_retained) if kl else inp
+    return out
+
+
+def _inputs(study, fields: dict, xi: dict, u: np.ndarray) -> dict:
+    """Solver inputs from field standard normals ``xi[name]`` (R, n_variables) and factor
+    uniforms ``u`` (R, d), columns in the order of ``study.uncertainty.factors``."""
+    out = {}
+    if "spacing" in fields:
+        out["seg_i"], out["seg_j"] = fields["spacing"](xi["spacing"])
+    if "zero_angle" in fields:
+        out["gamma0"] = fields["zero_angle"](xi["zero_angle"])
+    for k, (name, factor) in enumerate(study.uncertainty.factors.items()):
+        out[name] = factor.ppf(u[:, k])
+    return out
+
+
+def sampled_inputs(study, realizations) -> dict:
+    """Solver inputs of the given realisation indices of the study's ensemble."""
+    r = _realizations(study, realizations)
+    fields = _field_inputs(study, kl=False)
+    d = len(study.uncertainty.factors)
+    monte_carlo = study.sampling.plan == "monte_carlo"
+    sizes = [inp.n_variables for inp in fields.values()] + ([d] if monte_carlo else [])
+    normals = realization_normals(study.seed, r, sizes)
+    xi = dict(zip(fields, normals))
+    if monte_carlo:
+        u = ndtr(normals[-1])
+    else:
+        u = sample_uniforms(study.sampling.plan, study.realizations, d, study.seed)[r]
+    return _inputs(study, fields, xi, u)
+
+
+def design_variables(study) -> list[str]:
+    """Column names of a design matrix for :func:`inputs_from_design`: the scalar factors
+    (standard uniforms), then ``field[k]`` for each field's KL modes (standard normals),
+    fields in the order ``spacing``, ``zero_angle`` (as uqdrape.sensitivity names them)."""
+    names = list(study.uncertainty.factors)
+    for name, inp in _field_inputs(study, kl=True).items():
+        names += [f"{name}[{k}]" for k in range(inp.n_variables)]
+    return names
+
+
+def inputs_from_design(study, X) -> dict:
+    """Solver inputs of the rows of a design matrix X (R, len(design_variables(study)))
+    of standard variables; row k becomes realisation k of the result."""
+    X = np.asarray(X, dtype=float)
+    names = design_variables(study)
+    if X.ndim != 2 or X.shape[0] == 0 or X.shape[1] != len(names):
+        raise ValueError(f"X must have shape (R >= 1, {len(names)}) with columns {names}, got shape {X.shape}")
+    d = len(study.uncertainty.factors)
+    u = X[:, :d]
+    if np.any(~((u >= 0.0) & (u <= 1.0))):
+        raise ValueError(f"X columns {names[:d]} are standard uniforms and must lie in [0, 1]")
+    if not np.all(np.isfinite(X[:, d:])):
+        raise ValueError(f"X columns {names[d:]} are standard normals and must be finite")
+    fields = _field_inputs(study, kl=True)
+    cuts = np.cumsum([d] + [inp.n_variables for inp in fields.values()])
+    xi = dict(zip(fields, np.split(X, cuts[:-1], axis=1)[1:]))
+    return _inputs(study, fields, xi, u)

@@ -1,0 +1,168 @@
+"""``run_study``: a study's ensemble as dask tasks, one netCDF file per chunk, resumable.
+
+Realisations 0..N-1 are cut into consecutive chunks of ``chunk_size``; a sweep repeats
+the same chunks at every blank-holder-force level with the same random inputs (common
+random numbers, so differences between levels are not sampling noise). A chunk is one
+batched drape run as one dask task, which writes its own file and returns only its path,
+so memory stays bounded by a chunk per worker. Realisation r's inputs depend only on the
+study (see ``inputs``), so results are identical for any chunk size, worker count and
+scheduler.
+
+Resume: the run folder's manifest records the study; a rerun of the same study skips
+chunks whose final file exists (a ``.part`` file is an unfinished chunk and is redone).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import dask
+import numpy as np
+from dask.diagnostics import ProgressBar
+from tqdm import tqdm
+
+from .. import __version__
+from ..study import Study, load_study
+from .chunk import drape_inputs, write_atomic
+from .inputs import sampled_inputs
+from .store import CHUNKS, read_manifest, write_manifest
+
+#: dask schedulers in this process: a pool of local processes (default) or no
+#: parallelism at all (for debugging). Anything with "://" is a dask.distributed address.
+LOCAL_SCHEDULERS = ("processes", "synchronous")
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """Realisations start..stop-1 at force level ``level`` (index into the sweep, else None)."""
+
+    start: int
+    stop: int
+    level: int | None = None
+    force: float | None = None
+
+    @property
+    def name(self) -> str:
+        prefix = "" if self.level is None else f"f{self.level:03d}-"
+        return f"{prefix}r{self.start:07d}-{self.stop - 1:07d}.nc"
+
+
+def plan_chunks(study: Study, chunk_size: int) -> list[Chunk]:
+    """The chunks of a study: consecutive realisation ranges, for each force level of a sweep."""
+    ranges = [(a, min(a + chunk_size, study.realizations)) for a in range(0, study.realizations, chunk_size)]
+    if not study.is_sweep:
+        return [Chunk(a, b) for a, b in ranges]
+    return [Chunk(a, b, k, f) for k, f in enumerate(study.force_levels) for a, b in ranges]
+
+
+def _run_chunk(study: Study, chunk: Chunk, folder: str, attrs: dict) -> str:
+    """Dask task: drape one chunk, write its file, return the file's path."""
+    r = np.arange(chunk.start, chunk.stop)
+    ds = drape_inputs(study, r, sampled_inputs(study, r), force=chunk.force)
+    ds.attrs.update(attrs)
+    return str(write_atomic(ds, Path(folder) / chunk.name))
+
+
+def _positive_int(name: str, value) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    return int(value)
+
+
+def _identity(manifest: dict) -> dict:
+    """What must match for chunks to be reused: the study without its chunk size."""
+    study = json.loads(json.dumps(manifest["study"]))
+    study["study"].pop("chunk_size", None)
+    return study
+
+
+def _prepare(out: Path, manifest: dict, resume: bool) -> None:
+    """Check a previous run in ``out`` can be resumed, or clear it; then record this run."""
+    folder = out / CHUNKS
+    old = read_manifest(out)
+    if not resume:
+        for pattern in ("*.nc", "*.nc.part"):
+            for path in folder.glob(pattern):
+                path.unlink()
+    elif old is None:
+        if any(folder.glob("*.nc")):
+            raise ValueError(f"{folder} holds chunk files but {out} has no run manifest; "
+                             "they cannot be checked against this study: run with resume=False (--no-resume)")
+    else:
+        before, now = _identity(old), _identity(manifest)
+        if before != now:
+            changed = sorted(k for k in set(before) | set(now) if before.get(k) != now.get(k))
+            raise ValueError(
+                f"{out} holds a run of a different study definition (changed: {', '.join(changed)}); "
+                "run with resume=False (--no-resume) to replace it, or set another [output] directory")
+        if old["chunks"] != manifest["chunks"]:
+            raise ValueError(
+                f"{out} was run with chunk_size={old['chunk_size']}; resume with chunk_size={old['chunk_size']} "
+                "or run with resume=False (--no-resume)")
+    folder.mkdir(parents=True, exist_ok=True)
+    write_manifest(out, manifest)
+
+
+def _compute(tasks: list, scheduler: str | None, workers: int | None, progress: bool) -> None:
+    """Run the chunk tasks locally or on a dask.distributed cluster; re-raise a failure."""
+    if scheduler is None or scheduler in LOCAL_SCHEDULERS:
+        options = {"scheduler": scheduler or "processes"}
+        if workers is not None:
+            options["num_workers"] = workers
+        bar = ProgressBar(minimum=1.0, out=sys.stderr) if progress else contextlib.nullcontext()
+        with bar:
+            dask.compute(*tasks, **options)
+        return
+    from distributed import Client, as_completed
+
+    with Client(scheduler) as client:
+        futures = client.compute(tasks)
+        for future in tqdm(as_completed(futures), total=len(futures), desc="chunks",
+                           file=sys.stderr, disable=not progress):
+            future.result()
+
+
+def run_study(study, *, scheduler: str | None = None, workers: int | None = None,
+              chunk_size: int | None = None, resume: bool = True, progress: bool = True) -> Path:
+    """Run a study's ensemble; return its output folder (open it with ``open_ensemble``).
+
+    study       a ``Study`` or the path of a study TOML file
+    scheduler   None or "processes": a pool of local processes; "synchronous": in this
+                process; "tcp://host:port" (any "://" address): that dask.distributed cluster
+    workers     local processes (default: one per CPU); not allowed with a cluster address
+    chunk_size  realisations per chunk (one batched drape call); default: the study's
+    resume      skip chunks already written by an earlier run of the same study; False
+                deletes the folder's chunk files first
+    progress    show a progress bar (stderr)
+    """
+    study = study if isinstance(study, Study) else load_study(study)
+    chunk_size = study.chunk_size if chunk_size is None else _positive_int("chunk_size", chunk_size)
+    if scheduler is not None and not (isinstance(scheduler, str) and (scheduler in LOCAL_SCHEDULERS or "://" in scheduler)):
+        raise ValueError(f"scheduler must be None, one of {LOCAL_SCHEDULERS} or a dask.distributed "
+                         f"address such as 'tcp://host:8786', got {scheduler!r}")
+    if workers is not None:
+        workers = _positive_int("workers", workers)
+        if scheduler is not None and scheduler not in LOCAL_SCHEDULERS:
+            raise ValueError(f"workers={workers} sets local processes; the cluster at {scheduler} has its own workers")
+
+    out = study.output_dir.absolute()
+    chunks = plan_chunks(study, chunk_size)
+    provenance = study.to_dict()
+    _prepare(out, {"study": provenance, "chunk_size": chunk_size, "chunks": [c.name for c in chunks],
+                   "uqdrape_version": __version__}, resume)
+
+    folder = out / CHUNKS
+    todo = [c for c in chunks if not (folder / c.name).is_file()]
+    if progress and len(todo) < len(chunks):
+        print(f"{study.name}: {len(chunks) - len(todo)} of {len(chunks)} chunks already done in {folder}",
+              file=sys.stderr)
+    attrs = {"study_name": study.name, "study_seed": study.seed, "study_realizations": study.realizations,
+             "sampling_plan": study.sampling.plan, "study_toml": Path(study.path).read_text(encoding="utf-8"),
+             "study_json": json.dumps(provenance)}
+    run = dask.delayed(_run_chunk, pure=False)
+    _compute([run(study, c, str(folder), attrs) for c in todo], scheduler, workers, progress)
+    return out

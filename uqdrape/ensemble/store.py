@@ -1,0 +1,72 @@
+"""The on-disk ensemble: a run folder with a manifest and one netCDF file per chunk.
+
+Layout of ``<output_dir>``::
+
+    run.json          manifest: the study (``Study.to_dict()``), chunk size, chunk file names
+    chunks/*.nc       one finished chunk each (written whole, then renamed into place)
+    chunks/*.nc.part  a chunk being written, or left by a killed run: never read
+
+:func:`open_ensemble` opens the chunks lazily as one Dataset. There is no consolidated
+single file: the chunk files already are the store (each a plain netCDF file), and
+``open_ensemble(d).to_netcdf(path)`` makes one when a single file is wanted.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import xarray as xr
+
+MANIFEST = "run.json"
+CHUNKS = "chunks"
+
+
+def read_manifest(output_dir) -> dict | None:
+    """The run manifest of ``output_dir``, or None if there is none."""
+    path = Path(output_dir) / MANIFEST
+    if not path.is_file():
+        return None
+    with open(path, encoding="utf-8") as fh:
+        return json.load(fh)
+
+
+def write_manifest(output_dir, manifest: dict) -> None:
+    """Write the manifest atomically (temporary file + rename)."""
+    path = Path(output_dir) / MANIFEST
+    part = path.with_name(path.name + ".part")
+    part.write_text(json.dumps(manifest, indent=1), encoding="utf-8")
+    os.replace(part, path)
+
+
+def chunk_paths(output_dir, manifest: dict) -> list[Path]:
+    """Final paths of all chunk files of a run, in plan order."""
+    folder = Path(output_dir) / CHUNKS
+    return [folder / name for name in manifest["chunks"]]
+
+
+def open_ensemble(output_dir) -> xr.Dataset:
+    """All chunks of a finished run as one lazy (dask-backed) Dataset.
+
+    Dims (realization, i, j, ...) or, for a blank-holder-force sweep,
+    (blankholder_force, realization, i, j, ...); one dask chunk per chunk file.
+    Raises FileNotFoundError if ``output_dir`` holds no run or some chunks are missing
+    (naming them: resume the run to compute them).
+    """
+    output_dir = Path(output_dir)
+    manifest = read_manifest(output_dir)
+    if manifest is None:
+        raise FileNotFoundError(
+            f"{output_dir} holds no uqdrape run (no {MANIFEST}); run the study first (uqdrape run STUDY)")
+    paths = chunk_paths(output_dir, manifest)
+    missing = [p.name for p in paths if not p.is_file()]
+    if missing:
+        shown = ", ".join(missing[:5]) + (", ..." if len(missing) > 5 else "")
+        raise FileNotFoundError(
+            f"{output_dir} is an incomplete run: {len(missing)} of {len(paths)} chunk files missing "
+            f"in {CHUNKS}/ ({shown}); resume it (uqdrape run STUDY) to compute them")
+    return xr.open_mfdataset(
+        paths, engine="netcdf4", combine="by_coords", data_vars="minimal", coords="minimal",
+        compat="override", join="exact", combine_attrs="override",
+    )
