@@ -46,23 +46,26 @@ def solve_on_circle(surface, c, u, v, rho, tol):
 
     Returns ``(q, ok)``: q (..., 3) with NaN where no root was found, and ok (bool).
     The root nearest t = 0 is taken. ``tol`` is the vertical gap accepted (mm).
+    Newton iterates only on the entries that have not yet converged.
     """
+    shape = np.broadcast_shapes(c.shape, u.shape, v.shape, rho.shape + (3,))[:-1]
+    c, u, v = (np.broadcast_to(a, shape + (3,)).reshape(-1, 3) for a in (c, u, v))
+    rho = np.broadcast_to(rho, shape).reshape(-1)
     finite = np.isfinite(c).all(-1) & np.isfinite(u).all(-1) & np.isfinite(v).all(-1)
     finite &= np.isfinite(rho) & (rho > 0)
-    c = np.where(finite[..., None], c, 0.0)
-    u = np.where(finite[..., None], u, 0.0)
-    v = np.where(finite[..., None], v, 0.0)
-    rho = np.where(finite, rho, 1.0)
     theta = np.zeros(rho.shape)
+    active = np.flatnonzero(finite)
     with np.errstate(divide="ignore", invalid="ignore"):
         for _ in range(_NEWTON_ITERS):
-            _, g, dg = _gap(surface, c, u, v, rho, theta)
+            _, g, dg = _gap(surface, c[active], u[active], v[active], rho[active], theta[active])
+            done = np.abs(g) < tol
             step = np.clip(-g / dg, -0.2, 0.2)
-            step = np.where(np.isfinite(step), step, 0.0)
-            theta = theta + step
-            if np.all(np.abs(g) < tol):
+            theta[active] += np.where(np.isfinite(step) & ~done, step, 0.0)
+            active = active[~done & np.isfinite(step)]
+            if active.size == 0:
                 break
-        q, g, _ = _gap(surface, c, u, v, rho, theta)
+    q = _point(c, u, v, rho, theta)
+    g = q[:, 2] - surface.height(q[:, 0], q[:, 1])
     ok = finite & (np.abs(g) < tol) & (np.abs(theta) < THETA_MAX)
     retry = finite & ~ok
     if retry.any():
@@ -70,7 +73,7 @@ def solve_on_circle(surface, c, u, v, rho, tol):
         q[retry] = q_r
         ok[retry] = ok_r
     q[~ok] = np.nan
-    return q, ok
+    return q.reshape(shape + (3,)), ok.reshape(shape)
 
 
 def _bracket(surface, c, u, v, rho, tol):
@@ -110,7 +113,23 @@ def _bracket(surface, c, u, v, rho, tol):
 
 
 def unit(a):
-    return a / np.linalg.norm(a, axis=-1, keepdims=True)
+    return a / norm(a)[..., None]
+
+
+def norm(a):
+    """Euclidean length over the last axis (faster than np.linalg.norm for (..., 3))."""
+    return np.sqrt(dot(a, a))
+
+
+def dot(a, b):
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
+def cross(a, b):
+    """Cross product over the last axis, written out (np.cross is slow on small axes)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
 def arm_step(surface, p, direction, turn, length, tol):
@@ -120,8 +139,8 @@ def arm_step(surface, p, direction, turn, length, tol):
     ``turn = 0`` gives the discrete geodesic (straightest) path. Returns (q, status).
     """
     n = surface.normal(p[..., 0], p[..., 1])
-    t = unit(direction - np.sum(direction * n, axis=-1, keepdims=True) * n)
-    w = np.cross(n, t)
+    t = unit(direction - dot(direction, n)[..., None] * n)
+    w = cross(n, t)
     t = np.cos(turn)[..., None] * t + np.sin(turn)[..., None] * w
     q, ok = solve_on_circle(surface, p, t, n, length, tol)
     return q, _status(surface, q, ok, np.isfinite(p).all(-1) & np.isfinite(direction).all(-1))
@@ -135,21 +154,21 @@ def fill_node(surface, a, b, c, la, lb, sign_ij, tol):
     cell must keep (a node whose cell turns over is flagged FOLDED). Returns (q, status).
     """
     ab = b - a
-    d = np.linalg.norm(ab, axis=-1)
+    d = norm(ab)
     with np.errstate(divide="ignore", invalid="ignore"):
         e = ab / d[..., None]
         along = (la**2 - lb**2 + d**2) / (2 * d)
         rho = np.sqrt(la**2 - along**2)
         centre = a + along[..., None] * e
         guess = a + b - c - centre
-        u = unit(guess - np.sum(guess * e, axis=-1, keepdims=True) * e)
-    v = np.cross(e, u)
+        u = unit(guess - dot(guess, e)[..., None] * e)
+    v = cross(e, u)
     q, ok = solve_on_circle(surface, centre, u, v, rho, tol)
     parents = np.isfinite(a).all(-1) & np.isfinite(b).all(-1) & np.isfinite(c).all(-1)
     status = _status(surface, q, ok, parents)
     n = surface.normal(q[..., 0], q[..., 1])
     with np.errstate(invalid="ignore"):
-        turned = sign_ij * np.sum(np.cross(q - a, q - b) * n, axis=-1) <= 0
+        turned = sign_ij * dot(cross(q - a, q - b), n) <= 0
     status = np.where((status == Status.OK) & turned, Status.FOLDED, status).astype(np.int8)
     q[status != Status.OK] = np.nan
     return q, status
@@ -167,25 +186,19 @@ def _status(surface, q, ok, parents_valid):
     return status
 
 
-def corner_angle(x, a, b):
-    """Unsigned angle (rad) at ``x`` between the edges to ``a`` and ``b``."""
-    ea = a - x
-    eb = b - x
-    return np.arctan2(np.linalg.norm(np.cross(ea, eb), axis=-1), np.sum(ea * eb, axis=-1))
-
-
 def quad_shear(q0, q1, q2, q3, eps0):
     """Signed shear (rad) of the cell with corners q0..q3 in cyclic order.
 
     ``eps0`` is +1 when q0 is the cell's (min i, min j) or (max i, max j) corner and -1
-    otherwise. The corner shears are eps_c (pi/2 - angle_c) with eps alternating round
-    the cell (shear = 90 deg minus the angle between the +i and +j edges); the cell
-    value is their mean.
+    otherwise. At each corner the shear is 90 deg minus the angle between the +i and +j
+    edges, i.e. arcsin of the cosine of that angle, with the sign alternating round the
+    cell; the cell value is the mean of the four.
     """
+    e01, e12, e23, e30 = (unit(b - a) for a, b in ((q0, q1), (q1, q2), (q2, q3), (q3, q0)))
     s = (
-        corner_angle(q1, q0, q2)
-        + corner_angle(q3, q2, q0)
-        - corner_angle(q0, q3, q1)
-        - corner_angle(q2, q1, q3)
+        np.arcsin(np.clip(-dot(e30, e01), -1.0, 1.0))
+        - np.arcsin(np.clip(-dot(e01, e12), -1.0, 1.0))
+        + np.arcsin(np.clip(-dot(e12, e23), -1.0, 1.0))
+        - np.arcsin(np.clip(-dot(e23, e30), -1.0, 1.0))
     )
     return 0.25 * eps0 * s

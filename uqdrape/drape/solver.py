@@ -9,7 +9,7 @@ import xarray as xr
 
 from .. import __version__
 from .energy import BlankHolder
-from .kernels import quad_shear
+from .kernels import dot, unit
 from .net import QUADRANTS, EnergyRings, NetProblem, build_geodesic
 from .status import Status
 
@@ -136,8 +136,16 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
 
 
 def cell_shear(P):
-    """Signed cell shear (rad), (R, 2n, 2n), of net positions P (R, N, N, 3)."""
-    return quad_shear(P[:, :-1, :-1], P[:, 1:, :-1], P[:, 1:, 1:], P[:, :-1, 1:], 1.0)
+    """Signed cell shear (rad), (R, 2n, 2n), of net positions P (R, N, N, 3).
+
+    Same value as ``quad_shear`` per cell, with each unit edge computed once for the net:
+    the corner shear is arcsin of the dot product of the +i and +j unit edges.
+    """
+    ei = unit(P[:, 1:] - P[:, :-1])  # +i edges (R, 2n, 2n+1, 3)
+    ej = unit(P[:, :, 1:] - P[:, :, :-1])  # +j edges (R, 2n+1, 2n, 3)
+    lo, hi, left, right = ei[:, :, :-1], ei[:, :, 1:], ej[:, :-1], ej[:, 1:]
+    corners = [dot(lo, left), dot(lo, right), dot(hi, left), dot(hi, right)]
+    return 0.25 * sum(np.arcsin(np.clip(c, -1.0, 1.0)) for c in corners)
 
 
 def node_shear(cells):
