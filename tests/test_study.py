@@ -81,7 +81,7 @@ def test_shipped_studies_hold_the_thesis_settings():
     assert corr.uncertainty.fields["spacing"].length_mm == (30.0, 30.0)
 
     hemi = load_study(STUDIES / "hemisphere-skew.toml")
-    skew = hemi.uncertainty.factors["pre_shear"]
+    skew = hemi.uncertainty.factors["skew"]
     assert skew.dist == "uniform" and skew.ppf([0.0, 0.5, 1.0]).tolist() == pytest.approx([0, 27.5, 55], abs=1e-9)
     assert (hemi.sampling.plan, hemi.solver.mode, hemi.process.friction) == ("sobol", "geodesic", 0.3)
 
@@ -300,7 +300,7 @@ def test_main_validate_good_files_exit_0(capsys):
     assert err == ""
     assert "nosecone-blankholder-sweep: 64 realisations" in out
     assert "sweep 0, 126, 252, 378 N" in out
-    assert "pre_shear ~ uniform(lower=0, upper=55)" in out
+    assert "skew ~ uniform(lower=0, upper=55)" in out
 
 
 def test_main_validate_usage_error_exits_2(capsys):

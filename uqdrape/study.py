@@ -8,7 +8,7 @@ Sections and keys (units: mm, N, degrees)::
 
     [study]        name, seed, realizations, chunk_size = 64, description = ""
     [geometry]     kind + that kind's shape parameters (see uqdrape.geometry.KINDS)
-    [fabric]       material, spacing_mm, orientation_deg = 0, pre_shear_deg = 0, crossover = [0, 0]
+    [fabric]       material, spacing_mm, orientation_deg = 0, pre_shear_deg = 0, skew_deg = 0, crossover = [0, 0]
     [process]      blankholder_force_N (a number, or a list: a sweep), friction = 0.2, sectors
     [solver]       mode = "energy", rings, tolerance_deg = 1e-3, max_iterations = 30
     [uncertainty.spacing]     cv, correlation = "iid", length_mm, kl_retained = 0.95
@@ -76,6 +76,7 @@ FACTOR_SETTINGS = {
     "crossover_x": "fabric.crossover[0]",
     "crossover_y": "fabric.crossover[1]",
     "pre_shear": "fabric.pre_shear_deg",
+    "skew": "fabric.skew_deg",
 }
 #: Random fields of [uncertainty.<field>].
 FIELDS = ("spacing", "zero_angle")
@@ -127,6 +128,8 @@ class Fabric:
     orientation_deg: float
     pre_shear_deg: float
     crossover: tuple[float, float]
+    #: extra angle closed between the generator paths at the crossover (thesis Fig 5.5)
+    skew_deg: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -260,6 +263,7 @@ class Study:
             "fabric": {"material": self.fabric.material, "spacing_mm": self.fabric.spacing_mm,
                        "orientation_deg": self.fabric.orientation_deg,
                        "pre_shear_deg": self.fabric.pre_shear_deg,
+                       "skew_deg": self.fabric.skew_deg,
                        "crossover": list(self.fabric.crossover)},
             "process": process,
             "solver": {"mode": self.solver.mode, "rings": self.solver.rings,
@@ -470,7 +474,7 @@ def _geometry_section(src: _Source, doc: dict):
 
 def _fabric(src: _Source, doc: dict, mould) -> Fabric:
     t = _Table(src, "fabric", doc.get("fabric", {}),
-               ("material", "spacing_mm", "orientation_deg", "pre_shear_deg", "crossover"))
+               ("material", "spacing_mm", "orientation_deg", "pre_shear_deg", "skew_deg", "crossover"))
     shipped = _material.available_materials()
     hint = (f"material must be a shipped card ({', '.join(shipped)}) "
             "or the path of a .toml/.csv card relative to the study file")
@@ -488,12 +492,15 @@ def _fabric(src: _Source, doc: dict, mould) -> Fabric:
     spacing = t.number("spacing_mm", gt=0)
     orientation = t.number("orientation_deg", 0.0)
     pre_shear = t.number("pre_shear_deg", 0.0, gt=-90, lt=90)
+    skew = t.number("skew_deg", 0.0, gt=-90, lt=90)
+    if abs(pre_shear + skew) >= 90:
+        t.invalid("skew_deg", f"pre_shear_deg + skew_deg must lie in (-90, 90) degrees, got {pre_shear + skew:g}")
     crossover = t.numbers("crossover", (0.0, 0.0), length=2,
                           hint="crossover must be two numbers [x, y] in mm")
     if not _inside(mould, *crossover):
         src.invalid("fabric.crossover", list(crossover),
                     f"the crossover must lie inside the mould's domain ({_describe(mould)})")
-    return Fabric(material, spacing, orientation, pre_shear, crossover)
+    return Fabric(material, spacing, orientation, pre_shear, crossover, skew)
 
 
 def _process(src: _Source, doc: dict) -> Process:
@@ -593,12 +600,13 @@ def _uncertainty(src: _Source, doc: dict, fabric: Fabric, process: Process, solv
                     "give one nominal force or remove the factor")
     ranges = {"blankholder_force": (0.0, math.inf, "must be >= 0 N"),
               "friction": (0.0, math.inf, "must be >= 0"),
-              "pre_shear": (-90.0, 90.0, "must lie in (-90, 90) degrees")}
+              "pre_shear": (-90.0, 90.0, "must lie in (-90, 90) degrees"),
+              "skew": (-90.0, 90.0, "must lie in (-90, 90) degrees")}
     for name, factor in factors.items():
         lo, hi = _extent(factor)
         if name in ranges:
             rlo, rhi, why = ranges[name]
-            open_ends = name == "pre_shear"
+            open_ends = name in ("pre_shear", "skew")
             bad = (lo <= rlo or hi >= rhi) if open_ends else (lo < rlo or hi > rhi)
             if bad:
                 src.invalid(f"uncertainty.{name}", t.data[name],
