@@ -1,6 +1,38 @@
-"""uqdrape.report: matplotlib figures (PNG, Agg backend) and an HTML page per study."""
+"""uqdrape.report: matplotlib figures (PNG, Agg backend) and an HTML page per study.
 
+Single drapes: ``plot_net`` (3-D net coloured by shear), ``plot_lines`` (shear along the
+max-shear lines, thesis Fig 5.9). Ensembles: node maps of the mean, sd and wrinkle
+risk, line statistics (Figs 5.18/5.19), histograms (Fig 5.20), convergence, and
+blank-holder force sweeps. ``write_report`` writes them all with ``index.html`` and
+``summary.json``.
+"""
+
+from .ensemble_figures import (
+    plot_convergence,
+    plot_histograms,
+    plot_line_statistics,
+    plot_mean_map,
+    plot_sd_map,
+    plot_sweep,
+    plot_wrinkle_map,
+)
 from .experimental import ExperimentalPoints, read_experimental
 from .figures import plot_lines, plot_net
+from .html import write_report
+from .summary import headline_numbers
 
-__all__ = ["plot_net", "plot_lines", "read_experimental", "ExperimentalPoints"]
+__all__ = [
+    "plot_net",
+    "plot_lines",
+    "plot_mean_map",
+    "plot_sd_map",
+    "plot_wrinkle_map",
+    "plot_line_statistics",
+    "plot_histograms",
+    "plot_convergence",
+    "plot_sweep",
+    "write_report",
+    "headline_numbers",
+    "read_experimental",
+    "ExperimentalPoints",
+]

@@ -109,10 +109,18 @@ def check_realization(ds: xr.Dataset, realization) -> int:
     return int(realization)
 
 
-def describe(ds: xr.Dataset, width: int = 90) -> str:
-    """Description of a drape Dataset for figure titles (geometry, material, mode), wrapped."""
+def describe(ds: xr.Dataset) -> str:
+    """Description of a drape Dataset for figure titles (geometry, material, mode)."""
     parts = [ds.attrs.get("geometry"), ds.attrs.get("material"), ds.attrs.get("mode")]
-    return textwrap.fill(", ".join(str(p) for p in parts if p not in (None, "", "none")), width)
+    return ", ".join(str(p) for p in parts if p not in (None, "", "none"))
+
+
+def suptitle(fig: Figure, text: str, fontsize: float | None = None) -> None:
+    """Figure title with each line wrapped to the figure width."""
+    size = fontsize or mpl.rcParams["figure.titlesize"]
+    size = mpl.font_manager.FontProperties(size=size).get_size_in_points()
+    width = max(30, int(fig.get_figwidth() * 72 / (0.55 * size)))
+    fig.suptitle("\n".join(textwrap.fill(line, width) for line in text.split("\n")), fontsize=size)
 
 
 def _site_dims(da: xr.DataArray) -> tuple[str, str]:
@@ -181,8 +189,8 @@ def plot_net(ds: xr.Dataset, path, var: str = "shear", realization: int = 0, tit
     fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.65, pad=0.08,
                  label=label(one[var]))
     n_bad = int((~np.isfinite(P).all(axis=-1)).sum())
-    ax.set_title(title or f"draped net, realisation {int(one[REALIZATION])}"
-                 + (f" ({n_bad} invalid nodes)" if n_bad else "") + f"\n{describe(ds, 70)}", fontsize=10)
+    suptitle(fig, title or f"draped net, realisation {int(one[REALIZATION])}"
+             + (f" ({n_bad} invalid nodes)" if n_bad else "") + f"\n{describe(ds)}", fontsize=11)
     return save(fig, path)
 
 
@@ -251,5 +259,5 @@ def plot_lines(ds: xr.Dataset, path, realization: int | None = 0, experimental=N
             ax.set_title(force_title(force))
         ax.legend(loc="best")
     shared_ylim(axes)
-    fig.suptitle(f"shear along the max-shear lines — {describe(ds)}")
+    suptitle(fig, f"shear along the max-shear lines\n{describe(ds)}")
     return save(fig, path)

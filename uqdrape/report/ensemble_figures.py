@@ -1,0 +1,323 @@
+"""Figures of an ensemble: node maps, line statistics, histograms, convergence, force sweeps.
+
+Each function takes the ensemble Dataset (dims realization, i, j, optionally a leading
+``blankholder_force``), computes what it needs with ``uqdrape.stats`` unless the
+statistics are passed in (``write_report`` computes them once), draws one panel per
+blank-holder level where that applies, writes a PNG and returns its path. Maps are
+drawn on the ensemble-mean node positions (x, y in mm).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import matplotlib as mpl
+import numpy as np
+import xarray as xr
+from matplotlib.tri import Triangulation
+from scipy import stats
+
+from uqdrape.drape.lines import QUADRANTS, max_shear_lines
+from uqdrape.stats import (
+    convergence,
+    exceedance_probability,
+    line_scalars,
+    line_statistics,
+    mean_statistics,
+    node_histogram,
+    node_statistics,
+    samples_needed,
+)
+
+from .experimental import as_experimental
+from .figures import (
+    DISTANCE_LABEL,
+    FORCE,
+    MINUS_COLOR,
+    PLUS_COLOR,
+    QUADRANT_STYLE,
+    REALIZATION,
+    SHEAR_LABEL,
+    describe,
+    force_title,
+    levels,
+    overlay_experimental,
+    panels,
+    save,
+    shared_ylim,
+    styled,
+    suptitle,
+)
+from .summary import argmax_site
+
+#: Probability level of the shaded band of the realisations along the max-shear lines.
+BAND = 0.95
+
+
+def mean_positions(ds: xr.Dataset) -> xr.Dataset:
+    """Ensemble-mean node positions x, y (mm) over the valid realisations, per level."""
+    return ds[["x", "y"]].mean(REALIZATION).compute()
+
+
+def _triangulation(x: np.ndarray, y: np.ndarray, valid: np.ndarray):
+    """Triangles (two per net cell with four valid nodes) on the valid nodes; (Triangulation, flat index)."""
+    index = np.full(valid.shape, -1)
+    used = np.flatnonzero(valid)
+    index.flat[used] = np.arange(used.size)
+    a, b, c, d = index[:-1, :-1], index[1:, :-1], index[1:, 1:], index[:-1, 1:]
+    ok = (a >= 0) & (b >= 0) & (c >= 0) & (d >= 0)
+    tris = np.concatenate([np.stack([a[ok], b[ok], c[ok]], -1), np.stack([a[ok], c[ok], d[ok]], -1)])
+    if tris.size == 0:
+        raise ValueError("no net cell has four valid nodes; nothing to map")
+    return Triangulation(x.flat[used], y.flat[used], tris), used
+
+
+def _map(ds: xr.Dataset, values: xr.DataArray, path, *, norm, cmap, cbar_label: str, title: str,
+         mark=None) -> object:
+    """Draw ``values`` (dims [blankholder_force,] i, j) on the mean node positions, one panel per level.
+
+    ``mark(force) -> (i, j, text) | None`` annotates one node per panel.
+    """
+    pos = mean_positions(ds)
+    groups = levels(pos)
+    fig, axes = panels(len(groups), size=(5.4, 4.8))
+    for ax, (force, xy) in zip(axes, groups):
+        v = (values.sel({FORCE: force}) if force is not None else values).transpose("i", "j").values
+        x, y = xy["x"].transpose("i", "j").values, xy["y"].transpose("i", "j").values
+        tri, used = _triangulation(x, y, np.isfinite(x) & np.isfinite(y) & np.isfinite(v))
+        ax.tripcolor(tri, v.flat[used], shading="gouraud", norm=norm, cmap=cmap)
+        ax.set(xlabel="x (mm)", ylabel="y (mm)", aspect="equal")
+        if force is not None:
+            ax.set_title(force_title(force))
+        if mark is not None and (m := mark(force)) is not None:
+            i, j, text = m
+            px, py = float(xy["x"].sel(i=i, j=j)), float(xy["y"].sel(i=i, j=j))
+            ax.plot(px, py, marker="o", markersize=9, markerfacecolor="none", markeredgecolor="black", mew=1.5)
+            ax.annotate(text, (px, py), xytext=(6, 6), textcoords="offset points", fontsize=9,
+                        bbox=dict(boxstyle="round", fc="white", alpha=0.8))
+    fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=axes, shrink=0.85, label=cbar_label)
+    suptitle(fig, f"{title}\n{describe(ds)}")
+    return save(fig, path)
+
+
+def _node_mark(da: xr.DataArray, fmt):
+    """A ``mark`` callback putting ``fmt(site)`` ({dim: value}, level included) at the largest entry of ``da`` in each level."""
+    def mark(force):
+        sub = da.sel({FORCE: force}) if force is not None else da
+        site = argmax_site(sub)
+        if site is None:
+            return None
+        return site["i"], site["j"], fmt(site if force is None else {**site, FORCE: force})
+    return mark
+
+
+@styled
+def plot_mean_map(ds: xr.Dataset, path, *, node_stats: xr.Dataset | None = None):
+    """Map of the ensemble-mean node shear (deg), diverging colours centred on 0. Returns the path."""
+    node_stats = node_statistics(ds) if node_stats is None else node_stats
+    mean = node_stats["mean"]
+    vmax = float(np.nanmax(np.abs(mean.values))) or 1.0
+    return _map(ds, mean, path, norm=mpl.colors.Normalize(-vmax, vmax), cmap=mpl.colormaps["RdBu_r"],
+                cbar_label="ensemble-mean shear angle (deg)",
+                title=f"mean node shear over N = {ds.sizes[REALIZATION]} realisations",
+                mark=_node_mark(abs(mean), lambda s: f"max |mean| {float(abs(mean).sel(s)):.1f}°"))
+
+
+@styled
+def plot_sd_map(ds: xr.Dataset, path, *, node_stats: xr.Dataset | None = None):
+    """Map of the ensemble standard deviation of node shear (deg). Returns the path."""
+    node_stats = node_statistics(ds) if node_stats is None else node_stats
+    sd = node_stats["sd"]
+    vmax = float(np.nanmax(sd.values)) if np.isfinite(sd.values).any() else 1.0
+    return _map(ds, sd, path, norm=mpl.colors.Normalize(0.0, vmax or 1.0), cmap=mpl.colormaps["viridis"],
+                cbar_label="standard deviation of shear (deg)",
+                title=f"sd of node shear over N = {ds.sizes[REALIZATION]} realisations",
+                mark=_node_mark(sd, lambda s: f"max sd {float(sd.sel(s)):.2f}°"))
+
+
+@styled
+def plot_wrinkle_map(ds: xr.Dataset, path, *, threshold_deg: float | None = None,
+                     exceedance: xr.Dataset | None = None):
+    """Map of the wrinkle risk P(|shear| > threshold) per node, threshold defaulting to the locking angle.
+
+    The node of highest probability is marked with the probability and its binomial
+    confidence interval (from ``uqdrape.stats.exceedance_probability``). Returns the path.
+    """
+    ex = exceedance_probability(ds, threshold_deg) if exceedance is None else exceedance
+    p = ex["probability"]
+    thr = float(ex["threshold"])
+
+    def text(site):
+        s = ex.sel(site)
+        return (f"max P = {float(s['probability']):.2f} "
+                f"[{float(s['probability_lower']):.2f}, {float(s['probability_upper']):.2f}]")
+
+    return _map(ds, p, path, norm=mpl.colors.Normalize(0.0, 1.0), cmap=mpl.colormaps["Reds"],
+                cbar_label=f"P(|γ| > {thr:g}°) (-)",
+                title=f"wrinkle risk: probability that |shear| exceeds {thr:g}° "
+                      f"({ex.attrs.get('confidence', 0.95):.0%} {ex.attrs.get('interval', 'binomial interval')})",
+                mark=_node_mark(p, text))
+
+
+@styled
+def plot_line_statistics(ds: xr.Dataset, path, *, line_stats: xr.Dataset | None = None, experimental=None):
+    """Ensemble shear against mean distance from the tip along the max-shear lines (thesis Figs 5.18/5.19).
+
+    Per quadrant (i*j > 0 red, others blue): the mean with ±1 sd bars in shear and
+    distance, and a shaded band holding the central 95 % of the realisations (empirical
+    2.5 %/97.5 % quantiles per node). One panel per blank-holder level; ``experimental``
+    (CSV path) overlays measured points. Returns the path.
+    """
+    points = as_experimental(experimental)
+    st = line_statistics(ds, "max") if line_stats is None else line_stats
+    tail = (1.0 - BAND) / 2.0
+    band = max_shear_lines(ds)["shear"].quantile([tail, 1.0 - tail], dim=REALIZATION, skipna=True).compute()
+    groups = levels(st)
+    fig, axes = panels(len(groups), size=(5.8, 4.6))
+    for ax, (force, s) in zip(axes, groups):
+        b = band.sel({FORCE: force}) if force is not None else band
+        for q in QUADRANTS:
+            style = QUADRANT_STYLE[q]
+            sq = s.sel(quadrant=q)
+            d = sq["distance_mean"].values
+            ax.fill_between(d, b.sel(quadrant=q, quantile=tail).values, b.sel(quadrant=q, quantile=1 - tail).values,
+                            color=style["color"], alpha=0.12, linewidth=0)
+            ax.errorbar(d, sq["shear_mean"].values, yerr=sq["shear_sd"].values, xerr=sq["distance_sd"].values,
+                        color=style["color"], marker=style["marker"], markersize=4, linestyle=style["linestyle"],
+                        linewidth=1.2, elinewidth=0.8, capsize=2,
+                        label=f"{q} ({'+' if q in ('++', '--') else '−'} quadrant) mean ± 1 sd")
+        ax.fill_between([], [], [], color="0.5", alpha=0.25, label=f"central {BAND:.0%} of realisations")
+        overlay_experimental(ax, points, force)
+        ax.axhline(0.0, color="0.6", linewidth=0.8)
+        ax.set(xlabel="mean " + DISTANCE_LABEL, ylabel=SHEAR_LABEL)
+        ax.grid(alpha=0.3)
+        if force is not None:
+            ax.set_title(force_title(force))
+        ax.legend(loc="best", fontsize=8)
+    shared_ylim(axes)
+    suptitle(fig, f"shear along the max-shear lines, N = {ds.sizes[REALIZATION]} realisations\n{describe(ds)}")
+    return save(fig, path)
+
+
+def _node_kind(node) -> str:
+    i, j = node
+    return "+ quadrant" if i * j > 0 else "− quadrant" if i * j < 0 else "on an arm"
+
+
+@styled
+def plot_histograms(ds: xr.Dataset, path, nodes: Sequence[Sequence[int]], *, bins: int = 20):
+    """Histograms of node shear at ``nodes`` [(i, j), ...] with the fitted Normal (thesis Fig 5.20).
+
+    One panel per node; a blank-holder sweep shows one histogram (steps) and Normal per
+    level on common bins. Returns the path.
+    """
+    nodes = [tuple(int(v) for v in node) for node in nodes]
+    if not nodes:
+        raise ValueError("nodes must list at least one (i, j) node")
+    fig, axes = panels(len(nodes), size=(5.0, 4.0))
+    cmap = mpl.colormaps["viridis"]
+    for ax, node in zip(axes, nodes):
+        h = node_histogram(ds, node, bins=bins)
+        edges = h["bin_edges"].values
+        fine = np.linspace(edges[0], edges[-1], 200)
+        groups = levels(h)
+        for k, (force, hk) in enumerate(groups):
+            color = "tab:gray" if force is None else cmap(k / max(len(groups) - 1, 1))
+            mu, sd, n = float(hk["normal_mean"]), float(hk["normal_sd"]), int(hk["n_valid"])
+            name = "" if force is None else f"{force:g} N: "
+            ax.stairs(hk["density"].values, edges, fill=force is None, color=color, alpha=0.6 if force is None else 1,
+                      label=f"{name}histogram, n = {n}")
+            if sd > 0:
+                ax.plot(fine, stats.norm.pdf(fine, mu, sd), color="black" if force is None else color, linewidth=1.5,
+                        linestyle="-" if force is None else "--", label=f"{name}Normal μ = {mu:.1f}°, σ = {sd:.2f}°")
+        ax.set(xlabel=SHEAR_LABEL, ylabel="probability density (1/deg)",
+               title=f"node (i, j) = {node}, {_node_kind(node)}")
+        ax.grid(alpha=0.3)
+        ax.legend(loc="best", fontsize=8)
+    suptitle(fig, f"node shear distributions, N = {ds.sizes[REALIZATION]} realisations")
+    return save(fig, path)
+
+
+def most_variable_node(ds: xr.Dataset, node_stats: xr.Dataset | None = None) -> tuple[int, int]:
+    """(i, j) of the node with the largest shear sd (over all blank-holder levels)."""
+    node_stats = node_statistics(ds) if node_stats is None else node_stats
+    site = argmax_site(node_stats["sd"])
+    if site is None:
+        raise ValueError("no node has a finite shear sd (fewer than 2 valid realisations everywhere)")
+    return int(site["i"]), int(site["j"])
+
+
+@styled
+def plot_convergence(ds: xr.Dataset, path, node: Sequence[int] | None = None, *, target_deg: float = 1.0,
+                     confidence: float = 0.95, node_stats: xr.Dataset | None = None):
+    """Running mean (with its confidence band) and interval half-width of node shear against N.
+
+    ``node`` defaults to the most variable node. The half-width panel (log-log) marks
+    ``target_deg`` and the N needed to reach it at the final sd (``samples_needed``, t).
+    One line per blank-holder level. Returns the path.
+    """
+    if not (np.isfinite(target_deg) and target_deg > 0):
+        raise ValueError(f"target_deg must be > 0 (deg), got {target_deg!r}")
+    node = most_variable_node(ds, node_stats) if node is None else tuple(int(v) for v in node)
+    conv = convergence(ds, node, confidence=confidence)
+    fig, (ax_m, ax_h) = panels(2, size=(5.8, 4.4))
+    groups = levels(conv)
+    cmap = mpl.colormaps["viridis"]
+    for k, (force, c) in enumerate(groups):
+        color = "tab:purple" if force is None else cmap(k / max(len(groups) - 1, 1))
+        name = "" if force is None else f"{force:g} N"
+        n = c["n"].values
+        m, h = c["running_mean"].values, c["half_width"].values
+        ax_m.plot(n, m, color=color, label=name or "running mean")
+        ax_m.fill_between(n, m - h, m + h, color=color, alpha=0.2, linewidth=0)
+        ax_h.loglog(n, h, color=color, label=name or "half-width")
+        sd = float(c["running_sd"].values[-1])
+        if np.isfinite(sd) and sd > 0:
+            need = samples_needed(sd, target_deg, confidence)
+            ax_h.axvline(need, color=color, linestyle=":", linewidth=1.2,
+                         label=f"{name + ': ' if name else ''}N = {need} for ±{target_deg:g}°")
+    ax_h.axhline(target_deg, color="0.3", linestyle="--", linewidth=1.0, label=f"target ±{target_deg:g}°")
+    ax_m.set(xlabel="number of realisations N (-)", ylabel="running mean shear (deg)",
+             title=f"running mean, {confidence:.0%} band")
+    ax_h.set(xlabel="number of realisations N (-)", ylabel=f"{confidence:.0%} half-width of the mean (deg)",
+             title="interval half-width")
+    for axis in (ax_h.xaxis, ax_h.yaxis):
+        axis.set_major_formatter(mpl.ticker.ScalarFormatter())
+        axis.set_minor_formatter(mpl.ticker.NullFormatter())
+    for ax in (ax_m, ax_h):
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(loc="best", fontsize=8)
+    suptitle(fig, f"convergence of the mean shear at node (i, j) = {node} ({_node_kind(node)})")
+    return save(fig, path)
+
+
+@styled
+def plot_sweep(ds: xr.Dataset, path, *, scalars: xr.Dataset | None = None):
+    """Max-shear line means ± 1 sd against blank-holder force (N) for a sweep ensemble.
+
+    Left: mean signed shear along the + quadrant (i*j > 0) and − quadrant lines; right:
+    their asymmetry (plus + minus, 0 when mirrored), from ``uqdrape.stats.line_scalars``.
+    Needs a ``blankholder_force`` dim. Returns the path.
+    """
+    if FORCE not in ds.dims:
+        raise ValueError(f"plot_sweep needs a {FORCE!r} dim (a blank-holder force sweep); dims: {dict(ds.sizes)}")
+    sc = line_scalars(ds) if scalars is None else scalars
+    force = ds[FORCE].values.astype(float)
+    fig, (ax_q, ax_a) = panels(2, size=(5.8, 4.4))
+    for var, color, text in (("plus_mean_shear", PLUS_COLOR, "+ quadrants (i·j > 0)"),
+                             ("minus_mean_shear", MINUS_COLOR, "− quadrants (i·j < 0)"),
+                             ("asymmetry", "black", "asymmetry (plus + minus)")):
+        st = mean_statistics(sc[var]).transpose(FORCE)
+        ax = ax_a if var == "asymmetry" else ax_q
+        ax.errorbar(force, st["mean"].values, yerr=st["sd"].values, color=color, marker="o", capsize=3,
+                    label=f"{text}, mean ± 1 sd")
+    for ax in (ax_q, ax_a):
+        ax.axhline(0.0, color="0.6", linewidth=0.8)
+        ax.set_xlabel("blank-holder force F_BH (N)")
+        ax.grid(alpha=0.3)
+        ax.legend(loc="best", fontsize=8)
+    k_max = sc.attrs.get("k_max")
+    ax_q.set(ylabel="line-mean shear (deg)", title=f"mean shear over line nodes k = 1..{k_max}")
+    ax_a.set(ylabel="asymmetry (deg)", title="± quadrant asymmetry")
+    suptitle(fig, f"blank-holder force sweep, N = {ds.sizes[REALIZATION]} per level\n{describe(ds)}")
+    return save(fig, path)
