@@ -9,6 +9,7 @@ drawn on the ensemble-mean node positions (x, y in mm).
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 
 import matplotlib as mpl
@@ -101,7 +102,10 @@ def _map(ds: xr.Dataset, values: xr.DataArray, path, *, norm, cmap, cbar_label: 
 
 
 def _node_mark(da: xr.DataArray, fmt):
-    """A ``mark`` callback putting ``fmt(site)`` ({dim: value}, level included) at the largest entry of ``da`` in each level."""
+    """A ``mark`` callback: ``fmt(site)`` at the largest entry of ``da`` in each level.
+
+    ``site`` is {dim: value} of that entry, the level included.
+    """
     def mark(force):
         sub = da.sel({FORCE: force}) if force is not None else da
         site = argmax_site(sub)
@@ -171,7 +175,9 @@ def plot_line_statistics(ds: xr.Dataset, path, *, line_stats: xr.Dataset | None 
     points = as_experimental(experimental)
     st = line_statistics(ds, "max") if line_stats is None else line_stats
     tail = (1.0 - BAND) / 2.0
-    band = max_shear_lines(ds)["shear"].quantile([tail, 1.0 - tail], dim=REALIZATION, skipna=True).compute()
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", "All-NaN slice", RuntimeWarning)  # lines end at invalid nodes: NaN band
+        band = max_shear_lines(ds)["shear"].quantile([tail, 1.0 - tail], dim=REALIZATION, skipna=True).compute()
     groups = levels(st)
     fig, axes = panels(len(groups), size=(5.8, 4.6))
     for ax, (force, s) in zip(axes, groups):
@@ -228,8 +234,9 @@ def plot_histograms(ds: xr.Dataset, path, nodes: Sequence[Sequence[int]], *, bin
             ax.stairs(hk["density"].values, edges, fill=force is None, color=color, alpha=0.6 if force is None else 1,
                       label=f"{name}histogram, n = {n}")
             if sd > 0:
-                ax.plot(fine, stats.norm.pdf(fine, mu, sd), color="black" if force is None else color, linewidth=1.5,
-                        linestyle="-" if force is None else "--", label=f"{name}Normal μ = {mu:.1f}°, σ = {sd:.2f}°")
+                ax.plot(fine, stats.norm.pdf(fine, mu, sd), color="black" if force is None else color,
+                        linewidth=1.5, linestyle="-" if force is None else "--",
+                        label=f"{name}Normal μ = {mu:.1f}°, σ = {sd:.2f}°")
         ax.set(xlabel=SHEAR_LABEL, ylabel="probability density (1/deg)",
                title=f"node (i, j) = {node}, {_node_kind(node)}")
         ax.grid(alpha=0.3)

@@ -224,7 +224,8 @@ def _page(title, ds, rows, figures, study_text, summary_name) -> str:
 <body>
 <h1>{esc(title)}</h1>
 <p class="note">uqdrape {esc(str(ds.attrs.get("uqdrape_version", "")))} report.
-Angles in degrees, lengths in mm, forces in N. Numbers also in <a href="{esc(summary_name)}">{esc(summary_name)}</a>.</p>
+Angles in degrees, lengths in mm, forces in N.
+Numbers also in <a href="{esc(summary_name)}">{esc(summary_name)}</a>.</p>
 <h2>Headline numbers</h2>
 <table>
 <tr><th>quantity</th><th>value</th><th>where / how</th></tr>

@@ -1,0 +1,291 @@
+"""Tests of uqdrape.report: figures are real PNGs with the expected panels, the HTML page
+links only files that exist, summary.json equals the statistics functions, and the
+experimental CSV is checked with clear errors."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pytest
+import xarray as xr
+from matplotlib.image import imread
+
+from uqdrape.drape import drape
+from uqdrape.geometry import Hemisphere, NoseCone
+from uqdrape.material import load_material
+from uqdrape.report import (
+    plot_convergence,
+    plot_histograms,
+    plot_line_statistics,
+    plot_lines,
+    plot_mean_map,
+    plot_net,
+    plot_sd_map,
+    plot_sweep,
+    plot_wrinkle_map,
+    read_experimental,
+    write_report,
+)
+from uqdrape.report.figures import DPI, _line_panels
+from uqdrape.report.html import default_histogram_nodes
+from uqdrape.stats import exceedance_probability, node_statistics, samples_needed
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+RINGS = 6
+
+
+@pytest.fixture(scope="module")
+def material():
+    return load_material("ebxhd936_like")
+
+
+@pytest.fixture(scope="module")
+def ensemble(material):
+    """12 energy drapes over a hemisphere with iid zero-energy angles (sd 5 deg)."""
+    rng = np.random.default_rng(5)
+    R = 12
+    return drape(Hemisphere(100.0), 5.0, RINGS, gamma0=rng.normal(0.0, 5.0, (R, 2 * RINGS, 2 * RINGS)),
+                 mode="energy", material=material)
+
+
+@pytest.fixture(scope="module")
+def sweep(material):
+    """A blank-holder force sweep ensemble: dims (blankholder_force, realization, i, j)."""
+    rng = np.random.default_rng(6)
+    R, n, forces = 8, 4, [0.0, 300.0]
+    parts = [drape(NoseCone(), 5.0, n, gamma0=rng.normal(0.0, 5.0, (R, 2 * n, 2 * n)), mode="energy",
+                   material=material, blankholder_force=f).drop_vars("blankholder_force") for f in forces]
+    force = xr.DataArray(forces, dims="blankholder_force", name="blankholder_force", attrs={"units": "N"})
+    return xr.concat(parts, dim=force)
+
+
+@pytest.fixture(scope="module")
+def geodesic():
+    """Geodesic drapes with random segment lengths: no material, so no locking angle; some invalid nodes."""
+    rng = np.random.default_rng(7)
+    R, n = 10, 14
+    return drape(Hemisphere(40.0, flange_half_width=50.0), 5.0, n, seg_i=rng.normal(5.0, 0.1, (R, 2 * n, 2 * n + 1)),
+                 seg_j=rng.normal(5.0, 0.1, (R, 2 * n + 1, 2 * n)))
+
+
+@pytest.fixture()
+def exp_csv(tmp_path):
+    path = tmp_path / "measured.csv"
+    path.write_text("distance_mm,shear_deg,quadrant_sign,blankholder_force_N\n"
+                    "10,2.5,1,0\n20,6,+1,\n10,-4,-1,300\n30,-15.5,-1,\n")
+    return path
+
+
+def png_shape(path, min_bytes=5000):
+    """Check a real, non-trivial PNG; return its (rows, cols) in pixels."""
+    data = path.read_bytes()
+    assert data[:8] == PNG_SIGNATURE
+    assert len(data) > min_bytes
+    image = imread(path)
+    assert image.ndim == 3 and image.shape[2] in (3, 4)
+    assert image[..., :3].std() > 0.05  # not a blank canvas
+    return image.shape[:2]
+
+
+# ---------------------------------------------------------------- single drapes
+
+
+def test_plot_net_node_and_cell_variables(ensemble, tmp_path):
+    rows, cols = png_shape(plot_net(ensemble, tmp_path / "net.png"))
+    assert (rows, cols) == (round(6.4 * DPI), round(7.6 * DPI))
+    png_shape(plot_net(ensemble, tmp_path / "cells.png", var="cell_shear", realization=3, title="cells"))
+
+
+def test_plot_net_skips_invalid_nodes(geodesic, tmp_path):
+    assert geodesic["x"].isel(realization=0).isnull().any()  # the fixture really has invalid nodes
+    png_shape(plot_net(geodesic, tmp_path / "net.png"))
+
+
+def test_plot_net_errors(ensemble, sweep, tmp_path):
+    with pytest.raises(ValueError, match="var='nope'"):
+        plot_net(ensemble, tmp_path / "a.png", var="nope")
+    with pytest.raises(ValueError, match=r"realization must be a position 0..11"):
+        plot_net(ensemble, tmp_path / "a.png", realization=12)
+    with pytest.raises(ValueError, match="blankholder_force"):
+        plot_net(sweep, tmp_path / "a.png")
+    with pytest.raises(ValueError, match=r"\.png"):
+        plot_net(ensemble, tmp_path / "a.jpg")
+    assert not list(tmp_path.iterdir())
+
+
+def test_plot_lines_one_panel_per_force(material, tmp_path):
+    one = drape(NoseCone(), 5.0, 8, mode="energy", material=material)
+    four = drape(NoseCone(), 5.0, 8, mode="energy", material=material, blankholder_force=[378.0, 0.0, 126.0, 252.0])
+    single = png_shape(plot_lines(one, tmp_path / "one.png"))
+    grid = png_shape(plot_lines(four, tmp_path / "four.png"))
+    assert grid == (2 * single[0], 2 * single[1])  # 2 x 2 panels of the single-panel size
+    groups = _line_panels(four, 0)
+    assert [f for f, _ in groups] == [0.0, 126.0, 252.0, 378.0]
+    for force, sub in groups:
+        assert sub["blankholder_force"].values.tolist() == [force]
+
+
+def test_plot_lines_sweep_dim_and_all_realisations(sweep, tmp_path):
+    rows, cols = png_shape(plot_lines(sweep, tmp_path / "sweep.png", realization=None))
+    assert cols > 1.9 * rows  # two panels side by side
+    assert [sub.sizes["realization"] for _, sub in _line_panels(sweep, None)] == [8, 8]
+
+
+def test_plot_lines_experimental_overlay_changes_the_figure(ensemble, exp_csv, tmp_path):
+    plain = imread(plot_lines(ensemble, tmp_path / "plain.png"))
+    with_points = imread(plot_lines(ensemble, tmp_path / "points.png", experimental=exp_csv))
+    assert plain.shape == with_points.shape and np.abs(plain - with_points).max() > 0.1
+
+
+# ---------------------------------------------------------------- experimental CSV
+
+
+def test_read_experimental_values_and_force_filter(exp_csv):
+    pts = read_experimental(exp_csv)
+    np.testing.assert_array_equal(pts.distance_mm, [10, 20, 10, 30])
+    np.testing.assert_array_equal(pts.shear_deg, [2.5, 6, -4, -15.5])
+    np.testing.assert_array_equal(pts.quadrant_sign, [1, 1, -1, -1])
+    np.testing.assert_array_equal(pts.at_force(300.0).shear_deg, [6, -4, -15.5])  # blank force = every panel
+
+
+@pytest.mark.parametrize("text, match", [
+    ("distance_mm,shear_deg\n1,2\n", r"missing column\(s\) \['quadrant_sign'\]"),
+    ("distance_mm,shear_deg,quadrant_sign\n1,abc,1\n", r"row 2: column 'shear_deg' = 'abc' is not a number"),
+    ("distance_mm,shear_deg,quadrant_sign\n1,2,1\n3,4,2\n", r"row 3: quadrant_sign = '2'; valid: \+1"),
+    ("distance_mm,shear_deg,quadrant_sign\n-1,2,1\n", r"distance_mm = '-1' must be >= 0"),
+    ("distance_mm,shear_deg,quadrant_sign\n", "no data rows"),
+    ("distance_mm,shear_deg,quadrant_sign\n1,nan,1\n", "not finite"),
+])
+def test_malformed_experimental_csv(tmp_path, text, match):
+    path = tmp_path / "bad.csv"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=match):
+        read_experimental(path)
+
+
+def test_missing_experimental_csv(tmp_path, ensemble):
+    with pytest.raises(ValueError, match="does not exist"):
+        plot_lines(ensemble, tmp_path / "x.png", experimental=tmp_path / "none.csv")
+    with pytest.raises(ValueError, match="experimental must be None, a CSV path"):
+        plot_lines(ensemble, tmp_path / "x.png", experimental=[1, 2])
+
+
+# ---------------------------------------------------------------- ensemble figures
+
+
+def test_ensemble_figures_write_pngs(ensemble, exp_csv, tmp_path):
+    for path in (
+        plot_mean_map(ensemble, tmp_path / "mean.png"),
+        plot_sd_map(ensemble, tmp_path / "sd.png"),
+        plot_wrinkle_map(ensemble, tmp_path / "risk.png", threshold_deg=8.0),
+        plot_line_statistics(ensemble, tmp_path / "ls.png", experimental=exp_csv),
+        plot_histograms(ensemble, tmp_path / "hist.png", [(3, 3), (-3, 3)]),
+        plot_convergence(ensemble, tmp_path / "conv.png", (2, 2)),
+    ):
+        png_shape(path)
+
+
+def test_sweep_figures_have_a_panel_per_level(sweep, tmp_path):
+    for path in (plot_mean_map(sweep, tmp_path / "mean.png"), plot_line_statistics(sweep, tmp_path / "ls.png")):
+        rows, cols = png_shape(path)
+        assert cols > 1.7 * rows
+    png_shape(plot_sweep(sweep, tmp_path / "sweep.png"))
+    png_shape(plot_histograms(sweep, tmp_path / "hist.png", [(2, 2)]))
+    png_shape(plot_convergence(sweep, tmp_path / "conv.png"))
+
+
+def test_ensemble_figure_errors(ensemble, geodesic, tmp_path):
+    with pytest.raises(ValueError, match="plot_sweep needs a 'blankholder_force' dim"):
+        plot_sweep(ensemble, tmp_path / "s.png")
+    with pytest.raises(ValueError, match="no 'locking_angle_deg'|threshold_deg"):
+        plot_wrinkle_map(geodesic.drop_attrs(), tmp_path / "w.png")
+    with pytest.raises(ValueError, match="node i=9"):
+        plot_histograms(ensemble, tmp_path / "h.png", [(9, 9)])
+    with pytest.raises(ValueError, match="target_deg"):
+        plot_convergence(ensemble, tmp_path / "c.png", target_deg=0.0)
+
+
+# ---------------------------------------------------------------- write_report
+
+
+def linked_files(index):
+    return re.findall(r'(?:src|href)="([^"]+)"', index.read_text())
+
+
+def test_write_report_links_and_summary_numbers(ensemble, exp_csv, tmp_path):
+    ds = ensemble.copy()
+    ds.attrs["locking_angle_deg"] = 8.0  # a threshold the ensemble straddles, so the risk is not all 0
+    study = '[study]\nname = "x<y>"\n'
+    index = write_report(ds, tmp_path / "rep", title="Test <report>", study_text=study,
+                         experimental_csv=exp_csv, summary={"wall time (s)": 3.5})
+    out = index.parent
+    links = linked_files(index)
+    assert links and all((out / name).is_file() for name in links)
+    summary = json.loads((out / "summary.json").read_text())
+    expected = {"net.png", "lines.png", "mean_shear.png", "sd_shear.png", "wrinkle_risk.png",
+                "line_statistics.png", "histograms.png", "convergence.png"}
+    assert set(summary["figures"]) == expected
+    assert expected | {"summary.json"} == set(links)
+    for name in expected:
+        png_shape(out / name)
+    html_text = index.read_text()
+    assert "Test &lt;report&gt;" in html_text and 'name = &quot;x&lt;y&gt;&quot;' in html_text
+
+    st = node_statistics(ds)
+    sd = st["sd"]
+    i, j = summary["max_sd_deg"]["node"]
+    assert summary["max_sd_deg"]["value"] == float(sd.max()) == float(sd.sel(i=i, j=j))
+    mean_abs = abs(st["mean"])
+    assert summary["max_abs_mean_shear_deg"]["value"] == float(mean_abs.max())
+    assert summary["valid_fraction"] == float(st["count"].sum()) / (12 * (2 * RINGS + 1) ** 2) == 1.0
+    ex = exceedance_probability(ds, 8.0)
+    wr = summary["max_wrinkle_probability"]
+    at = ex.sel(i=wr["node"][0], j=wr["node"][1])
+    assert wr["value"] == float(ex["probability"].max()) == float(at["probability"])
+    assert 0 < wr["value"] and wr["lower"] == float(at["probability_lower"]) < wr["value"] <= wr["upper"]
+    assert wr["upper"] == float(at["probability_upper"]) and wr["threshold_deg"] == 8.0
+    assert summary["samples_needed"]["value"] == samples_needed(float(sd.max()), 1.0, 0.95)
+    assert summary["extra"] == {"wall time (s)": 3.5}
+    assert f"{summary['samples_needed']['value']}</td>" in html_text
+
+
+def test_write_report_sweep(sweep, tmp_path):
+    index = write_report(sweep, tmp_path, title="sweep")
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert {"net_0N.png", "net_300N.png", "sweep.png"} <= set(summary["figures"])
+    assert all((tmp_path / name).is_file() for name in linked_files(index))
+    assert summary["blankholder_force_levels_N"] == [0.0, 300.0] and summary["realizations"] == 8
+    site = summary["max_sd_deg"]
+    sd = node_statistics(sweep)["sd"]
+    assert site["value"] == float(sd.max())
+    assert site["value"] == float(sd.sel(blankholder_force=site["blankholder_force_N"], i=site["node"][0],
+                                         j=site["node"][1]))
+
+
+def test_write_report_without_locking_angle(geodesic, tmp_path):
+    index = write_report(geodesic, tmp_path, title="geodesic")
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["max_wrinkle_probability"] is None
+    assert "wrinkle_risk.png" not in summary["figures"] and not (tmp_path / "wrinkle_risk.png").exists()
+    assert all((tmp_path / name).is_file() for name in linked_files(index))
+    valid = geodesic["shear"].notnull()
+    assert summary["valid_fraction"] == pytest.approx(float(valid.mean())) and summary["valid_fraction"] < 1.0
+
+
+def test_write_report_bad_input_writes_nothing(ensemble, tmp_path):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("distance,shear\n1,2\n")
+    out = tmp_path / "rep"
+    with pytest.raises(ValueError, match="missing column"):
+        write_report(ensemble, out, title="t", experimental_csv=bad)
+    with pytest.raises(ValueError, match="title must be a non-empty string"):
+        write_report(ensemble, out, title=" ")
+    with pytest.raises(ValueError, match=r"summary\['x'\]"):
+        write_report(ensemble, out, title="t", summary={"x": [1, 2]})
+    assert not out.exists()
+
+
+def test_default_histogram_nodes_follow_the_thesis(ensemble):
+    assert default_histogram_nodes(ensemble, node_statistics(ensemble)) == [(6, 6), (-6, 6)]
