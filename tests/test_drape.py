@@ -1,0 +1,416 @@
+"""Acceptance tests of the pin-jointed-net drape (issue 2): geometry of the net, shear on
+developable and doubly curved moulds, batching, failure flags, bad input, STL and netCDF
+round trips, max-shear lines. Lengths mm, angles degrees.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from uqdrape.drape import Status, drape, max_shear_lines, min_shear_lines
+from uqdrape.geometry import Cone, Cylinder, Hemisphere, Plate, StlSurface, build
+from uqdrape.material import load_material
+
+DATA = Path(__file__).parent / "data"
+
+
+# -- helpers ---------------------------------------------------------------------------
+def positions(ds):
+    """Node positions (R, N, N, 3) mm."""
+    return np.stack([ds.x.values, ds.y.values, ds.z.values], axis=-1)
+
+
+def segment_lengths(ds):
+    """Chord lengths of the fibre-1 (R, 2n, 2n+1) and fibre-2 (R, 2n+1, 2n) segments (mm)."""
+    P = positions(ds)
+    return (np.linalg.norm(P[:, 1:] - P[:, :-1], axis=-1),
+            np.linalg.norm(P[:, :, 1:] - P[:, :, :-1], axis=-1))
+
+
+def random_segments(rng, s, n, R=None, cv=0.02):
+    """Segment lengths s (1 + cv xi), xi standard normal, for fibre 1 and fibre 2."""
+    lead = () if R is None else (R,)
+    return (s * (1 + cv * rng.standard_normal(lead + (2 * n, 2 * n + 1))),
+            s * (1 + cv * rng.standard_normal(lead + (2 * n + 1, 2 * n))))
+
+
+def parents(i, j):
+    """Nodes that node (i, j) is built from: the arm's previous two nodes, or the two inner
+    neighbours along each fibre and the diagonal one."""
+    if i == 0 or j == 0:
+        k, di, dj = abs(i + j), np.sign(i), np.sign(j)
+        return [((k - m) * di, (k - m) * dj) for m in (1, 2) if k - m >= 0]
+    si, sj = np.sign(i), np.sign(j)
+    return [(i - si, j), (i, j - sj), (i - si, j - sj)]
+
+
+def check_status_rules(ds):
+    """Status codes are those of Status; invalid <=> NaN; DEPENDENT <=> an invalid parent."""
+    n = ds.attrs["rings"]
+    codes = {s.value for s in Status}
+    st = ds.status.values
+    assert set(np.unique(st)) <= codes
+    assert np.array_equal(st != Status.OK, np.isnan(ds.x.values))
+    assert np.array_equal(np.isnan(ds.x.values), np.isnan(ds.z.values))
+    for r in range(st.shape[0]):
+        for i in range(-n, n + 1):
+            for j in range(-n, n + 1):
+                if i == 0 and j == 0:
+                    assert st[r, n, n] in (Status.OK, Status.OFF_MOULD)
+                    continue
+                bad_parent = any(st[r, a + n, b + n] != Status.OK for a, b in parents(i, j))
+                assert (st[r, i + n, j + n] == Status.DEPENDENT) == bad_parent, (r, i, j)
+
+
+# -- net geometry ----------------------------------------------------------------------
+MOULDS = [
+    ("hemisphere", dict(radius=100.0), 5.0, 14, (3.0, -2.0)),
+    ("saddle", {}, 8.0, 12, (10.0, 5.0)),
+    ("nose_cone", {}, 10.0, 14, (0.0, 0.0)),
+    ("double_dome", {}, 6.0, 12, (-60.0, 5.0)),
+]
+
+
+@pytest.mark.parametrize("kind, params, s, n, crossover", MOULDS, ids=[m[0] for m in MOULDS])
+def test_segments_keep_their_length_and_nodes_lie_on_the_mould(kind, params, s, n, crossover):
+    rng = np.random.default_rng(11)
+    surf = build(kind, **params)
+    seg_i, seg_j = random_segments(rng, s, n)
+    ds = drape(surf, s, n, orientation=20.0, crossover=crossover, seg_i=seg_i, seg_j=seg_j)
+    valid = ds.status.values[0] == Status.OK
+    assert valid.mean() > 0.95
+    l1, l2 = segment_lengths(ds)
+    err1 = np.abs(l1[0] / seg_i - 1)
+    err2 = np.abs(l2[0] / seg_j - 1)
+    assert np.isfinite(err1).sum() > 0.9 * err1.size
+    assert np.nanmax(err1) <= 1e-9 and np.nanmax(err2) <= 1e-9
+    x, y, z = ds.x.values[0][valid], ds.y.values[0][valid], ds.z.values[0][valid]
+    assert np.max(np.abs(z - surf.height(x, y))) <= 1e-9 * surf.size
+    assert surf.inside(x, y).all()
+    check_status_rules(ds)
+
+
+def test_geodesic_arms_on_a_sphere_follow_great_circles():
+    """Off the pole, a discrete geodesic on a sphere stays in a plane through the centre and
+    advances by 2 asin(l / 2R) per chord l (known value of the straightest path)."""
+    R, s, n = 100.0, 5.0, 10
+    rng = np.random.default_rng(5)
+    seg_i, seg_j = random_segments(rng, s, n)
+    ds = drape(Hemisphere(R), s, n, orientation=17.0, crossover=(20.0, -10.0), seg_i=seg_i, seg_j=seg_j)
+    P = positions(ds)[0]
+    centre = np.array([0.0, 0.0, 0.0])
+    arms = {
+        "+i": ([(k, 0) for k in range(n + 1)], seg_i[n:, n]),
+        "-i": ([(-k, 0) for k in range(n + 1)], seg_i[:n, n][::-1]),
+        "+j": ([(0, k) for k in range(n + 1)], seg_j[n, n:]),
+        "-j": ([(0, -k) for k in range(n + 1)], seg_j[n, :n][::-1]),
+    }
+    for name, (nodes, lengths) in arms.items():
+        pts = np.array([P[i + n, j + n] for i, j in nodes]) - centre
+        normal = np.cross(pts[0], pts[1])
+        normal /= np.linalg.norm(normal)
+        assert np.max(np.abs(pts @ normal)) <= 1e-9 * R, name
+        angle = np.arccos(np.clip(np.sum(pts[:-1] * pts[1:], -1) / R**2, -1, 1))
+        np.testing.assert_allclose(angle, 2 * np.arcsin(lengths / (2 * R)), rtol=1e-9, err_msg=name)
+        # the arm keeps going the same way round the great circle
+        assert np.all(np.cross(pts[:-1], pts[1:]) @ normal > 0), name
+
+
+# -- developable moulds ----------------------------------------------------------------
+def test_plate_is_shear_free_at_any_orientation_and_keeps_its_pre_shear():
+    s, n = 5.0, 8
+    orientation = np.array([0.0, 30.0, 30.0, -75.0])
+    pre = np.array([0.0, 0.0, 12.0, -20.0])
+    crossover = np.array([[0.0, 0.0], [10.0, -20.0], [0.0, 0.0], [-15.0, 5.0]])
+    ds = drape(Plate(300.0), s, n, orientation=orientation, pre_shear=pre, crossover=crossover,
+               blankholder_force=200.0, friction=0.3)
+    assert (ds.status == Status.OK).all()
+    assert np.abs(ds.shear - ds.pre_shear).max() <= 1e-9
+    assert np.abs(ds.cell_shear - ds.pre_shear).max() <= 1e-9
+    # nodes sit at their flat-blank positions, so nothing is drawn in under the blank-holder
+    idx = np.arange(-n, n + 1)
+    psi = np.deg2rad(orientation)[:, None, None]
+    b = np.deg2rad(orientation + 90.0 - pre)[:, None, None]
+    I, J = idx[None, :, None], idx[None, None, :]
+    x = crossover[:, 0, None, None] + s * (I * np.cos(psi) + J * np.cos(b))
+    y = crossover[:, 1, None, None] + s * (I * np.sin(psi) + J * np.sin(b))
+    assert np.abs(ds.x.values - x).max() <= 1e-9 and np.abs(ds.y.values - y).max() <= 1e-9
+    assert np.abs(ds.z).max() == 0.0
+    assert np.abs(ds.energy_blankholder).max() <= 1e-12
+
+
+def test_skew_on_a_plate_closes_every_cell_by_the_skew():
+    ds = drape(Plate(300.0), 5.0, 6, skew=[10.0, -8.0], pre_shear=[0.0, 5.0], orientation=[0.0, 40.0])
+    expected = (ds.skew + ds.pre_shear).values[:, None, None]
+    assert np.abs(ds.cell_shear.values - expected).max() <= 1e-9
+
+
+@pytest.mark.parametrize("axis, orientation", [("x", 0.0), ("x", 180.0), ("y", 90.0)])
+def test_cylinder_with_the_net_along_its_axis_is_shear_free(axis, orientation):
+    crossover = np.array([[0.0, 0.0], [20.0, 30.0], [-35.0, -40.0]])
+    if axis == "y":
+        crossover = crossover[:, ::-1]
+    ds = drape(Cylinder(100.0, 400.0, axis), 5.0, 12, orientation=orientation, crossover=crossover)
+    assert (ds.status == Status.OK).all()
+    assert np.abs(ds.shear).max() <= 1e-6
+
+
+def test_cylinder_at_45_deg():
+    """On the crest the +-45 deg net is generated by screw motions whose chords project to
+    orthogonal plan directions, and the corner-averaged cell shear cancels exactly: measured
+    <= 1.2e-10 deg for s = 10 ... 2.5 mm (the node solver's tolerance, 1e-11 R). On the flank (crossover at y = 40 mm) plan angles
+    45/135 deg are not orthogonal on the surface: every cell carries the tangent-plane angle
+    deficit (4.9885 deg); the chord net's offset from it is the discretisation error,
+    measured 3.70e-3, 9.23e-4, 2.31e-4 deg for s = 10, 5, 2.5 mm (ratio 4.0)."""
+    cyl = Cylinder(100.0, 400.0, "x")
+    crest = [drape(cyl, s, int(40 / s), orientation=45.0) for s in (10.0, 5.0, 2.5)]
+    for ds in crest:
+        assert (ds.status == Status.OK).all()
+        assert np.abs(ds.cell_shear).max() <= 1e-8
+    hx, hy = cyl.gradient(0.0, 40.0)
+    t1 = np.array([1.0, 1.0, hx + hy])
+    t2 = np.array([-1.0, 1.0, -hx + hy])
+    exact = 90.0 - np.rad2deg(np.arccos(t1 @ t2 / (np.linalg.norm(t1) * np.linalg.norm(t2))))
+    errors = []
+    for s in (10.0, 5.0, 2.5):
+        ds = drape(cyl, s, int(40 / s), orientation=45.0, crossover=(0.0, 40.0))
+        cells = ds.cell_shear.values
+        assert np.ptp(cells) <= 1e-8  # congruent cells (measured <= 1.3e-9 deg)
+        errors.append(abs(cells.mean() - exact))
+    assert errors[0] < 5e-3
+    ratios = np.array(errors[:-1]) / np.array(errors[1:])
+    assert np.all((ratios > 3.5) & (ratios < 4.5)), ratios
+
+
+def test_cone_flank_discretisation_shear_is_small_and_second_order():
+    """Crossover on the flank of a 30 deg cone (plan r = 30 mm; apex and rim stay > 15 mm away),
+    fibres along the parallel and the generator, net 30 mm along each arm. Measured max
+    |cell shear|: 0.260, 0.0766, 0.0215, 0.00566 deg for s = 10, 5, 2.5, 1.25 mm."""
+    cone = Cone(30.0, 100.0)
+    worst = []
+    for s in (10.0, 5.0, 2.5, 1.25):
+        ds = drape(cone, s, int(round(30 / s)), crossover=(0.0, 30.0))
+        assert (ds.status == Status.OK).all()
+        r = np.hypot(ds.x, ds.y)
+        assert r.min() > 10.0 and r.max() < cone.base_radius - 5.0
+        worst.append(float(np.abs(ds.cell_shear).max()))
+    assert worst[1] < 0.1  # s = 5 mm
+    ratios = np.array(worst[:-1]) / np.array(worst[1:])
+    assert np.all((ratios > 3.0) & (ratios < 4.5)), ratios
+    assert 3.5 < ratios[-1] < 4.5
+
+
+# -- hemisphere ------------------------------------------------------------------------
+def test_hemisphere_from_the_pole_mirrors_in_its_quadrants():
+    n = 16
+    ds = drape(Hemisphere(100.0), 5.0, n)
+    assert (ds.status == Status.OK).all()
+    S = ds.shear.values[0]
+    X, Y, Z = ds.x.values[0], ds.y.values[0], ds.z.values[0]
+    flip_i, flip_j = (slice(None, None, -1), slice(None)), (slice(None), slice(None, None, -1))
+    assert np.abs(S + S[flip_i]).max() <= 1e-9  # shear(-i, j) = -shear(i, j)
+    assert np.abs(S + S[flip_j]).max() <= 1e-9
+    assert np.abs(S - S.T).max() <= 1e-9  # shear(j, i) = shear(i, j)
+    assert np.abs(X + X[flip_i]).max() <= 1e-9 and np.abs(Y - Y[flip_i]).max() <= 1e-9
+    assert np.abs(X - X[flip_j]).max() <= 1e-9 and np.abs(Y + Y[flip_j]).max() <= 1e-9
+    assert np.abs(X - Y.T).max() <= 1e-9 and np.abs(Z - Z.T).max() <= 1e-9
+    C = ds.cell_shear.values[0]
+    assert (C[n:, n:] > 0).all() and (C[:n, :n] > 0).all()  # i*j > 0
+    assert (C[n:, :n] < 0).all() and (C[:n, n:] < 0).all()  # i*j < 0
+    assert 20.0 < C.max() < 60.0
+
+
+def test_hemisphere_shear_converges_at_a_fixed_point_when_the_spacing_halves():
+    """Node (35/s, 35/s), about 50.5 mm from the pole along the diagonal of a R = 100 mm
+    hemisphere: 7.012555, 7.012806, 7.012867 deg for s = 5, 2.5, 1.25 mm (differences
+    2.5e-4, 6.2e-5: second order)."""
+    h = Hemisphere(100.0)
+    values = []
+    for s in (5.0, 2.5, 1.25):
+        n, k = int(round(40 / s)), int(round(35 / s))
+        ds = drape(h, s, n)
+        line = max_shear_lines(ds).sel(quadrant="++").isel(realization=0, k=k)
+        assert 49.5 < float(line.distance) < 51.5
+        values.append(float(ds.shear.isel(realization=0).sel(i=k, j=k)))
+    d = np.abs(np.diff(values))
+    assert 6.5 < values[-1] < 7.5
+    assert d[0] < 1e-3 and d[1] < d[0] / 3
+
+
+# -- batching --------------------------------------------------------------------------
+def _assert_batch_equals_singles(surf, s, n, mode, inputs, atol=1e-12):
+    material = load_material("ebxhd936_like")
+    batch = drape(surf, s, n, mode=mode, material=material, **inputs)
+    R = batch.sizes["realization"]
+    for r in range(R):
+        one = drape(surf, s, n, mode=mode, material=material, **{k: v[r] for k, v in inputs.items()})
+        for name in batch.data_vars:
+            a = batch[name].isel(realization=r).values
+            b = one[name].isel(realization=0).values
+            if a.dtype.kind == "f":
+                assert np.array_equal(np.isnan(a), np.isnan(b)), (name, r)
+                assert np.nanmax(np.abs(a - b), initial=0.0) <= atol, (name, r)
+            else:
+                assert np.array_equal(a, b), (name, r)
+    return batch
+
+
+def _varied_inputs(rng, s, n, R):
+    seg_i, seg_j = random_segments(rng, s, n, R)
+    return dict(orientation=rng.uniform(-45, 45, R), crossover=rng.uniform(-15, 15, (R, 2)),
+                pre_shear=rng.uniform(-10, 10, R), skew=rng.uniform(0, 20, R), seg_i=seg_i, seg_j=seg_j,
+                blankholder_force=rng.uniform(0, 300, R), friction=rng.uniform(0.1, 0.3, R),
+                gamma0=rng.normal(0.0, 3.0, (R, 2 * n, 2 * n)))
+
+
+@pytest.mark.parametrize("mode", ["geodesic", "energy"])
+def test_a_batch_gives_the_numbers_of_single_calls(mode):
+    """Nose cone, 4 drapes with different orientation, crossover, pre-shear, skew, segment
+    lengths, gamma0, force and friction (one with a folded corner): identical to single calls."""
+    rng = np.random.default_rng(7)
+    batch = _assert_batch_equals_singles(build("nose_cone"), 10.0, 10, mode, _varied_inputs(rng, 10.0, 10, 4))
+    assert len(np.unique(batch.energy_total)) == 4
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "kernels._bracket stops its Illinois loop when every element of the call has converged, so "
+    "a node solved by the bracketing fallback (near the hemisphere rim) is refined a different "
+    "number of times in a batch and alone: positions differ by 2.6e-11 mm (energy mode: cell "
+    "shear by 4e-9 deg). Freezing converged elements per element makes the batch exact."))
+def test_a_batch_gives_the_numbers_of_single_calls_near_the_rim():
+    rng = np.random.default_rng(7)
+    _assert_batch_equals_singles(Hemisphere(50.0, 60.0), 5.0, 10, "geodesic", _varied_inputs(rng, 5.0, 10, 5))
+
+
+# -- failure is data -------------------------------------------------------------------
+FAILURES = [
+    ("crossover near the plate edge", Plate(50.0), 5.0, 6, (45.0, 0.0), Status.OFF_MOULD),
+    ("spacing beyond the curvature", Hemisphere(20.0), 15.0, 4, (0.0, 0.0), Status.NO_INTERSECTION),
+    ("rings far off the mould", Hemisphere(50.0, 60.0), 10.0, 10, (0.0, 0.0), Status.OFF_MOULD),
+    ("crossover off the mould", Plate(50.0), 5.0, 4, (60.0, 0.0), Status.OFF_MOULD),
+]
+
+
+@pytest.mark.parametrize("mode", ["geodesic", "energy"])
+@pytest.mark.parametrize("label, surf, s, n, crossover, code", FAILURES, ids=[f[0] for f in FAILURES])
+def test_failures_are_flagged_not_raised(label, surf, s, n, crossover, code, mode):
+    ds = drape(surf, s, n, crossover=crossover, mode=mode, material=load_material("generic_woven"),
+               blankholder_force=100.0)
+    st = ds.status.values[0]
+    assert (st == code).any()
+    assert (st == Status.DEPENDENT).any()
+    check_status_rules(ds)
+    valid = st == Status.OK
+    assert surf.inside(ds.x.values[0][valid], ds.y.values[0][valid]).all()
+    assert np.isfinite(ds.energy_total).all()
+
+
+def test_crossover_off_the_mould_invalidates_the_whole_net():
+    ds = drape(Plate(50.0), 5.0, 4, crossover=[(60.0, 0.0), (0.0, 0.0)])
+    assert ds.status.values[0, 4, 4] == Status.OFF_MOULD
+    assert (ds.status.values[0] != Status.OK).all()
+    assert (ds.status.values[1] == Status.OK).all()
+
+
+BAD = [
+    (dict(spacing=-5.0), "spacing"),
+    (dict(spacing=0.0), "spacing"),
+    (dict(spacing=float("nan")), "spacing"),
+    (dict(crossover=(float("nan"), 0.0)), "crossover"),
+    (dict(crossover=[(0.0, 0.0), (1.0, float("nan"))]), "crossover"),
+    (dict(rings=0), "rings"),
+    (dict(rings=2.5), "rings"),
+    (dict(mode="kinematic"), "mode"),
+    (dict(mode="energy"), "material"),
+    (dict(orientation=[0.0, 10.0, 20.0], crossover=[(0.0, 0.0), (1.0, 1.0)]), "orientation"),
+    (dict(seg_i=np.ones((3, 3))), "seg_i"),
+    (dict(seg_j=np.full((9, 8), -1.0)), "seg_j"),
+    (dict(orientation=float("nan")), "orientation"),
+    (dict(blankholder_force=-1.0), "blankholder_force"),
+    (dict(friction=float("nan")), "friction"),
+]
+
+
+@pytest.mark.parametrize("kwargs, name", BAD, ids=[f"{b[1]}-{i}" for i, b in enumerate(BAD)])
+def test_impossible_arguments_raise_naming_the_argument(kwargs, name):
+    args = dict(spacing=5.0, rings=4)
+    args.update(kwargs)
+    with pytest.raises(ValueError, match=name):
+        drape(Plate(100.0), args.pop("spacing"), args.pop("rings"), **args)
+
+
+# -- STL, netCDF, lines ----------------------------------------------------------------
+def test_drape_over_the_shipped_stl_matches_the_analytic_hemisphere():
+    """tests/data/hemisphere_r50.stl is Hemisphere(50, 60) exported at 2.5 mm. Net within
+    r < 42 mm of the axis (rim at 50): measured max position gap 0.073 mm, shear gap 0.10 deg."""
+    kwargs = dict(orientation=[0.0, 25.0], crossover=[(0.0, 0.0), (3.0, -2.0)])
+    analytic = drape(Hemisphere(50.0, 60.0), 5.0, 6, **kwargs)
+    meshed = drape(StlSurface(DATA / "hemisphere_r50.stl"), 5.0, 6, **kwargs)
+    assert (analytic.status == Status.OK).all() and (meshed.status == Status.OK).all()
+    assert float(np.hypot(analytic.x, analytic.y).max()) < 42.0
+    gap = np.linalg.norm(positions(analytic) - positions(meshed), axis=-1)
+    assert gap.max() < 0.15
+    assert float(np.abs(analytic.shear - meshed.shear).max()) < 0.3
+    assert float(np.abs(analytic.shear).max()) > 15.0
+
+
+def test_netcdf_round_trip(tmp_path):
+    ds = drape(Hemisphere(20.0, 25.0), 5.0, 6, mode="energy", material=load_material("twintex3_like"),
+               blankholder_force=[0.0, 100.0], factors={"spacing_cv": [0.01, 0.02]})
+    assert (ds.status != Status.OK).any()  # NaNs travel too
+    path = tmp_path / "drape.nc"
+    ds.to_netcdf(path)
+    with xr.open_dataset(path) as back:
+        back.load()
+    xr.testing.assert_identical(ds, back)
+    expected = {"x": "mm", "y": "mm", "z": "mm", "shear": "degree", "cell_shear": "degree",
+                "gamma0": "degree", "turn": "degree", "energy_shear": "J", "energy_bending": "J",
+                "energy_blankholder": "J", "energy_blankholder_quadrant": "J", "energy_total": "J",
+                "orientation": "degree", "pre_shear": "degree", "skew": "degree", "crossover_x": "mm",
+                "crossover_y": "mm", "blankholder_force": "N", "friction": "1"}
+    for name, units in expected.items():
+        assert back[name].attrs["units"] == units, name
+    floats = [v for v in back.data_vars if back[v].dtype.kind == "f"]
+    assert all("units" in back[v].attrs for v in floats)
+    assert back.attrs["mode"] == "energy" and back.attrs["material"] == "twintex3_like"
+    assert back.attrs["rings"] == 6 and back.attrs["spacing_mm"] == 5.0
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "schema.md: every data variable carries CF units and long_name; the sampled factors "
+    "(orientation, pre_shear, skew, crossover_x/y, blankholder_force, friction, extra factors) "
+    "have no long_name, and status, cell_locked, iterations, converged have no units."))
+def test_every_data_variable_carries_units_and_long_name():
+    ds = drape(Plate(100.0), 5.0, 2)
+    missing = [v for v in ds.data_vars if not {"units", "long_name"} <= set(ds[v].attrs)]
+    assert missing == []
+
+
+def test_max_and_min_shear_lines_on_a_plate():
+    s, n = 5.0, 8
+    ds = drape(Plate(300.0), s, n, orientation=[0.0, 30.0], crossover=[(0.0, 0.0), (20.0, -10.0)])
+    lines = max_shear_lines(ds)
+    assert lines.distance.dims[-2:] == ("quadrant", "k") or set(lines.distance.dims) >= {"quadrant", "k"}
+    k = np.arange(n + 1)
+    np.testing.assert_allclose(lines.distance.transpose("realization", "quadrant", "k").values,
+                               np.broadcast_to(k * s * np.sqrt(2), (2, 4, n + 1)), atol=1e-9)
+    assert list(lines.quadrant.values) == ["++", "-+", "--", "+-"]
+    arms = min_shear_lines(ds)
+    np.testing.assert_allclose(arms.distance.transpose("realization", "arm", "k").values,
+                               np.broadcast_to(k * s, (2, 4, n + 1)), atol=1e-9)
+
+
+def test_max_shear_lines_on_a_dome_rise_along_k_and_carry_the_quadrant_sign():
+    ds = drape(Hemisphere(100.0), 5.0, 12, orientation=[0.0, 20.0])
+    lines = max_shear_lines(ds)
+    d = lines.distance.values
+    assert np.isfinite(d).all()
+    assert (np.diff(lines.distance, axis=lines.distance.dims.index("k")) > 0).all()
+    shear = lines.shear.isel(k=slice(1, None))
+    assert (shear.sel(quadrant=["++", "--"]) > 0).all() and (shear.sel(quadrant=["-+", "+-"]) < 0).all()
+    # |shear| grows away from the pole along each diagonal
+    assert (np.abs(shear).diff("k") > 0).all()
