@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
+from pathlib import Path
 
 import matplotlib as mpl
 import numpy as np
@@ -74,7 +75,7 @@ def _triangulation(x: np.ndarray, y: np.ndarray, valid: np.ndarray):
 
 
 def _map(ds: xr.Dataset, values: xr.DataArray, path, *, norm, cmap, cbar_label: str, title: str,
-         mark=None) -> object:
+         mark=None) -> Path:
     """Draw ``values`` (dims [blankholder_force,] i, j) on the mean node positions, one panel per level.
 
     ``mark(force) -> (i, j, text) | None`` annotates one node per panel.
@@ -116,7 +117,7 @@ def _node_mark(da: xr.DataArray, fmt):
 
 
 @styled
-def plot_mean_map(ds: xr.Dataset, path, *, node_stats: xr.Dataset | None = None):
+def plot_mean_map(ds: xr.Dataset, path, *, node_stats: xr.Dataset | None = None) -> Path:
     """Map of the ensemble-mean node shear (deg), diverging colours centred on 0. Returns the path."""
     node_stats = node_statistics(ds) if node_stats is None else node_stats
     mean = node_stats["mean"]
@@ -128,7 +129,7 @@ def plot_mean_map(ds: xr.Dataset, path, *, node_stats: xr.Dataset | None = None)
 
 
 @styled
-def plot_sd_map(ds: xr.Dataset, path, *, node_stats: xr.Dataset | None = None):
+def plot_sd_map(ds: xr.Dataset, path, *, node_stats: xr.Dataset | None = None) -> Path:
     """Map of the ensemble standard deviation of node shear (deg). Returns the path."""
     node_stats = node_statistics(ds) if node_stats is None else node_stats
     sd = node_stats["sd"]
@@ -141,7 +142,7 @@ def plot_sd_map(ds: xr.Dataset, path, *, node_stats: xr.Dataset | None = None):
 
 @styled
 def plot_wrinkle_map(ds: xr.Dataset, path, *, threshold_deg: float | None = None,
-                     exceedance: xr.Dataset | None = None):
+                     exceedance: xr.Dataset | None = None) -> Path:
     """Map of the wrinkle risk P(|shear| > threshold) per node, threshold defaulting to the locking angle.
 
     The node of highest probability is marked with the probability and its binomial
@@ -164,7 +165,7 @@ def plot_wrinkle_map(ds: xr.Dataset, path, *, threshold_deg: float | None = None
 
 
 @styled
-def plot_line_statistics(ds: xr.Dataset, path, *, line_stats: xr.Dataset | None = None, experimental=None):
+def plot_line_statistics(ds: xr.Dataset, path, *, line_stats: xr.Dataset | None = None, experimental=None) -> Path:
     """Ensemble shear against mean distance from the tip along the max-shear lines (thesis Figs 5.18/5.19).
 
     Per quadrant (i*j > 0 red, others blue): the mean with ±1 sd bars in shear and
@@ -211,7 +212,7 @@ def _node_kind(node) -> str:
 
 
 @styled
-def plot_histograms(ds: xr.Dataset, path, nodes: Sequence[Sequence[int]], *, bins: int = 20):
+def plot_histograms(ds: xr.Dataset, path, nodes: Sequence[Sequence[int]], *, bins: int = 20) -> Path:
     """Histograms of node shear at ``nodes`` [(i, j), ...] with the fitted Normal (thesis Fig 5.20).
 
     One panel per node; a blank-holder sweep shows one histogram (steps) and Normal per
@@ -256,7 +257,7 @@ def most_variable_node(ds: xr.Dataset, node_stats: xr.Dataset | None = None) -> 
 
 @styled
 def plot_convergence(ds: xr.Dataset, path, node: Sequence[int] | None = None, *, target_deg: float = 1.0,
-                     confidence: float = 0.95, node_stats: xr.Dataset | None = None):
+                     confidence: float = 0.95, node_stats: xr.Dataset | None = None) -> Path:
     """Running mean (with its confidence band) and interval half-width of node shear against N.
 
     ``node`` defaults to the most variable node. The half-width panel (log-log) marks
@@ -299,7 +300,7 @@ def plot_convergence(ds: xr.Dataset, path, node: Sequence[int] | None = None, *,
 
 
 @styled
-def plot_sweep(ds: xr.Dataset, path, *, scalars: xr.Dataset | None = None):
+def plot_sweep(ds: xr.Dataset, path, *, scalars: xr.Dataset | None = None) -> Path:
     """Max-shear line means ± 1 sd against blank-holder force (N) for a sweep ensemble.
 
     Left: mean signed shear along the + quadrant (i*j > 0) and − quadrant lines; right:
