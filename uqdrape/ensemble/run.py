@@ -109,6 +109,8 @@ def _prepare(out: Path, manifest: dict, resume: bool) -> None:
 
 def _compute(tasks: list, scheduler: str | None, workers: int | None, progress: bool) -> None:
     """Run the chunk tasks locally or on a dask.distributed cluster; re-raise a failure."""
+    if not tasks:
+        return
     if scheduler is None or scheduler in LOCAL_SCHEDULERS:
         options = {"scheduler": scheduler or "processes"}
         if workers is not None:
@@ -138,6 +140,10 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
     resume      skip chunks already written by an earlier run of the same study; False
                 deletes the folder's chunk files first
     progress    show a progress bar (stderr)
+
+    Local worker processes are spawned and import the calling script, so a script needs
+    the usual ``if __name__ == "__main__":`` guard. Cluster workers need uqdrape installed
+    and must see the output folder (a shared file system).
     """
     study = study if isinstance(study, Study) else load_study(study)
     chunk_size = study.chunk_size if chunk_size is None else _positive_int("chunk_size", chunk_size)

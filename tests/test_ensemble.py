@@ -1,0 +1,327 @@
+"""Tests of uqdrape.ensemble: deterministic inputs, chunked dask runs, the chunk store, resume.
+
+Tiny studies (hemisphere, 4-5 rings, up to 20 realisations) with random spacing, a
+random zero angle and one scalar factor. "Same numbers" means bitwise: every variable,
+coordinate and variable attribute identical (global attributes hold the provenance,
+which names the output folder, so they are compared separately).
+"""
+
+import dataclasses
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from uqdrape.ensemble import (
+    design_variables, drape_inputs, inputs_from_design, open_ensemble, run_study, sampled_inputs,
+)
+from uqdrape.study import load_study
+
+N = 20
+
+
+def study_file(tmp_path, name="tiny", *, realizations=N, chunk_size=7, mode="geodesic", rings=5,
+               force="100.0", plan="monte_carlo", seed=11, out=None):
+    """Write a tiny hemisphere study; its output folder is tmp_path/out (or ``out``)."""
+    text = f"""
+        [study]
+        name = "{name}"
+        seed = {seed}
+        realizations = {realizations}
+        chunk_size = {chunk_size}
+
+        [geometry]
+        kind = "hemisphere"
+        radius = 50.0
+
+        [fabric]
+        material = "generic_woven"
+        spacing_mm = 5.0
+
+        [process]
+        blankholder_force_N = {force}
+        friction = 0.2
+
+        [solver]
+        mode = "{mode}"
+        rings = {rings}
+
+        [uncertainty.spacing]
+        cv = 0.01
+
+        [uncertainty.zero_angle]
+        sd_deg = 3.0
+
+        [uncertainty.friction]
+        dist = "uniform"
+        bounds = [0.1, 0.3]
+
+        [sampling]
+        plan = "{plan}"
+
+        [output]
+        directory = "{out or tmp_path / 'out'}"
+    """
+    path = tmp_path / f"{name}.toml"
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+def moved(study, folder):
+    """The same study writing to another folder."""
+    return dataclasses.replace(study, output_dir=Path(folder))
+
+
+def assert_same_numbers(a, b):
+    xr.testing.assert_identical(a.drop_attrs(deep=False), b.drop_attrs(deep=False))
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """The tiny geodesic study run in this process in one chunk: (study, loaded ensemble)."""
+    tmp = tmp_path_factory.mktemp("reference")
+    study = load_study(study_file(tmp))
+    out = run_study(study, scheduler="synchronous", chunk_size=64, progress=False)
+    with open_ensemble(out) as ds:
+        return study, ds.load()
+
+
+# ----------------------------------------------------------------------------- inputs
+
+
+@pytest.mark.parametrize("plan", ["monte_carlo", "latin_hypercube"])
+def test_inputs_of_a_realisation_do_not_depend_on_its_chunk(tmp_path, plan):
+    study = load_study(study_file(tmp_path, plan=plan))
+    whole = sampled_inputs(study, range(N))
+    parts = [sampled_inputs(study, r) for r in ([0, 1, 2, 3, 4, 5, 6], [13, 7, 8, 9, 10, 11, 12], [14, 19, 15, 16, 17, 18])]
+    order = np.r_[0:7, 13, 7:13, 14, 19, 15:19]
+    assert set(whole) == {"seg_i", "seg_j", "gamma0", "friction"}
+    for key, value in whole.items():
+        np.testing.assert_array_equal(np.concatenate([p[key] for p in parts]), value[order])
+    assert whole["seg_i"].shape == (N, 10, 11) and whole["seg_j"].shape == (N, 11, 10)
+    assert whole["gamma0"].shape == (N, 10, 10)
+
+
+def test_latin_hypercube_factor_hits_every_stratum_once(tmp_path):
+    study = load_study(study_file(tmp_path, plan="latin_hypercube"))
+    u = (sampled_inputs(study, range(N))["friction"] - 0.1) / 0.2
+    np.testing.assert_array_equal(np.sort(np.floor(u * N)), np.arange(N))
+
+
+def test_monte_carlo_realisation_does_not_depend_on_ensemble_size(tmp_path):
+    small = load_study(study_file(tmp_path, name="small"))
+    big = load_study(study_file(tmp_path, name="big", realizations=3 * N))
+    a, b = sampled_inputs(small, range(N)), sampled_inputs(big, range(N))
+    for key in a:
+        np.testing.assert_array_equal(a[key], b[key])
+    # the inputs are random: spacing scatter near cv = 1 %, friction spread over its bounds
+    assert 0.007 < np.std(a["seg_i"] / 5.0) < 0.013
+    assert a["friction"].min() < 0.15 and a["friction"].max() > 0.25
+
+
+def test_inputs_from_design_maps_standard_variables(tmp_path):
+    study = load_study(study_file(tmp_path))
+    names = design_variables(study)
+    assert names[0] == "friction"
+    n_spacing = sum(name.startswith("spacing[") for name in names)
+    n_zero = sum(name.startswith("zero_angle[") for name in names)
+    assert n_spacing >= 1 and n_zero >= 1 and len(names) == 1 + n_spacing + n_zero
+    assert names[1:] == [f"spacing[{k}]" for k in range(n_spacing)] + [f"zero_angle[{k}]" for k in range(n_zero)]
+    X = np.zeros((3, len(names)))
+    X[:, 0] = [0.0, 0.5, 1.0]
+    X[2, 1] = 2.0          # one KL mode of the spacing in the last row
+    X[1, 1 + n_spacing] = -1.5  # one KL mode of the zero angle in the middle row
+    inp = inputs_from_design(study, X)
+    np.testing.assert_allclose(inp["friction"], [0.1, 0.2, 0.3], rtol=1e-9)
+    # zero KL variables: the mean fields
+    np.testing.assert_array_equal(inp["seg_i"][:2], 5.0)
+    np.testing.assert_array_equal(inp["gamma0"][[0, 2]], 0.0)
+    assert np.ptp(inp["seg_i"][2]) > 0 and np.ptp(inp["gamma0"][1]) > 0
+    with pytest.raises(ValueError, match=r"X must have shape \(R >= 1, %d\)" % len(names)):
+        inputs_from_design(study, X[:, :-1])
+    X[0, 0] = 1.5
+    with pytest.raises(ValueError, match=r"\['friction'\] are standard uniforms"):
+        inputs_from_design(study, X)
+
+
+def test_realisation_indices_are_checked(tmp_path):
+    study = load_study(study_file(tmp_path))
+    with pytest.raises(ValueError, match="realization index 20 is outside the study's 0..19"):
+        sampled_inputs(study, [3, 20])
+
+
+# ----------------------------------------------------------------------------- runs
+
+
+def test_same_numbers_for_another_chunk_size_and_two_local_processes(tmp_path, reference):
+    # the reference ran in one chunk of 64 in this process; one worker process and
+    # chunks of 1 are covered by test_interrupted_run_resumes_to_the_same_ensemble
+    study, ref = reference
+    assert ref.sizes["realization"] == N
+    np.testing.assert_array_equal(ref.realization, np.arange(N))
+    out = run_study(moved(study, tmp_path), chunk_size=7, workers=2, progress=False)
+    with open_ensemble(out) as ds:
+        assert ds.x.chunks[0] == (7, 7, 6)  # lazily opened, one dask chunk per file
+        assert_same_numbers(ds, ref)
+
+
+@pytest.mark.slow  # ~6 s: starts a two-process dask cluster
+def test_same_numbers_on_a_distributed_cluster(tmp_path, reference):
+    from distributed import LocalCluster
+
+    study, ref = reference
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        out = run_study(moved(study, tmp_path), scheduler=cluster.scheduler_address, chunk_size=7, progress=False)
+    with open_ensemble(out) as ds:
+        assert_same_numbers(ds, ref)
+
+
+def test_ensemble_holds_inputs_provenance_and_units(reference):
+    study, ds = reference
+    inputs = sampled_inputs(study, range(N))
+    np.testing.assert_array_equal(ds.seg_i, inputs["seg_i"])
+    np.testing.assert_array_equal(ds.seg_j, inputs["seg_j"])
+    # the solver stores gamma0 after a degree -> radian -> degree round trip (1 ulp)
+    np.testing.assert_allclose(ds.gamma0, inputs["gamma0"], rtol=1e-15, atol=1e-15)
+    np.testing.assert_array_equal(ds.friction, inputs["friction"])
+    assert ds.seg_i.dims == ("realization", "cell_i", "j") and ds.seg_j.dims == ("realization", "i", "cell_j")
+    assert ds.attrs["study_name"] == "tiny" and ds.attrs["study_seed"] == 11
+    assert ds.attrs["study_realizations"] == N and ds.attrs["sampling_plan"] == "monte_carlo"
+    assert json.loads(ds.attrs["study_json"]) == study.to_dict()
+    assert ds.attrs["study_toml"] == study.path.read_text()
+    assert ds.attrs["material"] == "generic_woven" and ds.attrs["geometry"].startswith("hemisphere(radius=50.0")
+    assert ds.attrs["uqdrape_version"]
+    assert (ds.status == 0).all() and bool(ds.converged.all())
+
+
+def test_chunk_file_opens_with_plain_xarray(tmp_path, reference):
+    study, ref = reference
+    out = run_study(moved(study, tmp_path), scheduler="synchronous", progress=False)  # chunks of 7
+    names = sorted(p.name for p in (out / "chunks").iterdir())
+    assert names == ["r0000000-0000006.nc", "r0000007-0000013.nc", "r0000014-0000019.nc"]
+    with xr.open_dataset(out / "chunks" / names[1]) as ds:
+        np.testing.assert_array_equal(ds.realization, np.arange(7, 14))
+        units = {v: ds[v].attrs.get("units") for v in ("x", "z", "shear", "cell_shear", "energy_total",
+                                                       "friction", "seg_i", "gamma0")}
+        assert units == {"x": "mm", "z": "mm", "shear": "degree", "cell_shear": "degree",
+                         "energy_total": "J", "friction": "1", "seg_i": "mm", "gamma0": "degree"}
+        xr.testing.assert_identical(ds.x, ref.x.sel(realization=slice(7, 13)))
+
+
+def test_energy_sweep_uses_common_random_numbers(tmp_path):
+    path = study_file(tmp_path, name="sweep", mode="energy", rings=4, realizations=6, chunk_size=4,
+                      force="[0.0, 300.0]")
+    out = run_study(path, scheduler="synchronous", progress=False)
+    assert sorted(p.name for p in (out / "chunks").iterdir()) == [
+        "f000-r0000000-0000003.nc", "f000-r0000004-0000005.nc",
+        "f001-r0000000-0000003.nc", "f001-r0000004-0000005.nc"]
+    with open_ensemble(out) as ds:
+        ds = ds.load()
+    assert ds.x.dims == ("blankholder_force", "realization", "i", "j")
+    np.testing.assert_array_equal(ds.blankholder_force, [0.0, 300.0])
+    assert ds.blankholder_force.attrs["units"] == "N"
+    for name in ("seg_i", "seg_j", "gamma0", "friction"):
+        a, b = ds[name].sel(blankholder_force=0.0), ds[name].sel(blankholder_force=300.0)
+        np.testing.assert_array_equal(a, b)
+        assert float(a.std("realization").max()) > 0  # random, yet shared by the levels
+    energy = ds.energy_blankholder
+    assert (energy.sel(blankholder_force=0.0) == 0).all() and (energy.sel(blankholder_force=300.0) > 0).all()
+    assert ds.mode == "energy" and int(ds.iterations.sum()) > 0
+    # an energy drape too is the same for another chunking
+    again = run_study(moved(load_study(path), tmp_path / "again"), scheduler="synchronous",
+                      chunk_size=64, progress=False)
+    with open_ensemble(again) as other:
+        assert_same_numbers(other, ds)
+
+
+# ----------------------------------------------------------------------------- store and resume
+
+
+def test_interrupted_run_resumes_to_the_same_ensemble(tmp_path, reference):
+    study, ref = reference
+    path = study_file(tmp_path, chunk_size=1)
+    chunks = tmp_path / "out" / "chunks"
+    code = (f"from uqdrape.ensemble import run_study; "
+            f"run_study({str(path)!r}, workers=1, progress=False)")
+    proc = subprocess.Popen([sys.executable, "-c", code], start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 60
+        while not (chunks.is_dir() and any(chunks.glob("*.nc"))):
+            assert proc.poll() is None, proc.stderr.read().decode()
+            assert time.monotonic() < deadline, "no chunk written within 60 s"
+            time.sleep(0.005)
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)  # the run and its worker process
+        proc.wait()
+        proc.stderr.close()
+    done = len(list(chunks.glob("*.nc")))
+    assert 1 <= done < N
+    with pytest.raises(FileNotFoundError, match=rf"incomplete run: {N - done} of {N} chunk files missing"):
+        open_ensemble(tmp_path / "out")
+    run_study(path, scheduler="synchronous", progress=False)
+    assert len(list(chunks.glob("*.nc"))) == N
+    with open_ensemble(tmp_path / "out") as ds:
+        assert_same_numbers(ds, ref)
+
+
+def test_half_written_part_file_is_never_a_finished_chunk(tmp_path, reference):
+    study, ref = reference
+    study = moved(study, tmp_path)
+    chunks = tmp_path / "chunks"
+    chunks.mkdir()
+    (chunks / "r0000007-0000013.nc.part").write_bytes(b"\x89HDF\r\n\x1a\n half a chunk")
+    run_study(study, scheduler="synchronous", progress=False)
+    assert not list(chunks.glob("*.part"))  # overwritten, then renamed into place
+    with open_ensemble(tmp_path) as ds:
+        assert_same_numbers(ds, ref)
+    # a chunk lost after a part file was left: the part file is not taken for it
+    (chunks / "r0000014-0000019.nc").rename(chunks / "r0000014-0000019.nc.part")
+    with pytest.raises(FileNotFoundError, match=r"1 of 3 chunk files missing in chunks/ \(r0000014-0000019.nc\)"):
+        open_ensemble(tmp_path)
+    before = (chunks / "r0000000-0000006.nc").stat().st_mtime_ns
+    run_study(study, scheduler="synchronous", progress=False)
+    assert (chunks / "r0000000-0000006.nc").stat().st_mtime_ns == before  # finished chunks are skipped
+    with open_ensemble(tmp_path) as ds:
+        assert_same_numbers(ds, ref)
+
+
+def test_resume_refuses_another_study_or_chunking(tmp_path, reference):
+    study, _ = reference
+    study = moved(study, tmp_path)
+    run_study(study, scheduler="synchronous", progress=False)
+    other = dataclasses.replace(study, seed=12)
+    with pytest.raises(ValueError, match=r"holds a run of a different study definition \(changed: study\)"):
+        run_study(other, scheduler="synchronous", progress=False)
+    with pytest.raises(ValueError, match=r"was run with chunk_size=7; resume with chunk_size=7"):
+        run_study(study, scheduler="synchronous", chunk_size=5, progress=False)
+    out = run_study(other, scheduler="synchronous", chunk_size=5, resume=False, progress=False)
+    assert len(list((out / "chunks").glob("*.nc"))) == 4
+    with open_ensemble(out) as ds:
+        assert ds.attrs["study_seed"] == 12
+
+
+def test_open_ensemble_without_a_run(tmp_path):
+    with pytest.raises(FileNotFoundError, match=r"holds no uqdrape run \(no run.json\)"):
+        open_ensemble(tmp_path)
+
+
+def test_bad_run_arguments(tmp_path, reference):
+    study = moved(reference[0], tmp_path)
+    with pytest.raises(ValueError, match=r"scheduler must be None, one of \('processes', 'synchronous'\)"):
+        run_study(study, scheduler="threads")
+    with pytest.raises(ValueError, match="workers=2 sets local processes; the cluster at tcp://"):
+        run_study(study, scheduler="tcp://127.0.0.1:1", workers=2)
+    with pytest.raises(ValueError, match="chunk_size must be a positive integer, got 0"):
+        run_study(study, chunk_size=0)
+    with pytest.raises(ValueError, match="force=10.0: study .tiny. is not a blank-holder-force sweep"):
+        drape_inputs(study, [0], sampled_inputs(study, [0]), force=10.0)
+    assert not tmp_path.joinpath("run.json").exists()  # nothing written for bad arguments
