@@ -23,7 +23,7 @@ import xarray as xr
 from uqdrape.ensemble import (
     design_variables, drape_inputs, inputs_from_design, open_ensemble, run_study, sampled_inputs,
 )
-from uqdrape.study import load_study
+from uqdrape.study import FACTOR_SETTINGS, load_study
 
 N = 20
 
@@ -150,6 +150,25 @@ def test_inputs_from_design_maps_standard_variables(tmp_path):
     X[0, 0] = 1.5
     with pytest.raises(ValueError, match=r"\['friction'\] are standard uniforms"):
         inputs_from_design(study, X)
+
+
+def test_every_study_factor_reaches_the_solver(tmp_path):
+    study = load_study(study_file(tmp_path))
+    values = {"orientation": [10.0, -5.0], "pre_shear": [5.0, 0.0], "skew": [0.0, 20.0],
+              "crossover_x": [1.0, 0.0], "crossover_y": [0.0, -2.0], "friction": [0.25, 0.1],
+              "blankholder_force": [50.0, 80.0]}
+    assert set(values) == set(FACTOR_SETTINGS)
+    ds = drape_inputs(study, [3, 4], {k: np.array(v) for k, v in values.items()})
+    np.testing.assert_array_equal(ds.realization, [3, 4])
+    for name, value in values.items():
+        np.testing.assert_array_equal(ds[name], value)
+    np.testing.assert_allclose(ds.x.sel(i=0, j=0), [1.0, 0.0], atol=1e-9)  # the crossover node
+    # fibre 1 leaves the crossover at the orientation + half the skew (in plan; off the
+    # pole of the hemisphere the plan angle of the first segment drifts a little)
+    angle = np.degrees(np.arctan2(ds.y.sel(i=1, j=0) - ds.y.sel(i=0, j=0), ds.x.sel(i=1, j=0) - ds.x.sel(i=0, j=0)))
+    np.testing.assert_allclose(angle, [10.0, 5.0], atol=0.5)
+    with pytest.raises(ValueError, match=r"inputs \['spacing_cv'\] are not solver inputs"):
+        drape_inputs(study, [0], {"spacing_cv": np.array([0.1])})
 
 
 def test_realisation_indices_are_checked(tmp_path):

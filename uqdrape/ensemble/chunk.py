@@ -36,20 +36,24 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
     elif force is not None:
         raise ValueError(f"force={force!r}: study {study.name!r} is not a blank-holder-force sweep; pass force=None")
     fabric, process, solver = study.fabric, study.process, study.solver
+    # each scalar factor of the study (study.FACTOR_SETTINGS) and its fixed setting
+    settings = {"orientation": fabric.orientation_deg, "pre_shear": fabric.pre_shear_deg, "skew": fabric.skew_deg,
+                "crossover_x": fabric.crossover[0], "crossover_y": fabric.crossover[1],
+                "friction": process.friction, "blankholder_force": levels[0] if force is None else force}
+    unknown = sorted(set(inputs) - set(settings) - {"seg_i", "seg_j", "gamma0"})
+    if unknown:
+        raise ValueError(f"inputs {unknown} are not solver inputs; valid: seg_i, seg_j, gamma0, {', '.join(settings)}")
     R = len(r)
-    crossover = np.stack([np.broadcast_to(inputs.get("crossover_x", fabric.crossover[0]), (R,)),
-                          np.broadcast_to(inputs.get("crossover_y", fabric.crossover[1]), (R,))], axis=-1)
+    value = {name: np.broadcast_to(inputs.get(name, fixed), (R,)) for name, fixed in settings.items()}
     ds = drape(
         study.geometry.build_mould() if surface is None else surface,
         fabric.spacing_mm, solver.rings,
-        orientation=inputs.get("orientation", fabric.orientation_deg),
-        pre_shear=inputs.get("pre_shear", fabric.pre_shear_deg),
-        crossover=crossover,
+        orientation=value["orientation"], pre_shear=value["pre_shear"], skew=value["skew"],
+        crossover=np.stack([value["crossover_x"], value["crossover_y"]], axis=-1),
         seg_i=inputs.get("seg_i"), seg_j=inputs.get("seg_j"), gamma0=inputs.get("gamma0"),
         mode=solver.mode,
         material=load_material(fabric.material) if material is None else material,
-        blankholder_force=inputs.get("blankholder_force", levels[0]) if force is None else force,
-        friction=inputs.get("friction", process.friction),
+        blankholder_force=value["blankholder_force"], friction=value["friction"],
         sectors=process.sectors,
         tolerance=solver.tolerance_deg, max_iterations=solver.max_iterations,
     )
