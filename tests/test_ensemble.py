@@ -317,8 +317,8 @@ def test_resume_refuses_another_study_or_chunking(tmp_path, reference):
     study, _ = reference
     study = moved(study, tmp_path)
     run_study(study, scheduler="synchronous", progress=False)
-    other = dataclasses.replace(study, seed=12)
-    with pytest.raises(ValueError, match=r"holds a run of a different study definition \(changed: study\)"):
+    other = dataclasses.replace(study, seed=12, solver=dataclasses.replace(study.solver, rings=4))
+    with pytest.raises(ValueError, match=r"different study definition \(changed: solver.rings, study.seed\)"):
         run_study(other, scheduler="synchronous", progress=False)
     with pytest.raises(ValueError, match=r"was run with chunk_size=7; resume with chunk_size=7"):
         run_study(study, scheduler="synchronous", chunk_size=5, progress=False)

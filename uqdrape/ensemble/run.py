@@ -95,7 +95,9 @@ def _prepare(out: Path, manifest: dict, resume: bool) -> None:
     else:
         before, now = _identity(old), _identity(manifest)
         if before != now:
-            changed = sorted(k for k in set(before) | set(now) if before.get(k) != now.get(k))
+            changed = sorted(f"{section}.{key}" for section in set(before) | set(now)
+                             for key in set(before.get(section, {})) | set(now.get(section, {}))
+                             if before.get(section, {}).get(key) != now.get(section, {}).get(key))
             raise ValueError(
                 f"{out} holds a run of a different study definition (changed: {', '.join(changed)}); "
                 "run with resume=False (--no-resume) to replace it, or set another [output] directory")
