@@ -272,7 +272,7 @@ class EnergyRings:
         converged = np.ones(R, bool)
         h = self.STENCIL
         offsets = np.array([-h, 0.0, h])
-        stencil = [(0, 1), (1, 1), (2, 1), (1, 0), (1, 2)]  # (i-arm cand, j-arm cand) pairs
+        stencil = [(0, 1), (1, 1), (2, 1), (1, 0), (1, 2), (2, 2)]  # (i-arm cand, j-arm cand) pairs
         turn = np.zeros((R, 4))
         for k in range(1, n + 1):
             if k > 1 and self.max_iterations > 0:
@@ -287,14 +287,28 @@ class EnergyRings:
         return P, status, turns, bending, iterations, converged
 
     def _minimise(self, P, k, turn, offsets, stencil):
+        """Batched trust-region Newton on the four turn angles (rad) of step k.
+
+        Gradient and Hessian come from three-point stencils per arm plus one diagonal
+        stencil point per quadrant corner (the only coupling between arms), so each
+        iteration costs three candidate rings. Non-positive curvature is lifted by
+        clamping the Hessian's eigenvalues. A trial that lowers the energy is accepted
+        and widens the trust radius; one that raises it shrinks the radius, so kinks in
+        the energy (an asymmetric card's branch change at gamma0) cost iterations, not
+        cycles. Converged when the next step, or the radius, is below the tolerance.
+        """
         R = turn.shape[0]
         h = offsets[2]
-        bound = self.max_turn
         best = turn.copy()
         best_energy = np.full(R, np.inf)
+        grad_best = np.zeros((R, 4))
+        hess_best = np.zeros((R, 4, 4))
+        radius = np.full(R, 0.02)
+        last = np.zeros(R)
         active = np.ones(R, bool)
         done = np.zeros(R, bool)
         its = np.zeros(R, np.int32)
+        idx = np.arange(4)
         for _ in range(self.max_iterations):
             cand = turn[:, None, :] + offsets[None, :, None]
             S, _, e_arm = self.sides(P, k, cand)
@@ -302,23 +316,31 @@ class EnergyRings:
             e_arm = np.nan_to_num(e_arm, nan=np.inf)
             total = e_arm[:, 1].sum(-1) + e_corner[:, 1].sum(-1)
             per_arm = e_arm.copy()
+            hess = np.zeros((R, 4, 4))
             for q, (a, _, b, _) in enumerate(QUADRANTS.values()):
                 per_arm[:, :, a] += e_corner[:, [0, 1, 2], q]
                 per_arm[:, :, b] += e_corner[:, [3, 1, 4], q]
-            its += active
-            better = total <= best_energy
-            best = np.where((active & better)[:, None], turn, best)
-            best_energy = np.where(active & better, total, best_energy)
+                cross = (e_corner[:, 5, q] - e_corner[:, 2, q] - e_corner[:, 4, q] + e_corner[:, 1, q]) / h**2
+                hess[:, a, b] = hess[:, b, a] = cross
             with np.errstate(invalid="ignore", divide="ignore"):
                 grad = (per_arm[:, 2] - per_arm[:, 0]) / (2 * h)
-                curv = (per_arm[:, 2] - 2 * per_arm[:, 1] + per_arm[:, 0]) / h**2
-                step = np.where(curv > 0, -grad / curv, -np.sign(grad) * 0.1)
-            step = np.clip(np.nan_to_num(step), -0.1, 0.1)
-            newton = np.clip(turn + step, -bound, bound)
-            halved = 0.5 * (best + turn)
-            nxt = np.where(better[:, None], newton, halved)
-            moved = np.abs(nxt - turn).max(-1)
-            finished = active & (moved < self.tol)
+                hess[:, idx, idx] = (per_arm[:, 2] - 2 * per_arm[:, 1] + per_arm[:, 0]) / h**2
+            its += active
+            better = active & (total <= best_energy)
+            best = np.where(better[:, None], turn, best)
+            best_energy = np.where(better, total, best_energy)
+            grad_best = np.where(better[:, None], np.nan_to_num(grad), grad_best)
+            hess_best = np.where(better[:, None, None], np.nan_to_num(hess), hess_best)
+            radius = np.where(better, np.minimum(np.maximum(radius, 2 * last), 0.1), 0.25 * last)
+            lam, vec = np.linalg.eigh(hess_best)
+            floor = np.maximum(1e-3 * np.abs(lam).max(-1, keepdims=True), 1e-12)
+            lam = np.maximum(np.abs(lam), floor)
+            step = -np.einsum("rij,rj->ri", vec, np.einsum("rji,rj->ri", vec, grad_best) / lam)
+            size = np.abs(step).max(-1)
+            step *= np.minimum(1.0, radius / np.maximum(size, 1e-300))[:, None]
+            nxt = np.clip(best + step, -self.max_turn, self.max_turn)
+            last = np.abs(nxt - best).max(-1)
+            finished = active & ((last < self.tol) | (radius < self.tol))
             done |= finished
             active &= ~finished
             turn = np.where(active[:, None], nxt, best)
