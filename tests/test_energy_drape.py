@@ -342,13 +342,6 @@ def test_locked_cells_are_flagged_there_and_only_there(mode):
 
 
 # -- known defects -------------------------------------------------------------------------
-@pytest.mark.xfail(strict=True, reason=(
-    "EnergyRings counts the energy of invalid nodes as 0 (nansum in sides, nan_to_num in "
-    "corners), so the minimiser prefers turns that fold or lose nodes: ebxhd936_like, "
-    "Hemisphere(50, 55), s 5, rings 12, F 0: at step 11 the geodesic continuation (turn 0) "
-    "places the whole ring (step energy 5.6999 J), the chosen turns (+-3.77 deg) lose the four "
-    "corners (5.7027 J, corners counted 0); the drape ends with 16 invalid nodes (geodesic: 0) "
-    "and 6.66 J total (geodesic: 0.17 J)."))
 def test_steps_never_trade_placed_nodes_for_energy():
     surf = Hemisphere(50.0, 55.0)
     material = load_material("ebxhd936_like")
@@ -364,13 +357,6 @@ def test_steps_never_trade_placed_nodes_for_energy():
             assert invalid_chosen[0] == 0, k
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "The blank-holder term is signed (dD = D_undraped - D_draped, spec section 4), so a segment "
-    "pushed outwards releases energy. With the +i half of the net off the plate (its energy "
-    "dropped), nothing balances the opening quadrants: generic_woven, Plate(50), crossover "
-    "(45, 0), 100 N: the energy drape turns the j arms by the 10 deg bound, shears the flat "
-    "plate by 21 deg and reports energy_total = -0.033 J. Friction work should be "
-    "2 mu share F |dD| >= 0."))
 def test_energy_drape_over_a_plate_stays_flat_with_half_the_net_off_the_edge():
     ds = drape(Plate(50.0), 5.0, 6, crossover=(45.0, 0.0), mode="energy",
                material=load_material("generic_woven"), blankholder_force=100.0)

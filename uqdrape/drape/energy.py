@@ -60,7 +60,10 @@ class BlankHolder:
 
         dD = D_undraped - D_draped of the segment midpoints (plan distance to the
         crossover); phi_seg = mean of the angles the draped and the flat segment subtend
-        at the crossover; dU = 2 mu (share) F dD with both fabric faces rubbing.
+        at the crossover; dU = 2 mu (share) F |dD| with both fabric faces rubbing.
+        Friction work does not change sign with the sliding direction, so |dD| is used
+        where the spec writes dD: the same on convex moulds (material is only drawn in),
+        and no negative energy for the minimiser to exploit when a segment moves outwards.
         """
         d1 = p1[..., :2] - centre
         d2 = p2[..., :2] - centre
@@ -77,4 +80,4 @@ class BlankHolder:
             direction = direction + mid_u / np.linalg.norm(mid_u, axis=-1, keepdims=True)
             theta = np.arctan2(direction[..., 1], direction[..., 0])
             share = self._cumulative_share(theta + 0.5 * phi) - self._cumulative_share(theta - 0.5 * phi)
-        return 2.0 * friction * share * force * pull_in * MM_TO_M
+        return 2.0 * friction * share * force * np.abs(pull_in) * MM_TO_M

@@ -18,9 +18,9 @@ import numpy as np
 from .status import Status
 
 #: Largest circle angle (rad) searched either side of the reference direction.
-THETA_MAX = np.deg2rad(85.0)
+THETA_MAX = np.deg2rad(89.0)
 _NEWTON_ITERS = 12
-_BRACKET_SAMPLES = 35
+_BRACKET_SAMPLES = 90
 _BRACKET_ITERS = 60
 
 
@@ -92,11 +92,15 @@ def _bracket(surface, c, u, v, rho, tol):
     ga = g[np.arange(m), pick]
     gb = g[np.arange(m), pick + 1]
     side = np.zeros(m)
+    t = 0.5 * (a + b)
+    settled = ~found  # entries stop once converged, so a batch equals single calls
     with np.errstate(divide="ignore", invalid="ignore"):
         for _ in range(_BRACKET_ITERS):
             t_new = np.where(gb != ga, b - gb * (b - a) / (gb - ga), 0.5 * (a + b))
             t_new = np.where((t_new > np.minimum(a, b)) & (t_new < np.maximum(a, b)), t_new, 0.5 * (a + b))
             _, g_new, _ = _gap(surface, c, u, v, rho, t_new)
+            t = np.where(settled, t, t_new)
+            settled |= np.abs(g_new) < tol
             left = np.sign(g_new) == np.sign(ga)
             # Illinois: halve the retained end's value when the same end is kept twice.
             gb = np.where(left & (side == 1), 0.5 * gb, gb)
@@ -106,9 +110,9 @@ def _bracket(surface, c, u, v, rho, tol):
             b = np.where(left, b, t_new)
             gb = np.where(left, gb, g_new)
             side = np.where(left, 1, -1)
-            if np.all(~found | (np.abs(g_new) < tol)):
+            if settled.all():
                 break
-    q, g, _ = _gap(surface, c, u, v, rho, t_new)
+    q, g, _ = _gap(surface, c, u, v, rho, t)
     return q, found & (np.abs(g) < tol)
 
 

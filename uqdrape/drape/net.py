@@ -14,6 +14,8 @@ Node (i, j) is stored at array index (i + n, j + n). Arms are ordered +i, +j, -i
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 from .energy import BlankHolder, bending_energy
@@ -25,6 +27,10 @@ ARM_STEPS = np.array([(1, 0), (0, 1), (-1, 0), (0, -1)])
 QUADRANTS = {"++": (0, 0, 1, 0), "-+": (2, 0, 1, 1), "--": (2, 1, 3, 1), "+-": (0, 1, 3, 0)}
 QUADRANT_SIGNS = {"++": (1, 1), "-+": (-1, 1), "--": (-1, -1), "+-": (1, -1)}
 SIDES = np.array([1, -1])
+#: Energy (J) charged to the minimiser per node a candidate fails to place: invalid nodes
+#: carry no shear energy, so without it the minimiser would prefer turns that lose nodes.
+#: Equal counts cancel in the stencils; it never enters the reported energies.
+INVALID_NODE_ENERGY = 1e3
 
 
 class NetProblem:
@@ -52,6 +58,17 @@ class NetProblem:
                      + spacing * idx[None, None, :, None] * flat_e2[:, None, None, :])
         self.cell_s1 = 0.5 * (seg_i[:, :, :-1] + seg_i[:, :, 1:])
         self.cell_s2 = 0.5 * (seg_j[:, :-1, :] + seg_j[:, 1:, :])
+
+    def subset(self, rows):
+        """The same problem restricted to realisations ``rows`` (a shallow copy)."""
+        sub = copy.copy(self)
+        for name in ("crossover", "arm_angles", "seg_i", "seg_j", "gamma0", "flat", "cell_s1", "cell_s2"):
+            setattr(sub, name, getattr(self, name)[rows])
+        sub.blankholder = copy.copy(self.blankholder)
+        sub.blankholder.force = self.blankholder.force[rows]
+        sub.blankholder.friction = self.blankholder.friction[rows]
+        sub.R = len(rows)
+        return sub
 
     # -- index helpers -----------------------------------------------------------------
     def seg1(self, i_a, i_b, j):
@@ -170,13 +187,14 @@ class EnergyRings:
         self.max_turn = max_turn
 
     # -- geometry of ring k -------------------------------------------------------------
-    def sides(self, P, k, turn):
+    def sides(self, P, k, turn, prob=None):
         """Arm nodes and the side chains of ring k for turn angles (R, M, 4).
 
         Returns chain nodes S (R, M, 4, 2, k, 3), their status, and the energy per arm
-        (R, M, 4): bending + side cells + side blank-holder segments.
+        (R, M, 4): bending + side cells + side blank-holder segments. ``prob`` is a
+        subset of the batch's problem when only some realisations are evaluated.
         """
-        prob = self.prob
+        prob = prob or self.prob
         R, M = turn.shape[:2]
         arm_q, arm_st = prob.arm_nodes(P, k, turn)
         S = np.empty((R, M, 4, 2, k, 3))
@@ -202,7 +220,7 @@ class EnergyRings:
                               (xi - ai) * (xj - bj), prob.tol)
             S[..., m, :] = q
             St[..., m] = st
-        energy = bending_energy(turn, self.B, prob.s)
+        energy = bending_energy(turn, self.B, prob.s) + INVALID_NODE_ENERGY * (St != Status.OK).sum(axis=(-2, -1))
         if k > 1:
             m = np.arange(1, k)
             inner = prob.node(P, (k - 1) * di[..., None] + m * ei[..., None],
@@ -227,13 +245,13 @@ class EnergyRings:
             energy = energy + np.nansum(cells, axis=(-2, -1)) + np.nansum(bh, axis=(-2, -1))
         return S, St, energy
 
-    def corners(self, P, k, S, combos):
+    def corners(self, P, k, S, combos, prob=None):
         """Quadrant corner nodes for candidate pairs ``combos`` [(cand of i-arm, cand of j-arm)].
 
         Returns nodes (R, C, 4, 3), status (R, C, 4) and energy (R, C, 4): the corner cell
         and the two blank-holder segments that end at the corner.
         """
-        prob = self.prob
+        prob = prob or self.prob
         ca = np.array([c[0] for c in combos])
         cb = np.array([c[1] for c in combos])
         qa = np.array([QUADRANTS[q][0] for q in QUADRANTS])
@@ -258,7 +276,7 @@ class EnergyRings:
                                               centre, force, mu)
               + prob.blankholder.segment_energy(b, x, prob.node(prob.flat, si * k, sj * (k - 1))[:, None], fx,
                                                 centre, force, mu))
-        return x, st, np.nan_to_num(cells) + np.nan_to_num(bh)
+        return x, st, np.nan_to_num(cells) + np.nan_to_num(bh) + INVALID_NODE_ENERGY * (st != Status.OK)
 
     # -- the per-step minimisation --------------------------------------------------------
     def run(self):
@@ -309,22 +327,28 @@ class EnergyRings:
         done = np.zeros(R, bool)
         its = np.zeros(R, np.int32)
         idx = np.arange(4)
+        total = np.full(R, np.inf)
+        grad = np.zeros((R, 4))
+        hess = np.zeros((R, 4, 4))
         for _ in range(self.max_iterations):
-            cand = turn[:, None, :] + offsets[None, :, None]
-            S, _, e_arm = self.sides(P, k, cand)
-            _, _, e_corner = self.corners(P, k, S, stencil)
+            rows = np.flatnonzero(active)  # converged realisations are not evaluated again
+            sub = self.prob if rows.size == R else self.prob.subset(rows)
+            cand = turn[rows, None, :] + offsets[None, :, None]
+            S, _, e_arm = self.sides(P[rows], k, cand, sub)
+            _, _, e_corner = self.corners(P[rows], k, S, stencil, sub)
             e_arm = np.nan_to_num(e_arm, nan=np.inf)
-            total = e_arm[:, 1].sum(-1) + e_corner[:, 1].sum(-1)
+            total[rows] = e_arm[:, 1].sum(-1) + e_corner[:, 1].sum(-1)
             per_arm = e_arm.copy()
-            hess = np.zeros((R, 4, 4))
+            h_rows = np.zeros((rows.size, 4, 4))
             for q, (a, _, b, _) in enumerate(QUADRANTS.values()):
                 per_arm[:, :, a] += e_corner[:, [0, 1, 2], q]
                 per_arm[:, :, b] += e_corner[:, [3, 1, 4], q]
                 cross = (e_corner[:, 5, q] - e_corner[:, 2, q] - e_corner[:, 4, q] + e_corner[:, 1, q]) / h**2
-                hess[:, a, b] = hess[:, b, a] = cross
+                h_rows[:, a, b] = h_rows[:, b, a] = cross
             with np.errstate(invalid="ignore", divide="ignore"):
-                grad = (per_arm[:, 2] - per_arm[:, 0]) / (2 * h)
-                hess[:, idx, idx] = (per_arm[:, 2] - 2 * per_arm[:, 1] + per_arm[:, 0]) / h**2
+                grad[rows] = (per_arm[:, 2] - per_arm[:, 0]) / (2 * h)
+                h_rows[:, idx, idx] = (per_arm[:, 2] - 2 * per_arm[:, 1] + per_arm[:, 0]) / h**2
+            hess[rows] = h_rows
             its += active
             better = active & (total <= best_energy)
             best = np.where(better[:, None], turn, best)

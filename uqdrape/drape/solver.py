@@ -74,6 +74,8 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
         raise ValueError(f"rings must be an integer >= 1, got {rings!r}")
     if mode == "energy" and material is None:
         raise ValueError("mode='energy' needs a material (e.g. load_material('generic_woven'))")
+    if not isinstance(max_iterations, numbers.Integral) or max_iterations < 1:
+        raise ValueError(f"max_iterations must be an integer >= 1, got {max_iterations!r}")
     for name, v in (("tolerance", tolerance), ("max_turn", max_turn)):
         if not np.isfinite(v) or v <= 0:
             raise ValueError(f"{name} must be > 0 (deg), got {v!r}")
@@ -187,10 +189,10 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
             "z": (node, P[..., 2], {"units": "mm", "long_name": "node z (height)"}),
             "shear": (node, np.rad2deg(node_shear(gamma)),
                       {"units": "degree", "long_name": "node shear angle (mean of adjacent cells)"}),
-            "status": (node, status, {"long_name": "node status", "flag_values": [s.value for s in Status],
+            "status": (node, status, {"long_name": "node status", "units": "1", "flag_values": [s.value for s in Status],
                                       "flag_meanings": " ".join(s.name.lower() for s in Status)}),
             "cell_shear": (cell, np.rad2deg(gamma), {"units": "degree", "long_name": "signed cell shear angle"}),
-            "cell_locked": (cell, locked, {"long_name": "cell sheared beyond the locking angle"}),
+            "cell_locked": (cell, locked, {"long_name": "cell sheared beyond the locking angle", "units": "1"}),
             "gamma0": (cell, np.rad2deg(prob.gamma0), {"units": "degree", "long_name": "zero-energy shear angle"}),
             "turn": (("realization", "ring", "arm"), np.rad2deg(turns),
                      {"units": "degree", "long_name": "generator-arm turn angle about the surface normal"}),
@@ -200,8 +202,8 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
             "energy_blankholder_quadrant": (("realization", "quadrant"), bh,
                                             {"units": "J", "long_name": "blank-holder energy per quadrant"}),
             "energy_total": ("realization", total, {"units": "J", "long_name": "total forming energy"}),
-            "iterations": ("realization", iterations, {"long_name": "minimiser iterations, all steps"}),
-            "converged": ("realization", converged, {"long_name": "minimiser converged at every step"}),
+            "iterations": ("realization", iterations, {"long_name": "minimiser iterations, all steps", "units": "1"}),
+            "converged": ("realization", converged, {"long_name": "minimiser converged at every step", "units": "1"}),
         },
         coords={"realization": np.arange(prob.R), "i": idx, "j": idx, "cell_i": cidx, "cell_j": cidx,
                 "ring": np.arange(1, n + 1), "arm": ["+i", "+j", "-i", "-j"], "quadrant": list(QUADRANTS)},
@@ -211,8 +213,13 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
                "status_codes": Status.describe(), "uqdrape_version": __version__,
                "Conventions": "CF-1.8"},
     )
-    units = {"orientation": "degree", "pre_shear": "degree", "skew": "degree", "crossover_x": "mm",
-             "crossover_y": "mm", "blankholder_force": "N", "friction": "1"}
+    described = {"orientation": ("degree", "fibre-1 plan angle from the x axis"),
+                 "pre_shear": ("degree", "shear of the flat blank"),
+                 "skew": ("degree", "generator-path skew at the crossover"),
+                 "crossover_x": ("mm", "crossover x"), "crossover_y": ("mm", "crossover y"),
+                 "blankholder_force": ("N", "total blank-holder force"),
+                 "friction": ("1", "fabric/blank-holder friction coefficient")}
     for name, value in factors.items():
-        ds[name] = ("realization", np.asarray(value, dtype=float), {"units": units.get(name, "1")})
+        units, long_name = described.get(name, ("1", f"sampled input {name}"))
+        ds[name] = ("realization", np.asarray(value, dtype=float), {"units": units, "long_name": long_name})
     return ds
