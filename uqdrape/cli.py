@@ -93,26 +93,21 @@ def cmd_validate(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from .ensemble import open_ensemble, run_study
-    from .report import write_study_report
-    from .study import load_study
+    from .ensemble import run_study
+    from .report import write_run_report
 
-    study = load_study(args.study)
-    out = run_study(study, scheduler=args.scheduler, workers=args.workers, chunk_size=args.chunk_size,
+    out = run_study(args.study, scheduler=args.scheduler, workers=args.workers, chunk_size=args.chunk_size,
                     resume=not args.no_resume, progress=not args.quiet)
     print(f"ensemble written to {out}")
     if not args.no_report:
-        page = write_study_report(study, open_ensemble(out))
-        print(f"report: {page}")
+        print(f"report: {write_run_report(out)}")
     return 0
 
 
 def cmd_report(args) -> int:
-    from .ensemble import open_ensemble
-    from .report import write_study_report
+    from .report import write_run_report
 
-    page = write_study_report(None, open_ensemble(args.results), out_dir=args.out)
-    print(f"report: {page}")
+    print(f"report: {write_run_report(args.results, args.out)}")
     return 0
 
 

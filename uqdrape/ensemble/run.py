@@ -115,6 +115,10 @@ def _compute(tasks: list, scheduler: str | None, workers: int | None, progress: 
         return
     if scheduler is None or scheduler in LOCAL_SCHEDULERS:
         options = {"scheduler": scheduler or "processes"}
+        if options["scheduler"] == "processes":
+            # dask batches local tasks (6 per dispatch by default); a chunk is already a
+            # big batch, so dispatch one at a time or two chunks share one process
+            options["chunksize"] = 1
         if workers is not None:
             options["num_workers"] = workers
         bar = ProgressBar(minimum=1.0, out=sys.stderr) if progress else contextlib.nullcontext()

@@ -18,7 +18,7 @@ from .ensemble_figures import (
 )
 from .experimental import ExperimentalPoints, read_experimental
 from .figures import plot_lines, plot_net
-from .html import write_report
+from .html import write_report, write_run_report
 from .summary import headline_numbers
 
 __all__ = [
@@ -32,6 +32,7 @@ __all__ = [
     "plot_convergence",
     "plot_sweep",
     "write_report",
+    "write_run_report",
     "headline_numbers",
     "read_experimental",
     "ExperimentalPoints",

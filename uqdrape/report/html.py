@@ -241,3 +241,22 @@ Numbers also in <a href="{esc(summary_name)}">{esc(summary_name)}</a>.</p>
 </body>
 </html>
 """
+
+
+def write_run_report(output_dir, out_dir=None) -> Path:
+    """Report of a finished ``uqdrape run``: opens the ensemble under ``output_dir`` and takes
+    the title, study text, histogram nodes and experimental CSV from the study stored in
+    the run's attributes. Writes into ``out_dir`` (default ``output_dir/report``)."""
+    from uqdrape.ensemble import open_ensemble
+
+    ds = open_ensemble(output_dir)
+    study = json.loads(ds.attrs.get("study_json", "{}"))
+    report = study.get("report", {})
+    info = study.get("study", {})
+    title = info.get("name") or Path(output_dir).name
+    if info.get("description"):
+        title = f"{title}: {info['description']}"
+    return write_report(ds, Path(out_dir) if out_dir else Path(output_dir) / "report", title=title,
+                        study_text=ds.attrs.get("study_toml"),
+                        histogram_nodes=report.get("histogram_nodes") or None,
+                        experimental_csv=report.get("experimental_csv"))
