@@ -3,7 +3,8 @@
 Single drapes: ``plot_net`` (3-D net coloured by shear), ``plot_lines`` (shear along the
 max-shear lines, thesis Fig 5.9). Ensembles: node maps of the mean, sd and wrinkle
 risk, line statistics (Figs 5.18/5.19), histograms (Fig 5.20), convergence, and
-blank-holder force sweeps. ``write_report`` writes them all with ``index.html`` and
+blank-holder force sweeps, and per-realisation energies and line means against one
+sampled factor (Fig 5.6). ``write_report`` writes them all with ``index.html`` and
 ``summary.json``.
 """
 
@@ -12,9 +13,11 @@ from .ensemble_figures import (
     plot_histograms,
     plot_line_statistics,
     plot_mean_map,
+    plot_scalar_vs_factor,
     plot_sd_map,
     plot_sweep,
     plot_wrinkle_map,
+    varying_factors,
 )
 from .experimental import ExperimentalPoints, read_experimental
 from .figures import plot_lines, plot_net
@@ -31,6 +34,8 @@ __all__ = [
     "plot_histograms",
     "plot_convergence",
     "plot_sweep",
+    "plot_scalar_vs_factor",
+    "varying_factors",
     "write_report",
     "write_run_report",
     "headline_numbers",

@@ -329,3 +329,69 @@ def plot_sweep(ds: xr.Dataset, path, *, scalars: xr.Dataset | None = None) -> Pa
     ax_a.set(ylabel="asymmetry (deg)", title="± quadrant asymmetry")
     suptitle(fig, f"blank-holder force sweep, N = {ds.sizes[REALIZATION]} per level\n{describe(ds)}")
     return save(fig, path)
+
+
+def varying_factors(ds: xr.Dataset) -> list[str]:
+    """Sampled scalar factors (names of ``uqdrape.study.FACTOR_SETTINGS``) stored along
+    ``realization`` that take more than one value in ``ds``, in the study's factor order."""
+    from uqdrape.study import FACTOR_SETTINGS
+
+    out = []
+    for name in FACTOR_SETTINGS:
+        if name in ds.data_vars and ds[name].dims == (REALIZATION,):
+            values = ds[name].values
+            finite = values[np.isfinite(values)]
+            if finite.size and finite.min() < finite.max():
+                out.append(name)
+    return out
+
+
+#: Thesis quadrant numbers (Fig 5.6: Q1-Q4) of the max-shear quadrant labels, counter-clockwise from (+i, +j).
+QUADRANT_NUMBER = {"++": 1, "-+": 2, "--": 3, "+-": 4}
+
+
+@styled
+def plot_scalar_vs_factor(ds: xr.Dataset, path, factor: str) -> Path:
+    """Per-realisation scalars against one sampled scalar factor (thesis Fig 5.6 style).
+
+    Left: blank-holder friction energy (J) per quadrant Q1-Q4 (Q1 = ++, counter-clockwise)
+    and in total; right: line-mean shear of the + and − quadrant max-shear lines and their
+    asymmetry (deg, ``uqdrape.stats.line_scalars``). ``factor`` is a variable along
+    ``realization`` (e.g. ``skew``, deg). Not for a blank-holder sweep (use ``plot_sweep``).
+    Returns the path.
+    """
+    if FORCE in ds.dims:
+        raise ValueError(f"plot_scalar_vs_factor takes one blank-holder level; ds has a {FORCE!r} dim "
+                         "(select a level first, or use plot_sweep)")
+    if factor not in ds.data_vars or ds[factor].dims != (REALIZATION,):
+        candidates = [v for v in ds.data_vars if ds[v].dims == (REALIZATION,)]
+        raise ValueError(f"factor={factor!r} is not a variable along {REALIZATION!r}; valid: {', '.join(candidates)}")
+    x = ds[factor].values.astype(float)
+    order = np.argsort(x)
+    fa = ds[factor].attrs
+    xlabel = f"{fa.get('long_name', factor)} ({fa.get('units', '-')})".replace("(degree)", "(deg)").replace("(1)", "(-)")
+    fig, (ax_e, ax_s) = panels(2, size=(5.8, 4.4))
+    if "energy_blankholder_quadrant" in ds.data_vars:
+        eq = ds["energy_blankholder_quadrant"].transpose(REALIZATION, "quadrant").values
+        for k, q in enumerate(ds["quadrant"].values):
+            # mirrored quadrants often coincide: their own marker and dash keep both visible
+            ax_e.plot(x[order], eq[order, k], color=QUADRANT_STYLE[q]["color"], marker=QUADRANT_STYLE[q]["marker"],
+                      markersize=3.5, linestyle=QUADRANT_STYLE[q]["linestyle"], linewidth=1.0,
+                      fillstyle="none" if QUADRANT_STYLE[q]["linestyle"] == "--" else "full",
+                      label=f"Q{QUADRANT_NUMBER[q]} ({q}, {'+' if q in ('++', '--') else '−'} quadrant)")
+    ax_e.plot(x[order], ds["energy_blankholder"].values[order], marker="o", markersize=4, color="black",
+              linewidth=1.5, label="total")
+    ax_e.set(xlabel=xlabel, ylabel="blank-holder energy (J)", title="blank-holder friction energy")
+    sc = line_scalars(ds)
+    for var, color, text in (("plus_mean_shear", PLUS_COLOR, "+ quadrants (i·j > 0)"),
+                             ("minus_mean_shear", MINUS_COLOR, "− quadrants (i·j < 0)"),
+                             ("asymmetry", "black", "asymmetry (plus + minus)")):
+        ax_s.plot(x[order], sc[var].values[order], marker=".", color=color, label=text)
+    ax_s.axhline(0.0, color="0.6", linewidth=0.8)
+    ax_s.set(xlabel=xlabel, ylabel="line-mean shear (deg)",
+             title=f"max-shear lines, mean over nodes k = 1..{sc.attrs.get('k_max')}")
+    for ax in (ax_e, ax_s):
+        ax.grid(alpha=0.3)
+        ax.legend(loc="best", fontsize=8)
+    suptitle(fig, f"per-realisation results against {factor}, N = {ds.sizes[REALIZATION]}\n{describe(ds)}")
+    return save(fig, path)

@@ -22,9 +22,11 @@ from .ensemble_figures import (
     plot_histograms,
     plot_line_statistics,
     plot_mean_map,
+    plot_scalar_vs_factor,
     plot_sd_map,
     plot_sweep,
     plot_wrinkle_map,
+    varying_factors,
 )
 from .experimental import read_experimental
 from .figures import FORCE, REALIZATION, levels, plot_lines, plot_net
@@ -126,7 +128,10 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, study_text: str | None 
     ``experimental_csv``: measured points overlaid on the line plots (checked first).
     ``summary``: extra headline items (name -> number/string) for the table and the
     JSON (under ``extra``). Figures that do not apply are left out (no wrinkle map
-    without a locking angle, no sweep plot without a sweep). Returns the index.html path.
+    without a locking angle, no sweep plot without a sweep, no sd map, wrinkle map, line
+    statistics, histograms or convergence for one realisation per level); an ensemble
+    without a sweep whose realisations vary exactly one scalar factor (e.g. ``skew``)
+    gets ``vs_<factor>.png`` (energies and line means against it). Returns the index.html path.
     """
     if REALIZATION not in ds.dims:
         raise ValueError(f"write_report needs an ensemble Dataset with a {REALIZATION!r} dim; dims: {dict(ds.sizes)}")
@@ -139,7 +144,9 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, study_text: str | None 
 
     node_stats = node_statistics(ds)
     threshold = locking_threshold(ds)
-    exceedance = exceedance_probability(ds, threshold) if threshold is not None else None
+    # one realisation (per level) is a deterministic drape: no spread, so no spread figures
+    spread = ds.sizes[REALIZATION] > 1
+    exceedance = exceedance_probability(ds, threshold) if threshold is not None and spread else None
     nodes = default_histogram_nodes(ds, node_stats) if histogram_nodes is None else histogram_nodes
     figures: list[tuple[Path, str]] = []
     for force, level in levels(ds):
@@ -152,24 +159,31 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, study_text: str | None 
          "Shear along the four max-shear lines of the first realisation (red: i·j > 0 quadrants, blue: the "
          "others)" + (", with the measured points" if points is not None else "") + "."),
         (plot_mean_map(ds, out / "mean_shear.png", node_stats=node_stats),
-         "Ensemble-mean node shear on the mean node positions."),
-        (plot_sd_map(ds, out / "sd_shear.png", node_stats=node_stats),
-         "Standard deviation of node shear on the mean node positions."),
+         "Ensemble-mean node shear on the mean node positions." if spread else "Node shear on the node positions."),
     ]
+    factors = varying_factors(ds) if FORCE not in ds.dims else []
+    if len(factors) == 1:
+        figures.append((plot_scalar_vs_factor(ds, out / f"vs_{factors[0]}.png", factors[0]),
+                        f"Blank-holder energy per quadrant and in total, and the max-shear line means, against "
+                        f"the one sampled factor, {factors[0]} (thesis Fig 5.6 for the skew)."))
+    if spread:
+        figures.append((plot_sd_map(ds, out / "sd_shear.png", node_stats=node_stats),
+                        "Standard deviation of node shear on the mean node positions."))
     if exceedance is not None:
         figures.append((plot_wrinkle_map(ds, out / "wrinkle_risk.png", exceedance=exceedance),
                         f"Wrinkle risk: probability that |shear| exceeds the locking angle {threshold:g}°, "
                         "with its binomial confidence interval at the node of highest risk."))
-    figures += [
-        (plot_line_statistics(ds, out / "line_statistics.png", line_stats=line_statistics(ds),
-                              experimental=points),
-         "Shear against distance from the tip along the max-shear lines: mean ± 1 sd per node and the band "
-         "holding the central 95 % of realisations (thesis Figs 5.18/5.19)."),
-        (plot_histograms(ds, out / "histograms.png", nodes),
-         "Histograms of node shear with the fitted Normal (thesis Fig 5.20)."),
-        (plot_convergence(ds, out / "convergence.png", node_stats=node_stats),
-         "Convergence of the mean shear with N at the most variable node."),
-    ]
+    if spread:
+        figures += [
+            (plot_line_statistics(ds, out / "line_statistics.png", line_stats=line_statistics(ds),
+                                  experimental=points),
+             "Shear against distance from the tip along the max-shear lines: mean ± 1 sd per node and the band "
+             "holding the central 95 % of realisations (thesis Figs 5.18/5.19)."),
+            (plot_histograms(ds, out / "histograms.png", nodes),
+             "Histograms of node shear with the fitted Normal (thesis Fig 5.20)."),
+            (plot_convergence(ds, out / "convergence.png", node_stats=node_stats),
+             "Convergence of the mean shear with N at the most variable node."),
+        ]
     if FORCE in ds.dims:
         figures.append((plot_sweep(ds, out / "sweep.png"),
                         "Mean shear of the + and − quadrant max-shear lines and their asymmetry against "
