@@ -661,12 +661,12 @@ def _sensitivity(src: _Source, doc: dict, uncertainty: Uncertainty) -> Sensitivi
                       '"sobol" or "morris", or remove base_samples')
     else:
         # imported here: SALib is slow to import and only needed for a sensitivity study.
-        # _check_base_samples holds the design's minimum and power-of-two rules.
-        from .sensitivity.design import _check_base_samples
+        # check_base_samples holds the design's minimum and power-of-two rules.
+        from .sensitivity import check_base_samples
 
         base = t.number("base_samples", integer=True, ge=1)
         try:
-            _check_base_samples(method, base)
+            check_base_samples(method, base)
         except ValueError as err:
             src.wrap(err, "sensitivity", {"base_samples": ("sensitivity.base_samples", base)})
         if not uncertainty.varying:

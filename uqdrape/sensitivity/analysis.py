@@ -4,9 +4,11 @@ SALib's estimators are called once per output column (scalar QoI or net node). T
 ``factor`` dimension holds SALib's labels: group names when the problem has groups (a
 random field is one label), otherwise variable names.
 
-Outputs that are constant over the design (range <= ``CONSTANT_RTOL`` x max |y|, e.g.
-blank-holder energy at F_BH = 0) have zero variance to apportion: their indices and
-confidence half-widths are set to 0 and ``output_constant`` is True.
+Outputs that are constant over the design (range <= max(``atol``, ``CONSTANT_RTOL`` x
+max |y|), e.g. blank-holder energy at F_BH = 0) have zero variance to apportion: their
+indices and confidence half-widths are set to 0 and ``output_constant`` is True. ``atol``
+(default 0, in the output's unit) lets a caller declare round-off-level variation
+constant, e.g. the crossover node's shear of a rotated fabric.
 """
 
 from __future__ import annotations
@@ -63,7 +65,7 @@ def _column_indices(problem, X, y, method, conf_level, seed, num_resamples):
     return {name: np.asarray(result[name], dtype=float) for name in VARIABLES[method]}
 
 
-def _indices(problem, X, Y, method, conf_level, seed, num_resamples):
+def _indices(problem, X, Y, method, conf_level, seed, num_resamples, atol=0.0):
     """Indices of every column of Y (n_evaluations, n_columns).
 
     Returns ({variable: (n_labels, n_columns)}, constant (n_columns,) bool, attrs).
@@ -74,6 +76,8 @@ def _indices(problem, X, Y, method, conf_level, seed, num_resamples):
     seed = check_seed(seed)
     if not 0 < conf_level < 1:
         raise ValueError(f"conf_level={conf_level!r} must lie strictly between 0 and 1")
+    if not (np.isfinite(atol) and atol >= 0):
+        raise ValueError(f"atol={atol!r} must be a finite number >= 0 (in the output's unit)")
     if isinstance(num_resamples, bool) or not isinstance(num_resamples, (int, np.integer)) or num_resamples < 2:
         raise ValueError(f"num_resamples={num_resamples!r} must be an integer >= 2")
     X = np.asarray(X, dtype=float)
@@ -92,7 +96,8 @@ def _indices(problem, X, Y, method, conf_level, seed, num_resamples):
     out = {name: np.full((len(labels), n_cols), np.nan) for name in VARIABLES[method]}
     finite = np.isfinite(Y).all(axis=0)
     span = np.ptp(np.where(finite, Y, 0.0), axis=0)
-    constant = finite & (span <= CONSTANT_RTOL * np.max(np.abs(np.where(finite, Y, 0.0)), axis=0))
+    scale = np.max(np.abs(np.where(finite, Y, 0.0)), axis=0)
+    constant = finite & (span <= np.maximum(atol, CONSTANT_RTOL * scale))
     for name in out:
         out[name][:, constant] = 0.0
     if method == "morris":
@@ -112,6 +117,7 @@ def _indices(problem, X, Y, method, conf_level, seed, num_resamples):
         "conf_level": float(conf_level),
         "num_resamples": int(num_resamples),
         "analysis_seed": seed,
+        "constant_atol": float(atol),
         "salib_version": version("SALib"),
     }
     if method == "morris":
@@ -139,13 +145,14 @@ def _dataset(labels, out, constant, attrs, dims, shape, coords) -> xr.Dataset:
 
 def analyze(problem: Mapping, X, Y, *, method: str = "sobol",
             qoi_names: Sequence[str] | None = None, conf_level: float = 0.95,
-            seed: int, num_resamples: int = 100) -> xr.Dataset:
+            seed: int, num_resamples: int = 100, atol: float = 0.0) -> xr.Dataset:
     """Indices of scalar outputs Y (n_evaluations,) or (n_evaluations, n_qoi).
 
     Returns a Dataset with dims (factor, qoi): Sobol' S1, S1_conf, ST, ST_conf, or
     Morris mu, mu_star, mu_star_conf, sigma; output_constant (qoi). Attributes: method,
-    base_samples, n_evaluations, conf_level, num_resamples, analysis_seed, salib_version
-    (+ num_levels for Morris). NaN or inf in Y is an error.
+    base_samples, n_evaluations, conf_level, num_resamples, analysis_seed, constant_atol,
+    salib_version (+ num_levels for Morris). NaN or inf in Y is an error. ``atol``: see
+    the module docstring.
     """
     Y = np.asarray(Y, dtype=float)
     if Y.ndim == 1:
@@ -161,14 +168,14 @@ def analyze(problem: Mapping, X, Y, *, method: str = "sobol",
     if bad.any():
         which = {q: int(b) for q, b in zip(qoi_names, bad) if b}
         raise ValueError(f"Y contains NaN/inf (count per QoI: {which}); every evaluation must succeed")
-    labels, out, constant, attrs = _indices(problem, X, Y, method, conf_level, seed, num_resamples)
+    labels, out, constant, attrs = _indices(problem, X, Y, method, conf_level, seed, num_resamples, atol)
     return _dataset(labels, out, constant, attrs, ("qoi",), (Y.shape[1],),
                     {"qoi": ("qoi", qoi_names)})
 
 
 def analyze_map(problem: Mapping, X, Y: xr.DataArray, *, method: str = "sobol",
                 sample_dim: str = "realization", conf_level: float = 0.95,
-                seed: int, num_resamples: int = 100) -> xr.Dataset:
+                seed: int, num_resamples: int = 100, atol: float = 0.0) -> xr.Dataset:
     """Index maps of a field output, e.g. node shear (realization, i, j).
 
     Every position along Y's other dims is analysed separately; the result has dims
@@ -182,7 +189,7 @@ def analyze_map(problem: Mapping, X, Y: xr.DataArray, *, method: str = "sobol",
     dims = Y.dims[1:]
     shape = Y.shape[1:]
     values = np.asarray(Y.values, dtype=float).reshape(Y.shape[0], -1)
-    labels, out, constant, attrs = _indices(problem, X, values, method, conf_level, seed, num_resamples)
+    labels, out, constant, attrs = _indices(problem, X, values, method, conf_level, seed, num_resamples, atol)
     coords = {name: coord for name, coord in Y.coords.items() if sample_dim not in coord.dims}
     ds = _dataset(labels, out, constant, attrs, dims, shape, coords)
     ds.attrs["output"] = str(Y.name)

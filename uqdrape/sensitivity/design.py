@@ -45,7 +45,11 @@ def check_method(method) -> str:
     return method
 
 
-def _check_base_samples(method: str, base_samples) -> int:
+def check_base_samples(method: str, base_samples) -> int:
+    """``base_samples`` as an int if it is a usable design size for ``method`` (Sobol': a
+    power of 2 >= SOBOL_MIN_BASE_SAMPLES; Morris: >= MORRIS_MIN_TRAJECTORIES trajectories),
+    else ValueError giving the minimum."""
+    method = check_method(method)
     if isinstance(base_samples, bool) or not isinstance(base_samples, (int, np.integer)):
         raise ValueError(f"base_samples={base_samples!r} must be an integer")
     n = int(base_samples)
@@ -78,7 +82,7 @@ def sample(problem: Mapping, method: str = "sobol", *, base_samples: int, seed: 
     """
     labels = check_problem(problem)
     method = check_method(method)
-    n = _check_base_samples(method, base_samples)
+    n = check_base_samples(method, base_samples)
     seed = check_seed(seed)
     meta = {"method": method, "base_samples": n, "sample_seed": seed}
 
