@@ -97,7 +97,7 @@ def cmd_run(args) -> int:
     from .report import write_run_report
 
     out = run_study(args.study, scheduler=args.scheduler, workers=args.workers, chunk_size=args.chunk_size,
-                    resume=not args.no_resume, progress=not args.quiet)
+                    resume=not args.no_resume, progress=not args.quiet, method=args.method)
     print(f"ensemble written to {out}")
     if not args.no_report:
         print(f"report: {write_run_report(out)}")
@@ -158,6 +158,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="address of an existing dask.distributed scheduler (default: local processes)")
     r.add_argument("--workers", type=int, help="local worker processes (default: all cores)")
     r.add_argument("--chunk-size", type=int, help="realisations per chunk (default: the study's)")
+    r.add_argument("--method", choices=("sobol", "morris", "none"),
+                   help="override the study's [sensitivity] method: 'morris' for a cheap screening run "
+                        "(20 trajectories unless the study is a Morris study), 'none' for the Monte Carlo "
+                        "sample; output goes to <output directory>-<method>")
     r.add_argument("--no-resume", action="store_true", help="recompute chunks that already exist")
     r.add_argument("--no-report", action="store_true", help="skip the report")
     r.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -10,6 +10,11 @@ scheduler.
 
 Resume: the run folder's manifest records the study; a rerun of the same study skips
 chunks whose final file exists (a ``.part`` file is an unfinished chunk and is redone).
+
+A sensitivity study (``[sensitivity] method`` sobol/morris) drapes the rows of its SALib
+design (``uqdrape.sensitivity.study_design``) as realisations 0..n-1 instead of the
+Monte Carlo sample, through the same chunks, and is analysed once all chunks exist
+(``uqdrape.sensitivity.write_sensitivity``).
 """
 
 from __future__ import annotations
@@ -26,9 +31,9 @@ from dask.diagnostics import ProgressBar
 from tqdm import tqdm
 
 from .. import __version__
-from ..study import Study, load_study
+from ..study import SENSITIVITY_METHODS, Study, load_study
 from .chunk import drape_inputs, write_atomic
-from .inputs import sampled_inputs
+from .inputs import inputs_from_design, sampled_inputs
 from .store import CHUNKS, read_manifest, write_manifest
 
 #: dask schedulers in this process: a pool of local processes (default) or no
@@ -51,18 +56,22 @@ class Chunk:
         return f"{prefix}r{self.start:07d}-{self.stop - 1:07d}.nc"
 
 
-def plan_chunks(study: Study, chunk_size: int) -> list[Chunk]:
-    """The chunks of a study: consecutive realisation ranges, for each force level of a sweep."""
-    ranges = [(a, min(a + chunk_size, study.realizations)) for a in range(0, study.realizations, chunk_size)]
+def plan_chunks(study: Study, chunk_size: int, realizations: int | None = None) -> list[Chunk]:
+    """The chunks of a study: consecutive ranges of its realisations (default
+    ``study.realizations``; a sensitivity design's row count), for each force level of a sweep."""
+    n = study.realizations if realizations is None else realizations
+    ranges = [(a, min(a + chunk_size, n)) for a in range(0, n, chunk_size)]
     if not study.is_sweep:
         return [Chunk(a, b) for a, b in ranges]
     return [Chunk(a, b, k, f) for k, f in enumerate(study.force_levels) for a, b in ranges]
 
 
-def _run_chunk(study: Study, chunk: Chunk, folder: str, attrs: dict) -> str:
-    """Dask task: drape one chunk, write its file, return the file's path."""
+def _run_chunk(study: Study, chunk: Chunk, folder: str, attrs: dict, design_rows=None) -> str:
+    """Dask task: drape one chunk (its Monte Carlo realisations, or the given rows of a
+    sensitivity design), write its file, return the file's path."""
     r = np.arange(chunk.start, chunk.stop)
-    ds = drape_inputs(study, r, sampled_inputs(study, r), force=chunk.force)
+    inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows)
+    ds = drape_inputs(study, r, inputs, force=chunk.force)
     ds.attrs.update(attrs)
     return str(write_atomic(ds, Path(folder) / chunk.name))
 
@@ -135,7 +144,8 @@ def _compute(tasks: list, scheduler: str | None, workers: int | None, progress: 
 
 
 def run_study(study, *, scheduler: str | None = None, workers: int | None = None,
-              chunk_size: int | None = None, resume: bool = True, progress: bool = True) -> Path:
+              chunk_size: int | None = None, resume: bool = True, progress: bool = True,
+              method: str | None = None) -> Path:
     """Run a study's ensemble; return its output folder (open it with ``open_ensemble``).
 
     study       a ``Study`` or the path of a study TOML file
@@ -146,6 +156,9 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
     resume      skip chunks already written by an earlier run of the same study; False
                 deletes the folder's chunk files first
     progress    show a progress bar (stderr)
+    method      None: the study's [sensitivity] method; "sobol" / "morris": drape that SALib
+                design and write sensitivity.nc; "none": the Monte Carlo sample. Another
+                method than the study's writes to ``<output_dir>-<method>``.
 
     Local worker processes are spawned and import the calling script, so a script needs
     the usual ``if __name__ == "__main__":`` guard. Cluster workers need uqdrape installed
@@ -161,9 +174,24 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
         if scheduler is not None and scheduler not in LOCAL_SCHEDULERS:
             raise ValueError(f"workers={workers} sets local processes; the cluster at {scheduler} has its own workers")
 
+    method = study.sensitivity.method if method is None else method
+    if method not in SENSITIVITY_METHODS:
+        raise ValueError(f"method must be None or one of {SENSITIVITY_METHODS}, got {method!r}")
+    design = None
+    if method != "none":
+        from ..sensitivity import study_design  # SALib: imported only for a sensitivity run
+
+        design = study_design(study, method)
+
     out = study.output_dir.absolute()
-    chunks = plan_chunks(study, chunk_size)
     provenance = study.to_dict()
+    if method != study.sensitivity.method:
+        out = out.with_name(f"{out.name}-{method}")
+        provenance["sensitivity"]["method"] = method
+        provenance["sensitivity"].pop("base_samples", None)
+    if design is not None:
+        provenance["sensitivity"]["base_samples"] = design.meta["base_samples"]
+    chunks = plan_chunks(study, chunk_size, None if design is None else design.n_evaluations)
     _prepare(out, {"study": provenance, "chunk_size": chunk_size, "chunks": [c.name for c in chunks],
                    "uqdrape_version": __version__}, resume)
 
@@ -175,6 +203,17 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
     attrs = {"study_name": study.name, "study_seed": study.seed, "study_realizations": study.realizations,
              "sampling_plan": study.sampling.plan, "study_toml": Path(study.path).read_text(encoding="utf-8"),
              "study_json": json.dumps(provenance)}
+    if design is not None:
+        attrs.update(design_method=design.method, design_base_samples=design.meta["base_samples"],
+                     design_evaluations=design.n_evaluations)
     run = dask.delayed(_run_chunk, pure=False)
-    _compute([run(study, c, str(folder), attrs) for c in todo], scheduler, workers, progress)
+    _compute([run(study, c, str(folder), attrs, None if design is None else design.standard[c.start:c.stop])
+              for c in todo], scheduler, workers, progress)
+    if design is not None:
+        from ..sensitivity import write_sensitivity
+
+        if progress:
+            print(f"{study.name}: analysing {design.method} indices of {design.n_evaluations} evaluations"
+                  + (f" at {len(study.force_levels)} force levels" if study.is_sweep else ""), file=sys.stderr)
+        write_sensitivity(out, design, qoi=study.sensitivity.qoi, seed=study.seed)
     return out

@@ -30,6 +30,7 @@ from .ensemble_figures import (
 )
 from .experimental import read_experimental
 from .figures import FORCE, REALIZATION, levels, plot_lines, plot_net
+from .sensitivity_figures import INDICES, plot_sensitivity_bars, plot_sensitivity_map, plot_sensitivity_vs_force
 from .summary import headline_numbers, locking_threshold
 
 #: The node number along the max-shear lines the thesis shows histograms of (Fig 5.20).
@@ -119,7 +120,8 @@ def _check_extra(summary) -> dict:
 
 def write_report(ds: xr.Dataset, out_dir, *, title: str, study_text: str | None = None,
                  histogram_nodes: Sequence[Sequence[int]] | None = None, experimental_csv=None,
-                 summary: Mapping | None = None) -> Path:
+                 summary: Mapping | None = None, sensitivity: xr.Dataset | None = None,
+                 sensitivity_maps: xr.Dataset | None = None) -> Path:
     """Write every figure of ensemble ``ds``, ``summary.json`` and ``index.html`` into ``out_dir``.
 
     ``ds``: ensemble Dataset (realization, i, j; optional leading ``blankholder_force``).
@@ -131,7 +133,10 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, study_text: str | None 
     without a locking angle, no sweep plot without a sweep, no sd map, wrinkle map, line
     statistics, histograms or convergence for one realisation per level); an ensemble
     without a sweep whose realisations vary exactly one scalar factor (e.g. ``skew``)
-    gets ``vs_<factor>.png`` (energies and line means against it). Returns the index.html path.
+    gets ``vs_<factor>.png`` (energies and line means against it). ``sensitivity`` /
+    ``sensitivity_maps``: the QoI indices and node-shear index maps of a sensitivity run
+    (``uqdrape.sensitivity.open_sensitivity``), drawn as bar charts, index-vs-force lines
+    and maps, and tabulated in a Sensitivity section. Returns the index.html path.
     """
     if REALIZATION not in ds.dims:
         raise ValueError(f"write_report needs an ensemble Dataset with a {REALIZATION!r} dim; dims: {dict(ds.sizes)}")
@@ -189,13 +194,19 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, study_text: str | None 
                         "Mean shear of the + and − quadrant max-shear lines and their asymmetry against "
                         "blank-holder force (mean ± 1 sd over the realisations)."))
 
+    sens_figures = [] if sensitivity is None else _sensitivity_figures(ds, sensitivity, sensitivity_maps, out)
+
     numbers = headline_numbers(ds, node_stats=node_stats, exceedance=exceedance)
     record = {"title": title, **numbers, "extra": extra, "attrs": {k: _json_attr(v) for k, v in ds.attrs.items()},
-              "figures": [p.name for p, _ in figures]}
+              "figures": [p.name for p, _ in figures + sens_figures]}
+    if sensitivity is not None:
+        record["sensitivity"] = {k: _json_attr(sensitivity.attrs[k])
+                                 for k in ("method", "base_samples", "n_evaluations", "conf_level")}
     summary_path = out / "summary.json"
     summary_path.write_text(json.dumps(record, indent=2, allow_nan=False) + "\n", encoding="utf-8")
 
-    page = _page(title, ds, _rows(numbers, extra), figures, study_text, summary_path.name)
+    section = "" if sensitivity is None else _sensitivity_section(sensitivity, sens_figures)
+    page = _page(title, ds, _rows(numbers, extra), figures, study_text, summary_path.name, section)
     index = out / "index.html"
     index.write_text(page, encoding="utf-8")
     return index
@@ -212,7 +223,68 @@ def _json_attr(value):
     return str(value)
 
 
-def _page(title, ds, rows, figures, study_text, summary_name) -> str:
+def _figures_html(figures) -> str:
+    esc = html.escape
+    return "\n".join(
+        f"<figure><a href=\"{esc(p.name)}\"><img src=\"{esc(p.name)}\" alt=\"{esc(caption)}\"></a>"
+        f"<figcaption>{esc(caption)}</figcaption></figure>"
+        for p, caption in figures
+    )
+
+
+def _sensitivity_figures(ds: xr.Dataset, indices: xr.Dataset, maps: xr.Dataset | None, out: Path) -> list:
+    """The sensitivity figures of a run as [(path, caption)]."""
+    method = indices.attrs.get("method")
+    if method not in INDICES:
+        raise ValueError(f"sensitivity has method={method!r} in its attributes; expected one of {tuple(INDICES)}")
+    ci = f"{100 * indices.attrs['conf_level']:g} % bootstrap confidence intervals"
+    figures = [(plot_sensitivity_bars(indices, out / "sensitivity_bars.png"),
+                f"Sensitivity indices of each quantity of interest (rows) per blank-holder level (columns), "
+                f"with {ci} as error bars.")]
+    if FORCE in indices.dims:
+        figures.append((plot_sensitivity_vs_force(indices, out / "sensitivity_vs_force.png"),
+                        f"Indices of each factor against blank-holder force, bands: {ci}."))
+    if maps is not None:
+        for var, _, name in INDICES[method]:
+            figures.append((plot_sensitivity_map(ds, maps, out / f"sensitivity_map_{var}.png", index=var),
+                            f"{name} of node shear per factor (rows) and blank-holder level (columns), on the "
+                            "ensemble-mean net; blank where a node is invalid in some evaluation."))
+    return figures
+
+
+def _sensitivity_section(indices: xr.Dataset, figures) -> str:
+    """HTML: the design, a table of the indices (± confidence half-width) per QoI and
+    factor with one column per blank-holder level, and the sensitivity figures."""
+    esc = html.escape
+    method = indices.attrs["method"]
+    pairs = INDICES[method]
+    forces = [float(f) for f in indices[FORCE].values] if FORCE in indices.dims else [None]
+    head = "".join(f"<th>{'value' if f is None else f'F_BH = {f:g} N'}</th>" for f in forces)
+    body = []
+    for q in indices["qoi"].values:
+        for factor in indices["factor"].values:
+            cells = []
+            for f in forces:
+                at = indices.sel(qoi=q, factor=factor, **({} if f is None else {FORCE: f}))
+                cells.append(" / ".join(f"{float(at[v]):.2f} ± {float(at[c]):.2f}" for v, c, _ in pairs))
+            body.append(f"<tr><th>{esc(str(q))}</th><th>{esc(str(factor))}</th>"
+                        + "".join(f"<td class=\"num\">{esc(c)}</td>" for c in cells) + "</tr>")
+    what = " / ".join(v for v, _, _ in pairs)
+    unit = "trajectories" if method == "morris" else "base samples"
+    return f"""<h2>Sensitivity</h2>
+<p>{esc(method)} design: {indices.attrs['base_samples']} {unit}, {indices.attrs['n_evaluations']} drapes per
+blank-holder level (the realisations of this report are the design's rows, the same at every level); a random
+field is one group of its Karhunen&ndash;Lo&egrave;ve variables. Table: {esc(what)} ± the half-width of the
+{100 * indices.attrs['conf_level']:g} % bootstrap confidence interval.</p>
+<table>
+<tr><th>quantity</th><th>factor</th>{head}</tr>
+{chr(10).join(body)}
+</table>
+{_figures_html(figures)}
+"""
+
+
+def _page(title, ds, rows, figures, study_text, summary_name, sensitivity_html="") -> str:
     esc = html.escape
     table = "\n".join(
         f"<tr><th>{esc(q)}</th><td class=\"num\">{esc(v)}</td><td>{esc(w)}</td></tr>" for q, v, w in rows
@@ -220,11 +292,7 @@ def _page(title, ds, rows, figures, study_text, summary_name) -> str:
     attrs = "\n".join(
         f"<tr><th>{esc(str(k))}</th><td>{esc(_fmt(_json_attr(v)))}</td></tr>" for k, v in ds.attrs.items()
     )
-    figs = "\n".join(
-        f"<figure><a href=\"{esc(p.name)}\"><img src=\"{esc(p.name)}\" alt=\"{esc(caption)}\"></a>"
-        f"<figcaption>{esc(caption)}</figcaption></figure>"
-        for p, caption in figures
-    )
+    figs = _figures_html(figures)
     study = (f"<h2>Study file</h2>\n<pre>{esc(study_text)}</pre>" if study_text
              else "<p class=\"note\">No study file was given.</p>")
     return f"""<!DOCTYPE html>
@@ -247,6 +315,7 @@ Numbers also in <a href="{esc(summary_name)}">{esc(summary_name)}</a>.</p>
 </table>
 <h2>Figures</h2>
 {figs}
+{sensitivity_html}
 {study}
 <h2>Ensemble attributes</h2>
 <table>
@@ -260,10 +329,14 @@ Numbers also in <a href="{esc(summary_name)}">{esc(summary_name)}</a>.</p>
 def write_run_report(output_dir, out_dir=None) -> Path:
     """Report of a finished ``uqdrape run``: opens the ensemble under ``output_dir`` and takes
     the title, study text, histogram nodes and experimental CSV from the study stored in
-    the run's attributes. Writes into ``out_dir`` (default ``output_dir/report``)."""
+    the run's attributes, and the sensitivity results if the run has them (``sensitivity.nc``).
+    Writes into ``out_dir`` (default ``output_dir/report``)."""
     from uqdrape.ensemble import open_ensemble
 
+    from uqdrape.sensitivity import open_sensitivity
+
     ds = open_ensemble(output_dir)
+    sensitivity = open_sensitivity(output_dir)
     study = json.loads(ds.attrs.get("study_json", "{}"))
     report = study.get("report", {})
     info = study.get("study", {})
@@ -273,4 +346,5 @@ def write_run_report(output_dir, out_dir=None) -> Path:
     return write_report(ds, Path(out_dir) if out_dir else Path(output_dir) / "report", title=title,
                         study_text=ds.attrs.get("study_toml"),
                         histogram_nodes=report.get("histogram_nodes") or None,
-                        experimental_csv=report.get("experimental_csv"))
+                        experimental_csv=report.get("experimental_csv"),
+                        **({} if sensitivity is None else dict(zip(("sensitivity", "sensitivity_maps"), sensitivity))))

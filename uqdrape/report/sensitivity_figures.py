@@ -1,0 +1,167 @@
+"""Figures of a sensitivity analysis (``uqdrape.sensitivity``): index bars with their
+confidence intervals per quantity of interest, indices against blank-holder force per
+factor, and index maps of node shear on the net.
+
+Inputs are the Datasets ``write_sensitivity`` stores: QoI indices (dims factor, qoi
+[, blankholder_force]) and node-shear index maps (dims factor, i, j[, blankholder_force]),
+Sobol' (S1, ST and their ``_conf`` half-widths) or Morris (mu_star, mu_star_conf).
+Error bars and bands are the stored bootstrap confidence half-widths.
+"""
+
+from __future__ import annotations
+
+import matplotlib as mpl
+import numpy as np
+import xarray as xr
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from .ensemble_figures import _triangulation, mean_positions
+from .figures import FORCE, describe, force_title, save, styled, suptitle, unit_text
+
+#: The indices drawn per method: (variable, its confidence half-width, label).
+INDICES = {
+    "sobol": (("S1", "S1_conf", "first-order S1"), ("ST", "ST_conf", "total-order ST")),
+    "morris": (("mu_star", "mu_star_conf", "Morris μ*"),),
+}
+
+
+def _method(ds: xr.Dataset) -> str:
+    method = ds.attrs.get("method")
+    if method not in INDICES:
+        raise ValueError(f"the indices Dataset has method={method!r} in its attributes; expected one of {tuple(INDICES)}")
+    return method
+
+
+def _levels(ds: xr.Dataset) -> list:
+    """[(force N or None, indices at that level)]."""
+    if FORCE in ds.dims:
+        return [(float(f), ds.sel({FORCE: f})) for f in ds[FORCE].values]
+    return [(None, ds)]
+
+
+def _grid(rows: int, cols: int, size):
+    fig = Figure(figsize=(size[0] * cols, size[1] * rows), layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig, fig.subplots(rows, cols, squeeze=False)
+
+
+def _design_text(ds: xr.Dataset) -> str:
+    what = "base samples" if ds.attrs["method"] == "sobol" else "trajectories"
+    return (f"{ds.attrs['method']}: {ds.attrs['base_samples']} {what}, {ds.attrs['n_evaluations']} drapes per level, "
+            f"{100 * ds.attrs['conf_level']:g} % bootstrap intervals")
+
+
+def _qoi_axis_label(ds: xr.Dataset, q: str, name: str) -> str:
+    if ds.attrs["method"] == "sobol":
+        return f"{name} (-)"
+    return f"{name} ({unit_text(str(ds['qoi_units'].sel(qoi=q).values))} per unit step)"
+
+
+@styled
+def plot_sensitivity_bars(indices: xr.Dataset, path):
+    """Bar chart per quantity of interest (rows) and blank-holder level (columns): each
+    factor's indices (Sobol' S1 and ST side by side, or Morris μ*) with their confidence
+    intervals as error bars. Returns the path."""
+    method = _method(indices)
+    pairs = INDICES[method]
+    groups = _levels(indices)
+    qois = [str(q) for q in indices["qoi"].values]
+    factors = [str(f) for f in indices["factor"].values]
+    fig, axes = _grid(len(qois), len(groups), size=(max(3.6, 0.9 * len(factors) + 1.2), 2.9))
+    x = np.arange(len(factors))
+    width = 0.8 / len(pairs)
+    colors = ("tab:blue", "tab:orange")
+    for row, q in enumerate(qois):
+        for col, (force, level) in enumerate(groups):
+            ax = axes[row, col]
+            sel = level.sel(qoi=q)
+            for k, (var, conf, name) in enumerate(pairs):
+                ax.bar(x + (k - (len(pairs) - 1) / 2) * width, sel[var].values, width, yerr=sel[conf].values,
+                       color=colors[k], capsize=3, label=name, error_kw={"elinewidth": 1.0})
+            if bool(sel["output_constant"]):
+                ax.text(0.5, 0.5, "constant over the design", transform=ax.transAxes, ha="center", color="0.4")
+            ax.axhline(0.0, color="0.5", linewidth=0.8)
+            ax.set_xticks(x, factors, rotation=30, ha="right")
+            ax.grid(axis="y", alpha=0.3)
+            if method == "sobol":
+                ax.set_ylim(min(-0.1, ax.get_ylim()[0]), max(1.1, ax.get_ylim()[1]))
+            ax.set_title(q + ("" if force is None else f", {force_title(force)}"), fontsize=10)
+            if col == 0:
+                ax.set_ylabel(_qoi_axis_label(indices, q, "index"))
+    axes[0, 0].legend(loc="upper left", fontsize=8)
+    suptitle(fig, f"sensitivity indices per quantity of interest\n{_design_text(indices)}")
+    return save(fig, path)
+
+
+@styled
+def plot_sensitivity_vs_force(indices: xr.Dataset, path):
+    """Indices against blank-holder force (N), one panel per quantity of interest and one
+    colour per factor: ST solid and S1 dashed (Morris: μ*), shaded confidence intervals.
+    Needs a ``blankholder_force`` dim. Returns the path."""
+    method = _method(indices)
+    if FORCE not in indices.dims:
+        raise ValueError(f"plot_sensitivity_vs_force needs a {FORCE!r} dim (a blank-holder sweep); "
+                         f"dims: {dict(indices.sizes)}")
+    pairs = INDICES[method]
+    qois = [str(q) for q in indices["qoi"].values]
+    force = indices[FORCE].values.astype(float)
+    cols = min(3, len(qois))
+    rows = -(-len(qois) // cols)
+    fig, axes = _grid(rows, cols, size=(5.0, 3.9))
+    cmap = mpl.colormaps["tab10"]
+    styles = {"ST": "-", "S1": "--", "mu_star": "-"}
+    for n, q in enumerate(qois):
+        ax = axes.flat[n]
+        for k, factor in enumerate(indices["factor"].values):
+            sel = indices.sel(qoi=q, factor=factor).transpose(FORCE)
+            for var, conf, name in pairs:
+                v, c = sel[var].values, sel[conf].values
+                ax.plot(force, v, color=cmap(k % 10), linestyle=styles[var], marker="o", markersize=4,
+                        label=f"{factor} {var}")
+                ax.fill_between(force, v - c, v + c, color=cmap(k % 10), alpha=0.12, linewidth=0)
+        ax.axhline(0.0, color="0.5", linewidth=0.8)
+        ax.set(xlabel="blank-holder force F_BH (N)", ylabel=_qoi_axis_label(indices, q, "index"), title=q)
+        ax.grid(alpha=0.3)
+    for ax in axes.flat[len(qois):]:
+        ax.set_visible(False)
+    axes.flat[0].legend(loc="best", fontsize=7, ncol=2)
+    what = "ST solid, S1 dashed" if method == "sobol" else "μ*"
+    suptitle(fig, f"sensitivity against blank-holder force ({what}, bands: confidence intervals)\n"
+                  f"{_design_text(indices)}")
+    return save(fig, path)
+
+
+@styled
+def plot_sensitivity_map(ds: xr.Dataset, maps: xr.Dataset, path, index: str = "ST"):
+    """Index ``index`` (S1, ST or mu_star) of node shear on the net: one row per factor,
+    one column per blank-holder level, drawn on the ensemble-mean node positions of the
+    ensemble ``ds``. Nodes invalid in some evaluation are left blank. Returns the path."""
+    method = _method(maps)
+    valid = [var for var, _, _ in INDICES[method]]
+    if index not in valid:
+        raise ValueError(f"index={index!r} is not a {method} index; valid: {', '.join(valid)}")
+    pos = mean_positions(ds)
+    groups = _levels(maps)
+    factors = [str(f) for f in maps["factor"].values]
+    fig, axes = _grid(len(factors), len(groups), size=(3.6, 3.3))
+    values = maps[index].values
+    top = float(np.nanmax(values)) if np.isfinite(values).any() else 1.0
+    norm = mpl.colors.Normalize(0.0, 1.0 if method == "sobol" else (top or 1.0))
+    cmap = mpl.colormaps["magma_r"]
+    for col, (force, level) in enumerate(groups):
+        xy = pos.sel({FORCE: force}) if force is not None else pos
+        x, y = xy["x"].transpose("i", "j").values, xy["y"].transpose("i", "j").values
+        for row, factor in enumerate(factors):
+            ax = axes[row, col]
+            v = level[index].sel(factor=factor).transpose("i", "j").values
+            ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(v)
+            if ok.sum() >= 3:
+                tri, used = _triangulation(x, y, ok)
+                ax.tripcolor(tri, v.flat[used], shading="gouraud", norm=norm, cmap=cmap)
+            ax.set(aspect="equal", xticks=[], yticks=[])
+            ax.set_title(factor + ("" if force is None else f", {force_title(force)}"), fontsize=9)
+    label = f"{index} of node shear" + (" (-)" if method == "sobol" else " (deg per unit step)")
+    fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=axes, shrink=0.8, label=label)
+    suptitle(fig, f"{index} of node shear on the mean net (x-y plan)\n{_design_text(maps)}; {describe(ds)}")
+    return save(fig, path)
