@@ -36,8 +36,7 @@ def _gap(surface, c, u, v, rho, theta):
     ct = np.cos(theta)[..., None]
     st = np.sin(theta)[..., None]
     dq = rho[..., None] * (-st * u + ct * v)
-    h = surface.height(q[..., 0], q[..., 1])
-    hx, hy = surface.gradient(q[..., 0], q[..., 1])
+    h, hx, hy = surface.height_gradient(q[..., 0], q[..., 1])
     return q, q[..., 2] - h, dq[..., 2] - hx * dq[..., 0] - hy * dq[..., 1]
 
 

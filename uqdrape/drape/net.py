@@ -60,26 +60,41 @@ class NetProblem:
         self.cell_s2 = 0.5 * (seg_j[:, :-1, :] + seg_j[:, 1:, :])
 
     def subset(self, rows):
-        """The same problem restricted to realisations ``rows`` (a shallow copy)."""
+        """The same problem restricted to realisations ``rows`` (a shallow copy).
+
+        Per-realisation nets and fields are not copied: the index helpers gather the
+        few entries a step needs through ``rows``.
+        """
         sub = copy.copy(self)
-        for name in ("crossover", "arm_angles", "seg_i", "seg_j", "gamma0", "flat", "cell_s1", "cell_s2"):
+        for name in ("crossover", "arm_angles"):
             setattr(sub, name, getattr(self, name)[rows])
         sub.blankholder = copy.copy(self.blankholder)
         sub.blankholder.force = self.blankholder.force[rows]
         sub.blankholder.friction = self.blankholder.friction[rows]
+        sub.rows = rows if self.rows is None else self.rows[rows]
         sub.R = len(rows)
         return sub
 
+    rows = None  # realisations of the full batch this problem covers (None: all)
+
     # -- index helpers -----------------------------------------------------------------
+    def take(self, field, a, b):
+        """field[r, a, b] for this problem's realisations r; a, b broadcast -> (R, ...)."""
+        if self.rows is None:
+            return field[:, a, b]
+        shape = (-1,) + (1,) * np.broadcast(a, b).ndim
+        return field[self.rows.reshape(shape), a, b]
+
     def seg1(self, i_a, i_b, j):
         """Lengths (R, ...) of fibre-1 segments between nodes (i_a, j) and (i_b, j)."""
-        return self.seg_i[:, np.minimum(i_a, i_b) + self.n, j + self.n]
+        return self.take(self.seg_i, np.minimum(i_a, i_b) + self.n, j + self.n)
 
     def seg2(self, i, j_a, j_b):
-        return self.seg_j[:, i + self.n, np.minimum(j_a, j_b) + self.n]
+        return self.take(self.seg_j, i + self.n, np.minimum(j_a, j_b) + self.n)
 
     def node(self, P, i, j):
-        return P[:, i + self.n, j + self.n]
+        """Positions (R, ..., 3) of nodes (i, j) in the batch's net P (or flat blank)."""
+        return self.take(P, i + self.n, j + self.n)
 
     # -- shared stages -----------------------------------------------------------------
     def start(self):
@@ -118,7 +133,7 @@ class NetProblem:
         lead = (self.R,) + (1,) * (gamma.ndim - 1 - a.ndim)  # candidate axes between R and the cells
 
         def pick(field):
-            return field[:, a, b].reshape(lead + a.shape)
+            return self.take(field, a, b).reshape(lead + a.shape)
 
         return self.material.cell_energy(gamma, pick(self.cell_s1), pick(self.cell_s2), pick(self.gamma0))
 
@@ -334,8 +349,8 @@ class EnergyRings:
             rows = np.flatnonzero(active)  # converged realisations are not evaluated again
             sub = self.prob if rows.size == R else self.prob.subset(rows)
             cand = turn[rows, None, :] + offsets[None, :, None]
-            S, _, e_arm = self.sides(P[rows], k, cand, sub)
-            _, _, e_corner = self.corners(P[rows], k, S, stencil, sub)
+            S, _, e_arm = self.sides(P, k, cand, sub)
+            _, _, e_corner = self.corners(P, k, S, stencil, sub)
             e_arm = np.nan_to_num(e_arm, nan=np.inf)
             total[rows] = e_arm[:, 1].sum(-1) + e_corner[:, 1].sum(-1)
             per_arm = e_arm.copy()

@@ -85,10 +85,13 @@ class _Revolution(_SquareDomain):
         return self._profile(np.hypot(x, y))
 
     def gradient(self, x, y):
+        return self.height_gradient(x, y)[1:]
+
+    def height_gradient(self, x, y):
         x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
         r = np.hypot(x, y)
         k = self._slope(r) / np.maximum(r, _R_EPS)
-        return k * x, k * y
+        return self._profile(r), k * x, k * y
 
 
 class Plate(_SquareDomain):

@@ -31,6 +31,10 @@ class Surface:
         """Boolean array: True where (x, y) lies in the mould's domain."""
         raise NotImplementedError
 
+    def height_gradient(self, x, y):
+        """(h, dh/dx, dh/dy) in one call; subclasses override it to share work."""
+        return (self.height(x, y), *self.gradient(x, y))
+
     def params(self) -> dict:
         """Shape parameters (for netCDF attributes and reports)."""
         return {}
