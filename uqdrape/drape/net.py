@@ -188,11 +188,11 @@ class EnergyRings:
     The energy of ring k's pattern splits into one term per arm (its bending penalty,
     the cells and blank-holder segments along its two sides) and one term per quadrant
     corner (coupling the two arms that bound the quadrant). The four turn angles are
-    found by a batched Newton iteration per arm on three-point stencils, with the
-    corner coupling lagged (Jacobi) and a step-halving safeguard if the total rises.
+    found by a batched trust-region Newton iteration (``_minimise``) whose gradient and
+    Hessian come from finite-difference stencils of those terms.
     """
 
-    STENCIL = 1e-3  # rad
+    STENCIL = 1e-3  # rad, finite-difference step of the turn angles
 
     def __init__(self, prob: NetProblem, bending_stiffness, tolerance, max_iterations, max_turn):
         self.prob = prob
