@@ -4,8 +4,9 @@ Single drapes: ``plot_net`` (3-D net coloured by shear), ``plot_lines`` (shear a
 max-shear lines, thesis Fig 5.9). Ensembles: node maps of the mean, sd and wrinkle
 risk, line statistics (Figs 5.18/5.19), histograms (Fig 5.20), convergence, and
 blank-holder force sweeps, and per-realisation energies and line means against one
-sampled factor (Fig 5.6). ``write_report`` writes them all with ``index.html`` and
-``summary.json``.
+sampled factor (Fig 5.6). Sensitivity runs: index bars, indices against blank-holder
+force and index maps of node shear. ``write_report`` writes them all with ``index.html``
+and ``summary.json``.
 """
 
 from .ensemble_figures import (
@@ -22,6 +23,7 @@ from .ensemble_figures import (
 from .experimental import ExperimentalPoints, read_experimental
 from .figures import plot_lines, plot_net
 from .html import write_report, write_run_report
+from .sensitivity_figures import plot_sensitivity_bars, plot_sensitivity_map, plot_sensitivity_vs_force
 from .summary import headline_numbers
 
 __all__ = [
@@ -36,6 +38,9 @@ __all__ = [
     "plot_sweep",
     "plot_scalar_vs_factor",
     "varying_factors",
+    "plot_sensitivity_bars",
+    "plot_sensitivity_vs_force",
+    "plot_sensitivity_map",
     "write_report",
     "write_run_report",
     "headline_numbers",

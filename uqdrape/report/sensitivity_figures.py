@@ -52,10 +52,11 @@ def _design_text(ds: xr.Dataset) -> str:
             f"{100 * ds.attrs['conf_level']:g} % bootstrap intervals")
 
 
-def _qoi_axis_label(ds: xr.Dataset, q: str, name: str) -> str:
+def _qoi_axis_label(ds: xr.Dataset, q: str) -> str:
     if ds.attrs["method"] == "sobol":
-        return f"{name} (-)"
-    return f"{name} ({unit_text(str(ds['qoi_units'].sel(qoi=q).values))} per unit step)"
+        return "index (-)"
+    units = unit_text(str(ds["qoi_units"].sel(qoi=q).values))
+    return f"μ* ({'' if units == '-' else units + ' '}per unit step)"
 
 
 @styled
@@ -88,7 +89,7 @@ def plot_sensitivity_bars(indices: xr.Dataset, path):
                 ax.set_ylim(min(-0.1, ax.get_ylim()[0]), max(1.1, ax.get_ylim()[1]))
             ax.set_title(q + ("" if force is None else f", {force_title(force)}"), fontsize=10)
             if col == 0:
-                ax.set_ylabel(_qoi_axis_label(indices, q, "index"))
+                ax.set_ylabel(_qoi_axis_label(indices, q))
     axes[0, 0].legend(loc="upper left", fontsize=8)
     suptitle(fig, f"sensitivity indices per quantity of interest\n{_design_text(indices)}")
     return save(fig, path)
@@ -121,7 +122,7 @@ def plot_sensitivity_vs_force(indices: xr.Dataset, path):
                         label=f"{factor} {var}")
                 ax.fill_between(force, v - c, v + c, color=cmap(k % 10), alpha=0.12, linewidth=0)
         ax.axhline(0.0, color="0.5", linewidth=0.8)
-        ax.set(xlabel="blank-holder force F_BH (N)", ylabel=_qoi_axis_label(indices, q, "index"), title=q)
+        ax.set(xlabel="blank-holder force F_BH (N)", ylabel=_qoi_axis_label(indices, q), title=q)
         ax.grid(alpha=0.3)
     for ax in axes.flat[len(qois):]:
         ax.set_visible(False)

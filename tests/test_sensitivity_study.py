@@ -1,0 +1,291 @@
+"""Sensitivity studies end to end (issue 6): a study's SALib design draped by the ensemble
+engine, QoIs per realisation, indices per blank-holder level, files, CLI and report.
+
+Tiny energy drapes of the EBXhd-936-like NCF on the nose cone (6 rings, 30 mm from the
+tip), friction and an iid zero-angle field (sd 5 deg) at F_BH = 0 and 378 N. Friction
+enters the model only through the blank-holder term, so at 0 N it must do exactly
+nothing and the zero-angle field must carry all the variance.
+"""
+
+from __future__ import annotations
+
+import re
+import textwrap
+
+import numpy as np
+import pytest
+import xarray as xr
+from SALib.analyze import sobol as salib_sobol_analyze
+from SALib.sample import sobol as salib_sobol_sample
+from SALib.test_functions import Ishigami
+
+from uqdrape.cli import main
+from uqdrape.ensemble import inputs_from_design, open_ensemble, run_study
+from uqdrape.sensitivity import (
+    MORRIS_SCREENING_TRAJECTORIES,
+    design_base_samples,
+    open_sensitivity,
+    qoi_indices,
+    realization_qois,
+    study_design,
+    study_problem,
+)
+from uqdrape.study import QOIS, StudyError, load_study
+
+FORCES = (0.0, 378.0)
+ISHIGAMI_S1 = np.array([0.3139, 0.4424, 0.0])
+ISHIGAMI_ST = np.array([0.5576, 0.4424, 0.2437])
+
+
+def study_file(tmp_path, name="sens", *, force="[0.0, 378.0]", rings=6, base=128, method="sobol",
+               uncertainty=None, geometry='kind = "nose_cone"', mode="energy"):
+    """Write a small sensitivity study; its output folder is tmp_path/name."""
+    uncertainty = uncertainty or """
+        [uncertainty.zero_angle]
+        sd_deg = 5.0
+
+        [uncertainty.friction]
+        dist = "uniform"
+        bounds = [0.15, 0.3]
+    """
+    text = textwrap.dedent(f"""
+        [study]
+        name = "{name}"
+        seed = 3
+        realizations = 8
+        chunk_size = 128
+
+        [geometry]
+        {geometry}
+
+        [fabric]
+        material = "ebxhd936_like"
+        spacing_mm = 5.0
+
+        [process]
+        blankholder_force_N = {force}
+
+        [solver]
+        mode = "{mode}"
+        rings = {rings}
+    """) + textwrap.dedent(uncertainty) + textwrap.dedent(f"""
+        [sensitivity]
+        method = "{method}"
+        base_samples = {base}
+
+        [output]
+        directory = "{tmp_path / name}"
+    """)
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.fixture(scope="module")
+def sweep_run(tmp_path_factory):
+    """(study, output folder) of the friction + zero-angle Sobol' study at 0 and 378 N."""
+    tmp = tmp_path_factory.mktemp("sweep")
+    study = load_study(study_file(tmp))
+    return study, run_study(study, scheduler="synchronous", progress=False)
+
+
+# ----------------------------------------------------------------------------- physics
+
+
+def test_friction_does_nothing_without_a_blankholder(sweep_run):
+    _, out = sweep_run
+    ind, maps = open_sensitivity(out)
+    at0 = ind.sel(factor="friction", blankholder_force=0.0)
+    for var in ("S1", "S1_conf", "ST", "ST_conf"):
+        np.testing.assert_allclose(at0[var].values, 0.0, atol=1e-12)
+        np.testing.assert_allclose(maps[var].sel(factor="friction", blankholder_force=0.0).fillna(0).values,
+                                   0.0, atol=1e-12)
+    # no blank-holder: no blank-holder energy at all
+    assert bool(ind.output_constant.sel(qoi="blankholder_energy", blankholder_force=0.0))
+
+
+def test_friction_drives_blankholder_energy_at_the_highest_force(sweep_run):
+    _, out = sweep_run
+    ind, _ = open_sensitivity(out)
+    top = ind.sel(factor="friction", qoi="blankholder_energy", blankholder_force=max(FORCES))
+    # U_BH is proportional to mu for a fixed net; the net barely moves with mu: ST near 1
+    assert float(top.ST - top.ST_conf) > 0.7
+    assert float(top.ST) == pytest.approx(1.0, abs=float(top.ST_conf))
+    # and the zero-angle field's share of the line asymmetry drops as the force rises
+    asym = ind.ST.sel(factor="zero_angle", qoi="asymmetry")
+    assert float(asym.sel(blankholder_force=378.0)) < float(asym.sel(blankholder_force=0.0)) - 0.4
+
+
+def test_zero_angle_field_alone_gives_total_index_one(sweep_run):
+    """At 0 N only the zero-angle field acts (friction is inert, checked above): the group
+    carries all the variance of the asymmetry, ST = 1 within its confidence interval."""
+    _, out = sweep_run
+    ind, _ = open_sensitivity(out)
+    z = ind.sel(factor="zero_angle", blankholder_force=0.0, qoi="asymmetry")
+    assert float(z.ST_conf) < 0.25
+    assert abs(float(z.ST) - 1.0) < float(z.ST_conf)
+    assert abs(float(z.S1) - 1.0) < float(z.S1_conf)
+    assert int(ind.n_variables.sel(factor="zero_angle")) == (2 * 6) ** 2  # iid: every cell a KL mode
+    assert str(ind.factor_kind.sel(factor="zero_angle").values) == "field"
+
+
+def test_design_rows_are_the_realisations_at_every_level(sweep_run):
+    """Common random numbers: the same design rows (friction, zero-angle field) at both forces."""
+    study, out = sweep_run
+    design = study_design(study)
+    with open_ensemble(out) as ds:
+        assert ds.sizes["realization"] == design.n_evaluations == 128 * (2 + 2)
+        friction = ds["friction"].transpose("blankholder_force", "realization").values
+        gamma0 = ds["gamma0"].isel(realization=slice(0, 40)).transpose("blankholder_force", ...).values
+    inputs = inputs_from_design(study, design.standard[:40])
+    for level in range(len(FORCES)):
+        np.testing.assert_array_equal(friction[level], inputs_from_design(study, design.standard)["friction"])
+        # the drape stores gamma0 back from radians: equal to round-off
+        np.testing.assert_allclose(gamma0[level], inputs["gamma0"], rtol=0, atol=1e-12)
+
+
+# ----------------------------------------------------------------------------- stored results
+
+
+def test_stored_indices_have_intervals_sample_size_and_units(sweep_run):
+    _, out = sweep_run
+    ind, maps = open_sensitivity(out)
+    assert ind["ST"].dims == ("factor", "qoi", "blankholder_force")
+    assert list(ind.qoi.values) == list(QOIS)
+    assert list(ind.blankholder_force.values) == list(FORCES) and ind.blankholder_force.attrs["units"] == "N"
+    assert set(ind.factor.values) == {"friction", "zero_angle"}
+    for var in ("S1", "S1_conf", "ST", "ST_conf"):
+        assert var in ind and var in maps
+    assert (ind.ST_conf.values >= 0).all() and (ind.ST_conf.values > 0).any()
+    assert ind.attrs["base_samples"] == 128 and ind.attrs["n_evaluations"] == 512
+    assert ind.attrs["method"] == "sobol" and ind.attrs["conf_level"] == 0.95
+    assert dict(zip(ind.qoi.values, ind.qoi_units.values))["blankholder_energy"] == "J"
+    assert maps["ST"].dims == ("factor", "i", "j", "blankholder_force")
+    assert maps.sizes["i"] == maps.sizes["j"] == 13 and maps.attrs["output_units"] == "degree"
+    # the crossover node's shear does not vary: flagged constant, not ranked on round-off
+    assert bool(maps.output_constant.sel(i=0, j=0).all())
+
+
+def test_stored_indices_round_trip_and_equal_a_recomputation(sweep_run, tmp_path):
+    study, out = sweep_run
+    ind, _ = open_sensitivity(out)
+    ind.to_netcdf(tmp_path / "again.nc")
+    xr.testing.assert_identical(xr.load_dataset(tmp_path / "again.nc"), ind)
+    with open_ensemble(out) as ds:
+        again = qoi_indices(study_design(study), realization_qois(ds), seed=study.seed)
+    xr.testing.assert_identical(again.drop_attrs(), ind.drop_attrs())
+
+
+def test_qois_of_a_drape(sweep_run):
+    _, out = sweep_run
+    with open_ensemble(out) as ds:
+        one = ds.isel(realization=slice(0, 5)).load()
+    q = realization_qois(one)
+    assert list(q.data_vars) == list(QOIS)
+    np.testing.assert_array_equal(q.blankholder_energy.values, one.energy_blankholder.values)
+    np.testing.assert_allclose(q.asymmetry, q.mean_shear_positive + q.mean_shear_negative, rtol=1e-12)
+    np.testing.assert_allclose(q.max_abs_shear, np.nanmax(np.abs(one.shear.values), axis=(2, 3)))
+    assert (q.mean_shear_negative < q.mean_shear_positive).all()  # compliant - quadrants (Fig 5.9)
+    with pytest.raises(ValueError, match="must be distinct names from max_abs_shear"):
+        realization_qois(one, ["max_shear"])
+
+
+# ----------------------------------------------------------------------------- same path as SALib
+
+
+def test_ishigami_through_the_study_design_path_reproduces_salib(tmp_path):
+    """Swap the drape for Ishigami: study factors -> standard design -> inputs_from_design
+    (physical values) -> qoi_indices gives SALib's own indices and the analytic ones."""
+    uncertainty = "".join(f"""
+        [uncertainty.{name}]
+        dist = "uniform"
+        bounds = [-3.141592653589793, 3.141592653589793]
+    """ for name in ("orientation", "pre_shear", "skew"))
+    study = load_study(study_file(tmp_path, force="0.0", base=1024, uncertainty=uncertainty))
+    design = study_design(study)
+    inputs = inputs_from_design(study, design.standard)
+    x = np.stack([inputs["orientation"], inputs["pre_shear"], inputs["skew"]], axis=1)
+    qois = xr.Dataset({"y": ("realization", Ishigami.evaluate(x))},
+                      coords={"realization": np.arange(design.n_evaluations)})
+    ours = qoi_indices(design, qois, seed=study.seed)
+
+    physical = {"num_vars": 3, "names": ["x1", "x2", "x3"], "bounds": [[-np.pi, np.pi]] * 3}
+    X = salib_sobol_sample.sample(physical, 1024, calc_second_order=False, seed=study.seed)
+    np.testing.assert_allclose(x, X, rtol=0, atol=1e-12)
+    ref = salib_sobol_analyze.analyze(physical, Ishigami.evaluate(X), calc_second_order=False,
+                                      seed=np.random.default_rng(study.seed))
+    for var in ("S1", "S1_conf", "ST", "ST_conf"):
+        np.testing.assert_allclose(ours[var].sel(qoi="y").values, ref[var], atol=1e-9)
+    np.testing.assert_allclose(ours.S1.sel(qoi="y").values, ISHIGAMI_S1, atol=0.05)
+    np.testing.assert_allclose(ours.ST.sel(qoi="y").values, ISHIGAMI_ST, atol=0.05)
+
+
+def test_unbounded_factors_are_coded_as_standard_normals(tmp_path):
+    uncertainty = """
+        [uncertainty.orientation]
+        dist = "normal"
+        mean = 0.0
+        sd = 2.0
+
+        [uncertainty.crossover_x]
+        dist = "uniform"
+        bounds = [-3.0, 3.0]
+    """
+    study = load_study(study_file(tmp_path, force="0.0", base=64, uncertainty=uncertainty))
+    problem = study_problem(study)
+    assert problem["names"] == ["orientation", "crossover_x"] and problem["dists"] == ["norm", "unif"]
+    morris = study_design(study, "morris")
+    values = inputs_from_design(study, morris.standard)["orientation"]
+    # Morris end levels at the 0.5 % / 99.5 % quantiles (+-2.58 sd), not u = 0 / 1 (+-7 sd)
+    assert np.abs(values).max() == pytest.approx(2.0 * 2.5758, rel=1e-3)
+    assert morris.meta["base_samples"] == MORRIS_SCREENING_TRAJECTORIES == design_base_samples(study, "morris")
+
+
+# ----------------------------------------------------------------------------- refusals
+
+
+@pytest.mark.parametrize("method, base, minimum", [("sobol", 32, "the minimum is 64"),
+                                                   ("morris", 4, "the minimum is 10 trajectories")])
+def test_too_small_base_sample_is_refused_with_the_minimum(tmp_path, method, base, minimum):
+    with pytest.raises(StudyError, match=re.escape(f"sensitivity.base_samples = {base} is invalid")) as err:
+        load_study(study_file(tmp_path, base=base, method=method))
+    assert minimum in str(err.value)
+
+
+def test_one_group_and_huge_sobol_designs_are_refused(tmp_path):
+    alone = load_study(study_file(tmp_path, name="alone", uncertainty="[uncertainty.zero_angle]\nsd_deg = 5.0\n"))
+    with pytest.raises(ValueError, match=r"needs at least 2 random factors or groups.*add \[uncertainty"):
+        run_study(alone, scheduler="synchronous", progress=False)
+    big = """
+        [uncertainty.spacing]
+        cv = 0.001
+
+        [uncertainty.zero_angle]
+        sd_deg = 5.0
+    """
+    huge = load_study(study_file(tmp_path, name="huge", rings=30, uncertainty=big))
+    with pytest.raises(ValueError, match=r"more than scipy's 21201 .*'spacing': 7320, 'zero_angle': 3600"):
+        study_design(huge)
+
+
+# ----------------------------------------------------------------------------- command line
+
+
+def test_uqdrape_run_writes_indices_and_a_report_with_the_sensitivity_figures(tmp_path, capsys):
+    path = study_file(tmp_path, name="cli", rings=4, base=64)
+    assert main(["run", str(path), "--quiet", "--workers", "1"]) == 0
+    out = tmp_path / "cli"
+    assert (out / "sensitivity.nc").is_file() and (out / "sensitivity_maps.nc").is_file()
+    page = (out / "report" / "index.html").read_text()
+    figures = ["sensitivity_bars.png", "sensitivity_vs_force.png", "sensitivity_map_S1.png", "sensitivity_map_ST.png"]
+    for name in figures:
+        assert f'src="{name}"' in page and (out / "report" / name).is_file()
+    assert "<h2>Sensitivity</h2>" in page and "F_BH = 378 N" in page
+
+    # a Morris screening run of the same study goes to its own folder
+    assert main(["run", str(path), "--quiet", "--workers", "1", "--method", "morris", "--no-report"]) == 0
+    morris = xr.load_dataset(tmp_path / "cli-morris" / "sensitivity.nc")
+    assert morris.attrs["method"] == "morris" and "mu_star_conf" in morris
+    assert morris.attrs["n_evaluations"] == MORRIS_SCREENING_TRAJECTORIES * 3
+    np.testing.assert_allclose(morris.mu_star.sel(factor="friction", blankholder_force=0.0), 0.0, atol=1e-12)
+    assert capsys.readouterr().err == ""
