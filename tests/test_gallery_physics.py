@@ -1,0 +1,115 @@
+"""Physics checks of the gallery's flat-plate spacing studies (issue 5; thesis §5.3.3, Figs 5.15/5.16).
+
+Reduced runs: the shipped studies (energy drape, FGE 106hd-like NCF, 5 mm spacing,
+30 rings, segment lengths with cv 1.5 %) with 40 instead of 200 realisations.
+"Fibre angle" in the thesis's Fig 5.16 is the inter-fibre angle 90 deg - shear, so its
+sd is the sd of node shear. Measured quantity: the per-node ensemble sd of node shear
+averaged over each ring k = max(|i|, |j|) (``uqdrape.gallery.ring_sd``); "inner" is
+rings 1-5, "outer" rings 25-29 (the boundary ring 30 is left out: its node shear
+averages fewer cells). Seeds are the studies' own, so every number is deterministic;
+with 40 realisations a ring average of node sds is good to a few per cent.
+The sd is about each node's own mean; that mean is not zero (see the first test).
+
+Measured (seeds 5151, 40 realisations): iid inner 1.1 deg, outer 3.5 deg (thesis: Normal
+fit sd 11.04 deg over the whole plate); exponential field, L = 30 mm: inner 1.0 deg,
+outer 5.8 deg -- the correlated field makes the far-field scatter larger, not smaller.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.stats import spearmanr
+
+from uqdrape.ensemble import drape_inputs, sampled_inputs
+from uqdrape.gallery import inner_outer_sd, ring_sd
+from uqdrape.study import load_study
+
+STUDIES = Path(__file__).resolve().parent.parent / "studies"
+REALIZATIONS = 40
+
+
+def _reduced_run(name: str):
+    """The study's first REALIZATIONS realisations as one batched drape (its own seed and inputs)."""
+    study = load_study(STUDIES / f"{name}.toml")
+    assert study.solver.mode == "energy" and study.fabric.spacing_mm == 5.0
+    assert study.uncertainty.fields["spacing"].params["cv"] == 0.015
+    r = np.arange(REALIZATIONS)
+    return drape_inputs(study, r, sampled_inputs(study, r))
+
+
+@pytest.fixture(scope="module")
+def iid():
+    return _reduced_run("plate-spacing")
+
+
+@pytest.fixture(scope="module")
+def correlated():
+    return _reduced_run("plate-correlated-spacing")
+
+
+def test_studies_differ_only_in_the_spacing_correlation():
+    a, b = (load_study(STUDIES / f"{n}.toml").to_dict() for n in ("plate-spacing", "plate-correlated-spacing"))
+    for d in (a, b):
+        d.pop("study"), d.pop("output"), d.pop("report")
+    sa, sb = a["uncertainty"].pop("spacing"), b["uncertainty"].pop("spacing")
+    assert a == b
+    assert (sa["correlation"], sb["correlation"], sb["length_mm"]) == ("iid", "exponential", [30.0, 30.0])
+
+
+def test_random_spacing_moves_the_mean_shear_into_the_compliant_branch(iid, correlated):
+    for ds in (iid, correlated):
+        assert (ds["status"] == 0).all()
+        assert float(ds["converged"].mean()) >= 0.95
+    # without noise the energy drape of a plate is unsheared ...
+    study = load_study(STUDIES / "plate-spacing.toml")
+    exact = drape_inputs(study, np.arange(1), {})
+    assert float(abs(exact["cell_shear"]).max()) < 1e-9
+    # ... with it, the minimiser shifts every realisation towards the NCF's soft negative
+    # branch (N_s about 8x lower than positive): E[W(mean + noise)] is least below zero.
+    # Measured: -4.7 deg (iid), -5.4 deg (L = 30 mm), the same sign in every realisation.
+    for ds in (iid, correlated):
+        per_realisation = ds["cell_shear"].mean(("cell_i", "cell_j"))
+        assert -10.0 < float(per_realisation.mean()) < -2.0
+        assert bool((per_realisation < 0).all())
+
+
+def test_iid_spacing_fibre_angle_sd_is_degrees_not_tenths(iid):
+    inner, outer = inner_outer_sd(iid)
+    # thesis: sd 11.04 deg over the plate; this model: about 3.5 deg at rings 25-29
+    assert 2.0 < outer < 25.0, outer
+    assert 0.5 < inner < 2.0, inner
+
+
+def test_iid_spacing_scatter_grows_with_distance_from_the_crossover(iid):
+    per_ring = ring_sd(iid).values
+    inner, outer = inner_outer_sd(iid)
+    assert outer > 2.5 * inner, (inner, outer)
+    # growth along the whole net, not only at its edge
+    assert spearmanr(np.arange(1, per_ring.size), per_ring[:-1]).statistic > 0.95
+    # a cumulative (random-walk) artefact: roughly sqrt(k), so sd(k)^2 / k stays within a factor ~3
+    k = np.arange(1, per_ring.size)
+    ratio = per_ring[:-1] ** 2 / k
+    assert ratio.max() / ratio.min() < 3.5, ratio
+
+
+def test_correlated_spacing_reduces_the_local_scatter(correlated, iid):
+    # neighbouring segments of a smooth field are nearly equal, so a cell next to the
+    # crossover is nearly a parallelogram: its shear scatter is much smaller than iid's
+    near_corr = float(ring_sd(correlated).sel(ring=slice(1, 2)).mean())
+    near_iid = float(ring_sd(iid).sel(ring=slice(1, 2)).mean())
+    assert near_corr < 0.75 * near_iid, (near_corr, near_iid)
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "measured, not the thesis's hope: with the same cv, an exponential field with L = 30 mm "
+    "grows the scatter more (inner 1.0 -> outer 5.8 deg, ratio 6.0) than iid (1.1 -> 3.5 deg, "
+    "ratio 3.2): correlated length errors add up coherently along the fibres over ~L; only "
+    "L well beyond the net (~300 mm) brings the outer sd below iid's"))
+def test_correlated_spacing_reduces_the_growth_of_the_scatter(correlated, iid):
+    ci, co = inner_outer_sd(correlated)
+    ii, io = inner_outer_sd(iid)
+    assert co / ci < io / ii or co < io
