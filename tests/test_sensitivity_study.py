@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import re
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,6 +19,7 @@ import xarray as xr
 from SALib.analyze import sobol as salib_sobol_analyze
 from SALib.sample import sobol as salib_sobol_sample
 from SALib.test_functions import Ishigami
+from scipy.stats import qmc
 
 from uqdrape.cli import main
 from uqdrape.ensemble import inputs_from_design, open_ensemble, run_study
@@ -289,3 +291,14 @@ def test_uqdrape_run_writes_indices_and_a_report_with_the_sensitivity_figures(tm
     assert morris.attrs["n_evaluations"] == MORRIS_SCREENING_TRAJECTORIES * 3
     np.testing.assert_allclose(morris.mu_star.sel(factor="friction", blankholder_force=0.0), 0.0, atol=1e-12)
     assert capsys.readouterr().err == ""
+
+
+def test_shipped_study_is_five_groups_within_the_sobol_dimension_limit():
+    study = load_study(Path(__file__).resolve().parents[1] / "studies" / "sensitivity-vs-blankholder.toml")
+    problem = study_problem(study)
+    groups = list(dict.fromkeys(problem["groups"]))
+    assert groups == ["friction", "orientation", "crossover_x", "spacing", "zero_angle"]
+    assert problem["groups"].count("spacing") == 2 * 40 * 41 and problem["groups"].count("zero_angle") == 40 * 40
+    assert 2 * problem["num_vars"] <= qmc.Sobol.MAXDIM
+    assert study.force_levels == (0.0, 126.0, 252.0, 378.0)
+    assert (study.sensitivity.method, design_base_samples(study, "sobol")) == ("sobol", 256)
