@@ -61,15 +61,23 @@ def _qoi_axis_label(ds: xr.Dataset, q: str) -> str:
 
 @styled
 def plot_sensitivity_bars(indices: xr.Dataset, path):
-    """Bar chart per quantity of interest (rows) and blank-holder level (columns): each
-    factor's indices (Sobol' S1 and ST side by side, or Morris μ*) with their confidence
-    intervals as error bars. Returns the path."""
+    """Bar chart per quantity of interest (rows) and blank-holder level (columns; one level:
+    the QoIs fill a grid): each factor's indices (Sobol' S1 and ST side by side, or Morris
+    μ*) with their confidence intervals as error bars. Returns the path."""
     method = _method(indices)
     pairs = INDICES[method]
     groups = _levels(indices)
     qois = [str(q) for q in indices["qoi"].values]
     factors = [str(f) for f in indices["factor"].values]
-    fig, axes = _grid(len(qois), len(groups), size=(max(3.6, 0.9 * len(factors) + 1.2), 2.9))
+    size = (max(3.6, 0.9 * len(factors) + 1.2), 2.9)
+    if len(groups) == 1:
+        cols = min(3, len(qois))
+        fig, grid = _grid(-(-len(qois) // cols), cols, size)
+        for ax in grid.flat[len(qois):]:
+            ax.set_visible(False)
+        axes = grid.reshape(-1, 1)
+    else:
+        fig, axes = _grid(len(qois), len(groups), size)
     x = np.arange(len(factors))
     width = 0.8 / len(pairs)
     colors = ("tab:blue", "tab:orange")
@@ -88,8 +96,7 @@ def plot_sensitivity_bars(indices: xr.Dataset, path):
             if method == "sobol":
                 ax.set_ylim(min(-0.1, ax.get_ylim()[0]), max(1.1, ax.get_ylim()[1]))
             ax.set_title(q + ("" if force is None else f", {force_title(force)}"), fontsize=10)
-            if col == 0:
-                ax.set_ylabel(_qoi_axis_label(indices, q))
+            ax.set_ylabel(_qoi_axis_label(indices, q))
     axes[0, 0].legend(loc="upper left", fontsize=8)
     suptitle(fig, f"sensitivity indices per quantity of interest\n{_design_text(indices)}")
     return save(fig, path)

@@ -126,7 +126,7 @@ def study_design(study, method: str | None = None) -> StudyDesign:
             f"{sizes}); use fewer rings, a correlated field or a lower kl_retained")
     X, meta = sample(problem, method, base_samples=base, seed=study.seed)
     standard = X.copy()
-    coded = [k for k, name in enumerate(study.uncertainty.factors) if problem["dists"][k] == "norm"]
+    coded = [k for k in range(len(study.uncertainty.factors)) if problem["dists"][k] == "norm"]
     standard[:, coded] = ndtr(X[:, coded])
     return StudyDesign(problem, X, standard, meta)
 
