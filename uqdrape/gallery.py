@@ -1,0 +1,274 @@
+"""The reference gallery: every thesis-figure study run end to end, its small report kept.
+
+``python -m uqdrape.gallery [--only NAME ...] [--workers N]`` runs each study of
+:data:`GALLERY` from the checkout's ``studies/`` (ensemble under ``results/<name>/``, as
+``uqdrape run`` would), writes its report and copies the report -- PNGs, ``index.html``,
+``summary.json``, not the netCDF chunks -- into ``results/gallery/<name>/``, plus the
+entry's headline numbers in ``headline.json``. ``results/gallery/README.md`` is then
+rebuilt from the headline files of all entries present, so ``--only`` refreshes one entry.
+
+The gallery is committed, so its PNGs are stored as 256-colour palette PNGs (about a
+third of matplotlib's RGBA size; the plots are line art and colour maps, so the
+difference is not visible). Paths are relative to the checkout root (the folder holding
+``studies/``), whatever the current directory, so the stored study records carry the
+relative output folder and the gallery is reproducible on any machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import shutil
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+from PIL import Image
+from scipy.stats import spearmanr
+
+from .stats import exceedance_probability, line_scalars, line_statistics, node_statistics
+
+ROOT = Path(__file__).resolve().parent.parent
+#: Where the committed reference reports live, relative to the checkout root.
+GALLERY_DIR = Path("results") / "gallery"
+#: Report files kept in the gallery (everything else of a run stays in results/<name>/).
+KEPT = ("*.png", "index.html", "summary.json")
+#: Rings at each end of the net summarised by ``inner_outer_sd``.
+RING_BAND = 5
+
+
+# ----------------------------------------------------------------------------- ring statistics
+
+
+def ring_sd(ds: xr.Dataset, var: str = "shear") -> xr.DataArray:
+    """Per-node ensemble sd of ``var`` (deg) averaged over each ring k = max(|i|, |j|) = 1..n.
+
+    Rings are the net's distance from the crossover in segments; the result has dim
+    ``ring`` (plus a leading ``blankholder_force`` of a sweep). Nodes with fewer than
+    two valid realisations are left out of their ring's average.
+    """
+    sd = node_statistics(ds, var)["sd"]
+    ring = np.maximum(abs(sd["i"]), abs(sd["j"]))
+    n = int(ring.max())
+    per_ring = [sd.where(ring == k).mean(("i", "j")) for k in range(1, n + 1)]
+    out = xr.concat(per_ring, dim="ring").assign_coords(ring=np.arange(1, n + 1))
+    return out.assign_attrs(units=sd.attrs.get("units", "degree"),
+                            long_name=f"mean over the ring's nodes of the ensemble sd of {var}")
+
+
+def inner_outer_sd(ds: xr.Dataset, var: str = "shear", band: int = RING_BAND) -> tuple[float, float]:
+    """(inner, outer) ring-averaged sd of ``var`` (deg): rings 1..band and the ``band``
+    rings just inside the boundary ring (n-band..n-1). The boundary ring is left out:
+    its node shear averages fewer cells (one at a corner), which adds scatter of its own."""
+    per_ring = ring_sd(ds, var)
+    n = per_ring.sizes["ring"]
+    if n < 2 * band + 1:
+        raise ValueError(f"band={band} needs a net of at least {2 * band + 1} rings, got {n}")
+    inner = float(per_ring.sel(ring=slice(1, band)).mean())
+    outer = float(per_ring.sel(ring=slice(n - band, n - 1)).mean())
+    return inner, outer
+
+
+# ----------------------------------------------------------------------------- headline numbers
+
+
+def _round(value: float, digits: int = 3) -> float:
+    return float(f"{value:.{digits}g}")
+
+
+def _skew_headline(ds: xr.Dataset) -> dict:
+    skew = ds["skew"].values
+    energy = ds["energy_blankholder"].values
+    lo, hi = int(np.argmin(skew)), int(np.argmax(skew))
+    return {f"E_BH total at skew {skew[lo]:.1f} deg (J)": _round(energy[lo]),
+            f"E_BH total at skew {skew[hi]:.1f} deg (J)": _round(energy[hi]),
+            "Spearman rank correlation of E_BH with skew": _round(float(spearmanr(skew, energy).statistic))}
+
+
+def _sweep_headline(ds: xr.Dataset) -> dict:
+    asym = line_scalars(ds)["asymmetry"].mean("realization")
+    out = {f"asymmetry (+ plus - line means) at {float(f):g} N (deg)": _round(float(asym.sel(blankholder_force=f)))
+           for f in ds["blankholder_force"].values[[0, -1]]}
+    return out
+
+
+def _sweep_scatter_headline(ds: xr.Dataset) -> dict:
+    out = _sweep_headline(ds)
+    sd = line_statistics(ds)["shear_sd"].sel(k=slice(1, None)).max(("quadrant", "k"))
+    for f in ds["blankholder_force"].values[[0, -1]]:
+        out[f"max sd along the max-shear lines at {float(f):g} N (deg)"] = _round(float(sd.sel(blankholder_force=f)))
+    return out
+
+
+def _node6_headline(ds: xr.Dataset) -> dict:
+    st = line_statistics(ds).sel(k=6)
+    out = {}
+    for q, text in (("++", "+"), ("-+", "-")):
+        s = st.sel(quadrant=q)
+        out[f"node 6, {text} quadrant {q}: shear mean / sd (deg)"] = (
+            f"{float(s['shear_mean']):.1f} / {float(s['shear_sd']):.2f}")
+        out[f"node 6, {text} quadrant {q}: distance from the tip (mm)"] = _round(float(s["distance_mean"]))
+    return out
+
+
+def _plate_headline(ds: xr.Dataset) -> dict:
+    inner, outer = inner_outer_sd(ds)
+    n = int(ds.attrs["rings"])
+    pooled = float(ds["shear"].std(skipna=True))
+    return {f"shear sd, rings 1-{RING_BAND} (deg)": _round(inner),
+            f"shear sd, rings {n - RING_BAND}-{n - 1} (deg)": _round(outer),
+            "pooled sd of all node shears (deg; thesis fit 11.04)": _round(pooled),
+            "mean node shear (deg; 0 without noise)": _round(float(ds["shear"].mean(skipna=True)))}
+
+
+def _wrinkle_headline(ds: xr.Dataset) -> dict:
+    threshold = float(ds.attrs["locking_angle_deg"])
+    ex = exceedance_probability(ds, threshold)
+    p = ex["probability"]
+    at = p.argmax(...)
+    top = ex.isel(at)
+    return {f"max P(|shear| > {threshold:g} deg)": (
+                f"{float(top['probability']):.2f} [{float(top['probability_lower']):.2f}, "
+                f"{float(top['probability_upper']):.2f}] at node ({int(top['i'])}, {int(top['j'])})"),
+            "nodes with P > 0.05": int((p > 0.05).sum())}
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One gallery study: its name (= the study file's stem and its [study] name), the
+    thesis figure it reproduces, the report picture the README shows, its headline numbers
+    (from the ensemble) and what the thesis reports to compare them with."""
+
+    name: str
+    figure: str
+    picture: str
+    headline: Callable[[xr.Dataset], dict]
+    thesis: str
+
+    @property
+    def study(self) -> Path:
+        return Path("studies") / f"{self.name}.toml"
+
+
+GALLERY = (
+    Entry("hemisphere-skew", "Figs 5.5/5.6", "vs_skew.png", _skew_headline,
+          "total blank-holder energy rises as the generator paths are skewed 0-55 deg; a few J (axis to 7 J)"),
+    Entry("nosecone-blankholder-levels", "Figs 5.9-5.12", "lines.png", _sweep_headline,
+          "the - quadrants shear more at 0 N; the gap closes with force, symmetric at 378 N"),
+    Entry("plate-spacing", "Figs 5.15/5.16", "sd_shear.png", _plate_headline,
+          "fibre angles ~ Normal(45.75, 11.04 deg); the scatter grows with distance from the crossover"),
+    Entry("nosecone-blankholder-sweep", "Figs 5.17/5.18", "line_statistics.png", _sweep_scatter_headline,
+          "126 N, spacing sd 0.1 %: scatter like the measured one (the other levels: its future-work item 6)"),
+    Entry("nosecone-zero-angle", "Figs 5.19/5.20", "line_statistics.png", _node6_headline,
+          "bounded sd along the lines; node 6 at 96.6 mm (+, inter-fibre angle 33.5 deg) and 108 mm "
+          "(-, 59.8 deg): its node spacing was evidently larger than 5 mm"),
+    Entry("plate-correlated-spacing", "beyond the thesis (its §5.3.3 open problem)", "sd_shear.png",
+          _plate_headline, "hoped-for: correlated variation removes the growth of the scatter; compare plate-spacing"),
+    Entry("doubledome-wrinkle-risk", "beyond the thesis (wrinkle risk)", "wrinkle_risk.png", _wrinkle_headline,
+          "no wrinkling prediction (its implicit limitation); here P(|shear| > 42 deg) per node"),
+)
+ENTRIES = {e.name: e for e in GALLERY}
+
+
+# ----------------------------------------------------------------------------- building
+
+
+def palette_png(path: Path) -> None:
+    """Rewrite a PNG in place as a 256-colour palette PNG (lossy in colour only)."""
+    with Image.open(path) as im:
+        rgb = im.convert("RGB")
+    rgb.quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE).save(path, optimize=True)
+
+
+def build_entry(entry: Entry, *, workers: int | None = None, resume: bool = False, progress: bool = True) -> Path:
+    """Run ``entry``'s study, write its report and copy it into the gallery; returns the
+    gallery folder. Call with the checkout root as the current directory (``main`` does)."""
+    from .ensemble import open_ensemble, run_study
+    from .report import write_run_report
+
+    out = run_study(entry.study, workers=workers, resume=resume, progress=progress)
+    report = write_run_report(out).parent
+    headline = entry.headline(open_ensemble(out))
+    target = GALLERY_DIR / entry.name
+    if target.exists():
+        shutil.rmtree(target)
+    target.mkdir(parents=True)
+    for pattern in KEPT:
+        for path in sorted(report.glob(pattern)):
+            shutil.copy2(path, target / path.name)
+            if path.suffix == ".png":
+                palette_png(target / path.name)
+    record = {"study": entry.study.as_posix(), "thesis_figure": entry.figure, "thesis": entry.thesis,
+              "headline": headline}
+    (target / "headline.json").write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
+    return target
+
+
+def _cell(text: str) -> str:
+    """Text for a markdown table cell (a bare | would end the cell)."""
+    return text.replace("|", "\\|")
+
+
+def write_readme() -> Path:
+    """Rebuild ``results/gallery/README.md`` from the headline files of the entries present."""
+    lines = [
+        "# uqdrape reference gallery",
+        "",
+        "Small reference reports of the thesis-figure studies (Wiggers 2007, ch. 5) and two beyond it.",
+        "Each folder holds the report of `uqdrape run studies/<name>.toml` (open its `index.html`),",
+        "its `summary.json` and the headline numbers below (`headline.json`). The ensembles",
+        "themselves (netCDF chunks) are not kept; the PNGs are stored as 256-colour palette images.",
+        "",
+        "Regenerate all of it (a few minutes on 2 cores), or one entry, from the checkout root:",
+        "",
+        "```",
+        "python -m uqdrape.gallery            # every entry",
+        "python -m uqdrape.gallery --only plate-spacing",
+        "```",
+        "",
+        "| entry | thesis figure and what it reports | headline numbers (this gallery) |",
+        "|---|---|---|",
+    ]
+    for entry in GALLERY:
+        path = GALLERY_DIR / entry.name / "headline.json"
+        if not path.is_file():
+            continue
+        record = json.loads(path.read_text(encoding="utf-8"))
+        numbers = "<br>".join(_cell(f"{k}: {v}") for k, v in record["headline"].items())
+        lines.append(f"| [{entry.name}]({entry.name}/index.html)<br>"
+                     f"[![{entry.name}]({entry.name}/{entry.picture})]({entry.name}/index.html) "
+                     f"| {_cell(record['thesis_figure'])}: {_cell(record['thesis'])} | {numbers} |")
+    readme = GALLERY_DIR / "README.md"
+    readme.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return readme
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m uqdrape.gallery",
+        description="Run the gallery studies and refresh results/gallery/ (reports, headline numbers, README).")
+    parser.add_argument("--only", action="append", metavar="NAME", choices=list(ENTRIES),
+                        help=f"only this entry (repeatable): {', '.join(ENTRIES)}")
+    parser.add_argument("--workers", type=int, help="local worker processes (default: all cores)")
+    parser.add_argument("--resume", action="store_true",
+                        help="reuse finished chunks of earlier runs of the same study (default: recompute)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    args = parser.parse_args(argv)
+    if not (ROOT / "studies").is_dir():
+        print(f"gallery: error: {ROOT} has no studies/ folder; run from a uqdrape checkout", file=sys.stderr)
+        return 2
+    with contextlib.chdir(ROOT):
+        for entry in (ENTRIES[n] for n in args.only) if args.only else GALLERY:
+            print(f"gallery: {entry.name} ({entry.figure})", file=sys.stderr)
+            target = build_entry(entry, workers=args.workers, resume=args.resume, progress=not args.quiet)
+            print(f"gallery: wrote {target}", file=sys.stderr)
+        print(f"gallery: wrote {write_readme()}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
