@@ -17,7 +17,6 @@ outer 5.8 deg -- the correlated field makes the far-field scatter larger, not sm
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
