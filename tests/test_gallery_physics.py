@@ -10,9 +10,11 @@ averages fewer cells). Seeds are the studies' own, so every number is determinis
 with 40 realisations a ring average of node sds is good to a few per cent.
 The sd is about each node's own mean; that mean is not zero (see the first test).
 
-Measured (seeds 5151, 40 realisations): iid inner 1.1 deg, outer 3.5 deg (thesis: Normal
-fit sd 11.04 deg over the whole plate); exponential field, L = 30 mm: inner 1.0 deg,
-outer 5.8 deg -- the correlated field makes the far-field scatter larger, not smaller.
+Measured (seeds 5151, 40 realisations): iid inner 1.1 deg, outer 3.6 deg (thesis: Normal
+fit sd 11.04 deg over the whole plate); smooth field (squared-exponential, L = 100 mm):
+inner 0.06 deg, outer 1.65 deg; rough Ornstein-Uhlenbeck sheet (exponential, L = 30 mm):
+inner 1.0 deg, outer 5.8 deg -- correlation removes the cumulative artefact only when
+neighbouring fibres stay alike, i.e. for a smooth field or lengths beyond a few cells.
 """
 
 from __future__ import annotations
@@ -56,7 +58,7 @@ def test_studies_differ_only_in_the_spacing_correlation():
         d.pop("study"), d.pop("output"), d.pop("report")
     sa, sb = a["uncertainty"].pop("spacing"), b["uncertainty"].pop("spacing")
     assert a == b
-    assert (sa["correlation"], sb["correlation"], sb["length_mm"]) == ("iid", "exponential", [30.0, 30.0])
+    assert (sa["correlation"], sb["correlation"], sb["length_mm"]) == ("iid", "squared_exponential", [100.0, 100.0])
 
 
 def test_random_spacing_moves_the_mean_shear_into_the_compliant_branch(iid, correlated):
@@ -69,10 +71,11 @@ def test_random_spacing_moves_the_mean_shear_into_the_compliant_branch(iid, corr
     assert float(abs(exact["cell_shear"]).max()) < 1e-9
     # ... with it, the minimiser shifts every realisation towards the NCF's soft negative
     # branch (N_s about 8x lower than positive): E[W(mean + noise)] is least below zero.
-    # Measured: -4.7 deg (iid), -5.4 deg (L = 30 mm), the same sign in every realisation.
-    for ds in (iid, correlated):
+    # Measured: -4.7 deg (iid), -0.9 deg (smooth field, L = 100 mm: smaller mismatches),
+    # the same sign in every realisation.
+    for ds, upper in ((iid, -2.0), (correlated, -0.3)):
         per_realisation = ds["cell_shear"].mean(("cell_i", "cell_j"))
-        assert -10.0 < float(per_realisation.mean()) < -2.0
+        assert -10.0 < float(per_realisation.mean()) < upper
         assert bool((per_realisation < 0).all())
 
 
@@ -103,12 +106,20 @@ def test_correlated_spacing_reduces_the_local_scatter(correlated, iid):
     assert near_corr < 0.75 * near_iid, (near_corr, near_iid)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "measured, not the thesis's hope: with the same cv, an exponential field with L = 30 mm "
-    "grows the scatter more (inner 1.0 -> outer 5.8 deg, ratio 6.0) than iid (1.1 -> 3.5 deg, "
-    "ratio 3.2): correlated length errors add up coherently along the fibres over ~L; only "
-    "L well beyond the net (~300 mm) brings the outer sd below iid's"))
-def test_correlated_spacing_reduces_the_growth_of_the_scatter(correlated, iid):
+def test_smooth_correlated_spacing_reduces_the_growth_of_the_scatter(correlated, iid):
     ci, co = inner_outer_sd(correlated)
     ii, io = inner_outer_sd(iid)
-    assert co / ci < io / ii or co < io
+    assert co < 0.75 * io, (co, io)
+    assert co - ci < 0.75 * (io - ii), (ci, co, ii, io)
+
+
+def test_rough_ou_sheet_spacing_grows_the_scatter_faster_than_iid(iid, tmp_path):
+    # the same study with an Ornstein-Uhlenbeck sheet of 6 cells: errors add up along a
+    # fibre but neighbouring fibres decorrelate within a cell, so the mismatch grows faster
+    text = (STUDIES / "plate-correlated-spacing.toml").read_text()
+    text = text.replace('"squared_exponential"', '"exponential"').replace("[100.0, 100.0]", "[30.0, 30.0]")
+    (tmp_path / "ou.toml").write_text(text)
+    study = load_study(tmp_path / "ou.toml")
+    r = np.arange(REALIZATIONS)
+    _, rough_outer = inner_outer_sd(drape_inputs(study, r, sampled_inputs(study, r)))
+    assert rough_outer > 1.2 * inner_outer_sd(iid)[1]

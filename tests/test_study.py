@@ -77,8 +77,8 @@ def test_shipped_studies_hold_the_thesis_settings():
     corr = load_study(STUDIES / "plate-correlated-spacing.toml")
     assert plate.fabric == corr.fabric and plate.solver == corr.solver
     assert plate.uncertainty.fields["spacing"].length_mm is None
-    assert corr.uncertainty.fields["spacing"].correlation == "exponential"
-    assert corr.uncertainty.fields["spacing"].length_mm == (30.0, 30.0)
+    assert corr.uncertainty.fields["spacing"].correlation == "squared_exponential"
+    assert corr.uncertainty.fields["spacing"].length_mm == (100.0, 100.0)
 
     hemi = load_study(STUDIES / "hemisphere-skew.toml")
     skew = hemi.uncertainty.factors["skew"]

@@ -167,7 +167,7 @@ GALLERY = (
           "bounded sd along the lines; node 6 at 96.6 mm (+, inter-fibre angle 33.5 deg) and 108 mm "
           "(-, 59.8 deg): its node spacing was evidently larger than 5 mm"),
     Entry("plate-correlated-spacing", "beyond the thesis (its §5.3.3 open problem)", "sd_shear.png",
-          _plate_headline, "hoped-for: correlated variation removes the growth of the scatter; compare plate-spacing"),
+          _plate_headline, "a smooth spacing field correlated over 20 cells (100 mm) shrinks the growth of the scatter; compare plate-spacing"),
     Entry("doubledome-wrinkle-risk", "beyond the thesis (wrinkle risk)", "wrinkle_risk.png", _wrinkle_headline,
           "no wrinkling prediction (its implicit limitation); here P(|shear| > 42 deg) per node"),
 )
