@@ -669,9 +669,11 @@ def _sensitivity(src: _Source, doc: dict, uncertainty: Uncertainty) -> Sensitivi
             check_base_samples(method, base)
         except ValueError as err:
             src.wrap(err, "sensitivity", {"base_samples": ("sensitivity.base_samples", base)})
-        if not uncertainty.varying:
+        if len(uncertainty.varying) < 2:
+            found = ", ".join(uncertainty.varying) or "none"
             src.invalid("sensitivity.method", method,
-                        "a sensitivity analysis needs at least one [uncertainty.*] input")
+                        f"a sensitivity analysis needs at least two [uncertainty.*] inputs (found: {found}); "
+                        "indices of a single input are 1 by construction")
     hint = f"qoi must be a non-empty list of distinct names from {', '.join(QOIS)}"
     qoi = t.raw("qoi", list(QOIS), hint)
     if not isinstance(qoi, list) or not qoi or len(set(map(repr, qoi))) != len(qoi) or any(q not in QOIS for q in qoi):
