@@ -9,12 +9,23 @@ ratio measured in the same run. Run: python benchmarks/bench_energy.py [N]
 import statistics
 import sys
 import time
+from concurrent.futures import ProcessPoolExecutor
 
+import dask
 import numpy as np
 
 from uqdrape.drape import drape, max_shear_lines
 from uqdrape.geometry import build
 from uqdrape.material import load_material
+
+
+def _chunk(n_real, seed):
+    """An ensemble-style task: draws its own zero-angle fields and drapes them in one call."""
+    mould, material, rings = build("nose_cone"), load_material("ebxhd936_like"), 30
+    gamma0 = np.random.default_rng(seed).normal(0.0, 5.0, (n_real, 2 * rings, 2 * rings))
+    ds = drape(mould, 5.0, rings, mode="energy", material=material, gamma0=gamma0,
+               blankholder_force=126.0, friction=0.2)
+    return float(ds.converged.mean())
 
 
 def main(n_batch=64, repeats=3):
@@ -42,6 +53,13 @@ def main(n_batch=64, repeats=3):
           f"= {60 * n_batch / batch_e:.0f} realisations/min on one process "
           f"(converged {float(ds.converged.mean()):.2f}, mean iterations {float(ds.iterations.mean()):.0f})")
     print(f"energy / geodesic cost ratio: single {single_e / single_g:.0f}x, batched {batch_e / batch_g:.0f}x")
+    # both cores: two chunks of n_batch drapes as dask tasks on a pool of two processes
+    tasks = [dask.delayed(_chunk)(n_batch, seed) for seed in (11, 12)]
+    with ProcessPoolExecutor(2) as pool:
+        dask.compute(dask.delayed(_chunk)(2, 0), dask.delayed(_chunk)(2, 1), scheduler="processes", pool=pool)
+        both, _ = timed(lambda: dask.compute(*tasks, scheduler="processes", pool=pool, chunksize=1))
+    print(f"2 processes, 2 x {n_batch} energy drapes: median {both:.2f} s = {60 * 2 * n_batch / both:.0f} "
+          f"realisations/min on 2 cores ({batch_e * 2 / both:.2f}x one process)")
 
 
 if __name__ == "__main__":

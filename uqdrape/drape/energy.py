@@ -71,7 +71,7 @@ class BlankHolder:
         u2 = f2 - centre
         mid_d = 0.5 * (d1 + d2)
         mid_u = 0.5 * (u1 + u2)
-        pull_in = np.linalg.norm(mid_u, axis=-1) - np.linalg.norm(mid_d, axis=-1)
+        pull_in = np.hypot(mid_u[..., 0], mid_u[..., 1]) - np.hypot(mid_d[..., 0], mid_d[..., 1])
         phi = 0.5 * (_angle2(d1, d2) + _angle2(u1, u2))
         if self.weights is None:
             share = phi / (2 * np.pi)

@@ -50,18 +50,31 @@ def solve_on_circle(surface, c, u, v, rho, tol):
     shape = np.broadcast_shapes(c.shape, u.shape, v.shape, rho.shape + (3,))[:-1]
     c, u, v = (np.broadcast_to(a, shape + (3,)).reshape(-1, 3) for a in (c, u, v))
     rho = np.broadcast_to(rho, shape).reshape(-1)
-    finite = np.isfinite(c).all(-1) & np.isfinite(u).all(-1) & np.isfinite(v).all(-1)
-    finite &= np.isfinite(rho) & (rho > 0)
+    with np.errstate(invalid="ignore"):
+        finite = np.isfinite(c.sum(-1) + u.sum(-1) + v.sum(-1) + rho) & (rho > 0)
+    if not finite.all():  # keep NaN out of the surface (an STL spline would refuse it)
+        c, u, v = (np.where(finite[:, None], a, 0.0) for a in (c, u, v))
+        rho = np.where(finite, rho, 1.0)
     theta = np.zeros(rho.shape)
-    active = np.flatnonzero(finite)
+    active = None  # first sweeps over every entry; then only the unconverged are gathered
     with np.errstate(divide="ignore", invalid="ignore"):
-        for _ in range(_NEWTON_ITERS):
-            _, g, dg = _gap(surface, c[active], u[active], v[active], rho[active], theta[active])
-            done = np.abs(g) < tol
+        for sweep in range(_NEWTON_ITERS):
+            if active is None:
+                _, g, dg = _gap(surface, c, u, v, rho, theta)
+                done = ~finite | (np.abs(g) < tol)
+            else:
+                _, g, dg = _gap(surface, c[active], u[active], v[active], rho[active], theta[active])
+                done = np.abs(g) < tol
             step = np.clip(-g / dg, -0.2, 0.2)
-            theta[active] += np.where(np.isfinite(step) & ~done, step, 0.0)
-            active = active[~done & np.isfinite(step)]
-            if active.size == 0:
+            moving = np.isfinite(step) & ~done
+            if active is None:
+                theta += np.where(moving, step, 0.0)
+                if sweep == 1:
+                    active = np.flatnonzero(moving)
+            else:
+                theta[active] += np.where(moving, step, 0.0)
+                active = active[moving]
+            if active is not None and active.size == 0:
                 break
     q = _point(c, u, v, rho, theta)
     g = q[:, 2] - surface.height(q[:, 0], q[:, 1])

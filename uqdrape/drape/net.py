@@ -220,19 +220,27 @@ class EnergyRings:
         ifam = (di != 0)  # (4, 1): arms along fibre 1
         ei = np.where(ifam, 0, SIDES[None, :])  # (4, 2)
         ej = np.where(ifam, SIDES[None, :], 0)
+        if k > 1:
+            # indices (4, 2, k-1) of the chain nodes m = 1..k-1 and their neighbours,
+            # gathered for the whole chain at once; the loop below only slices them
+            m = np.arange(1, k)
+            xi, xj = k * di[..., None] + m * ei[..., None], k * dj[..., None] + m * ej[..., None]
+            fi, fj = xi - di[..., None], xj - dj[..., None]  # fixed neighbour, ring k-1
+            pi, pj = xi - ei[..., None], xj - ej[..., None]  # predecessor in the chain
+            ai = np.where(ifam[..., None], fi, pi)
+            bj = np.where(ifam[..., None], pj, fj)
+            fixed = prob.node(P, fi, fj)[:, None]
+            diagonal = prob.node(P, fi - ei[..., None], fj - ej[..., None])[:, None]
+            la = prob.seg1(xi, ai, xj)[:, None]
+            lb = prob.seg2(xi, xj, bj)[:, None]
+            orientation = (xi - ai) * (xj - bj)
         for m in range(1, k):
-            xi, xj = k * di + m * ei, k * dj + m * ej
-            fi, fj = (k - 1) * di + m * ei, (k - 1) * dj + m * ej  # fixed neighbour, ring k-1
-            pi, pj = k * di + (m - 1) * ei, k * dj + (m - 1) * ej  # predecessor in the chain
-            ci, cj = fi - ei, fj - ej
-            F = prob.node(P, fi, fj)[:, None]
+            F = fixed[..., m - 1, :]
             Q = S[..., m - 1, :]
             a = np.where(ifam[..., None], F, Q)
             b = np.where(ifam[..., None], Q, F)
-            ai, bj = np.where(ifam, fi, pi), np.where(ifam, pj, fj)
-            q, st = fill_node(prob.surface, a, b, prob.node(P, ci, cj)[:, None],
-                              prob.seg1(xi, ai, xj)[:, None], prob.seg2(xi, xj, bj)[:, None],
-                              (xi - ai) * (xj - bj), prob.tol)
+            q, st = fill_node(prob.surface, a, b, diagonal[..., m - 1, :], la[..., m - 1], lb[..., m - 1],
+                              orientation[..., m - 1], prob.tol)
             S[..., m, :] = q
             St[..., m] = st
         energy = bending_energy(turn, self.B, prob.s) + INVALID_NODE_ENERGY * (St != Status.OK).sum(axis=(-2, -1))

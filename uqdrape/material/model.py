@@ -44,11 +44,25 @@ class _Branch:
         self.table = CubicHermiteSpline(grid, w, dw, extrapolate=False)
         self.w_limit = float(w[-1])
         self.slope_limit = float(dw[-1])
+        # the same cubic Hermite pieces, for a lookup without a search on the uniform grid
+        self._step = grid[1] - grid[0]
+        self._w, self._dw = w, dw * self._step
+
+    def _lookup(self, x):
+        """The table's value at x in [0, limit] (rad): uniform grid, so the piece is floor(x/h)."""
+        pos = x / self._step
+        k = np.clip(pos.astype(np.intp), 0, self._w.size - 2)
+        t = pos - k
+        t2 = t * t
+        t3 = t2 * t
+        return ((2 * t3 - 3 * t2 + 1) * self._w[k] + (t3 - 2 * t2 + t) * self._dw[k]
+                + (3 * t2 - 2 * t3) * self._w[k + 1] + (t3 - t2) * self._dw[k + 1])
 
     def energy(self, x):
         """W along the branch (J/m²) at magnitude x (rad); quadratic wall beyond the limit."""
         over = np.maximum(x - self.limit, 0.0)
-        inside = self.table(np.minimum(x, self.limit))
+        with np.errstate(invalid="ignore"):
+            inside = self._lookup(np.minimum(x, self.limit))
         return inside + over * (self.slope_limit + 0.5 * self.lock_stiffness * over)
 
     def denergy(self, x):
