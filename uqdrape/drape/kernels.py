@@ -159,7 +159,7 @@ def arm_step(surface, p, direction, turn, length, tol):
     w = cross(n, t)
     t = np.cos(turn)[..., None] * t + np.sin(turn)[..., None] * w
     q, ok = solve_on_circle(surface, p, t, n, length, tol)
-    return q, _status(surface, q, ok, np.isfinite(p).all(-1) & np.isfinite(direction).all(-1))
+    return q, _status(surface, q, ok, np.isfinite(p.sum(-1) + direction.sum(-1)))
 
 
 def fill_node(surface, a, b, c, la, lb, sign_ij, tol):
@@ -180,7 +180,7 @@ def fill_node(surface, a, b, c, la, lb, sign_ij, tol):
         u = unit(guess - dot(guess, e)[..., None] * e)
     v = cross(e, u)
     q, ok = solve_on_circle(surface, centre, u, v, rho, tol)
-    parents = np.isfinite(a).all(-1) & np.isfinite(b).all(-1) & np.isfinite(c).all(-1)
+    parents = np.isfinite(a.sum(-1) + b.sum(-1) + c.sum(-1))  # NaN marks an invalid node
     status = _status(surface, q, ok, parents)
     n = surface.normal(q[..., 0], q[..., 1])
     with np.errstate(invalid="ignore"):
