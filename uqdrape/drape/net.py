@@ -113,12 +113,25 @@ class NetProblem:
         di, dj = ARM_STEPS[:, 0], ARM_STEPS[:, 1]
         last = self.node(P, (k - 1) * di, (k - 1) * dj)[:, None]  # (R, 1, 4, 3)
         if k == 1:
-            a = self.arm_angles
-            hx, hy = self.surface.gradient(self.crossover[:, 0:1], self.crossover[:, 1:2])
-            direction = np.stack([np.cos(a), np.sin(a), hx * np.cos(a) + hy * np.sin(a)], axis=-1)[:, None]
+            direction = self.first_directions()[:, None]
         else:
             direction = last - self.node(P, (k - 2) * di, (k - 2) * dj)[:, None]
         return arm_step(self.surface, last, direction, turn, self.arm_lengths(k)[:, None], self.tol)
+
+    def first_directions(self):
+        """Unit directions (R, 4, 3) of the first arm segments on the surface.
+
+        The flat blank touches the tool at the crossover and is laid onto the tangent
+        plane there by the rotation that takes z onto the surface normal n, so the plan
+        angles between the fibres are kept (a vertical projection would shear a blank
+        that lands on a slope). For v = (vx, vy, 0) and w = -(n . v) the rotated vector
+        is (vx + nx w / (1 + nz), vy + ny w / (1 + nz), w).
+        """
+        a = self.arm_angles
+        n = self.surface.normal(self.crossover[:, 0:1], self.crossover[:, 1:2])  # (R, 1, 3)
+        vx, vy = np.cos(a), np.sin(a)
+        w = -(n[..., 0] * vx + n[..., 1] * vy)
+        return np.stack([vx + n[..., 0] * w / (1 + n[..., 2]), vy + n[..., 1] * w / (1 + n[..., 2]), w], axis=-1)
 
     def arm_lengths(self, k):
         """Lengths (R, 4) of the k-th segment of each arm."""
