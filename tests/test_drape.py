@@ -405,3 +405,19 @@ def test_max_shear_lines_on_a_dome_rise_along_k_and_carry_the_quadrant_sign():
     assert (shear.sel(quadrant=["++", "--"]) > 0).all() and (shear.sel(quadrant=["-+", "+-"]) < 0).all()
     # |shear| grows away from the pole along each diagonal
     assert (np.abs(shear).diff("k") > 0).all()
+
+
+def test_blocks_of_a_large_batch_give_the_numbers_of_one_block(monkeypatch):
+    """drape() solves large batches in blocks of BLOCK realisations (for cache use); the
+    split must not change a number, in either mode."""
+    import uqdrape.drape.solver as solver
+
+    rng = np.random.default_rng(3)
+    args = dict(orientation=rng.uniform(-10, 10, 7), gamma0=rng.normal(0, 3, (7, 8, 8)),
+                blankholder_force=rng.uniform(0, 200, 7))
+    for mode in ("geodesic", "energy"):
+        whole = drape(Hemisphere(100.0), 5.0, 4, mode=mode, material=load_material("ebxhd936_like"), **args)
+        monkeypatch.setattr(solver, "BLOCK", 3)
+        split = drape(Hemisphere(100.0), 5.0, 4, mode=mode, material=load_material("ebxhd936_like"), **args)
+        monkeypatch.undo()
+        xr.testing.assert_identical(whole, split)

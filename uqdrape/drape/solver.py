@@ -14,6 +14,9 @@ from .net import QUADRANTS, EnergyRings, NetProblem, build_geodesic
 from .status import Status
 
 MODES = ("geodesic", "energy")
+#: Realisations solved together per block: large enough to amortise the Python steps,
+#: small enough that a block's nets stay in cache (1,000 at once ran 25 % slower per drape).
+BLOCK = 256
 
 
 def _per_realisation(name, value, tail, R):
@@ -117,24 +120,26 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     b = psi + np.deg2rad(90.0 - pre_shear)
     e2 = np.stack([np.cos(b), np.sin(b)], -1)
     tol = 1e-11 * max(float(surface.size), 1.0)
-    prob = NetProblem(surface, float(spacing), n, crossover, arm_angles, seg_i, seg_j,
-                      np.deg2rad(gamma0), e1, e2, BlankHolder(force, mu, sectors), material, tol)
-
-    if mode == "geodesic":
-        P, status = build_geodesic(prob)
-        turns = np.zeros((R, n, 4))
-        bending = np.zeros(R)
-        iterations = np.zeros(R, np.int32)
-        converged = np.ones(R, bool)
-    else:
-        rings_solver = EnergyRings(prob, material.bending_stiffness, np.deg2rad(tolerance),
-                                   int(max_iterations), np.deg2rad(max_turn))
-        P, status, turns, bending, iterations, converged = rings_solver.run()
-
-    return _dataset(prob, P, status, turns, bending, iterations, converged, mode,
-                    dict(orientation=orientation, pre_shear=pre_shear, skew=skew,
-                         crossover_x=crossover[:, 0], crossover_y=crossover[:, 1],
-                         blankholder_force=force, friction=mu, **(factors or {})))
+    BlankHolder(force, mu, sectors)  # raises on bad sectors before any work
+    stored = dict(orientation=orientation, pre_shear=pre_shear, skew=skew, crossover_x=crossover[:, 0],
+                  crossover_y=crossover[:, 1], blankholder_force=force, friction=mu,
+                  **{k: np.broadcast_to(np.asarray(v, dtype=float), (R,)) for k, v in (factors or {}).items()})
+    blocks = []
+    for start in range(0, R, BLOCK):
+        b = slice(start, start + BLOCK)
+        prob = NetProblem(surface, float(spacing), n, crossover[b], arm_angles[b], seg_i[b], seg_j[b],
+                          np.deg2rad(gamma0[b]), e1[b], e2[b], BlankHolder(force[b], mu[b], sectors), material, tol)
+        if mode == "geodesic":
+            P, status = build_geodesic(prob)
+            r = prob.R
+            solved = (P, status, np.zeros((r, n, 4)), np.zeros(r), np.zeros(r, np.int32), np.ones(r, bool))
+        else:
+            solved = EnergyRings(prob, material.bending_stiffness, np.deg2rad(tolerance),
+                                 int(max_iterations), np.deg2rad(max_turn)).run()
+        blocks.append(_dataset(prob, *solved, mode, {k: v[b] for k, v in stored.items()}))
+    ds = blocks[0] if len(blocks) == 1 else xr.concat(blocks, dim="realization", data_vars="minimal",
+                                                       coords="minimal", compat="override", join="override")
+    return ds.assign_coords(realization=np.arange(R))
 
 
 def cell_shear(P):
