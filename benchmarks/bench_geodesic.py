@@ -56,10 +56,10 @@ def main(n_batch=1000, n_single=30):
     tasks = [dask.delayed(_half_batch)(mould, spacing, rings, n_batch // 2, seed) for seed in (2, 3)]
     parallel = []
     with ProcessPoolExecutor(2) as pool:
-        dask.compute(*tasks, scheduler="processes", pool=pool)  # start the workers
+        dask.compute(*tasks, scheduler="processes", pool=pool, chunksize=1)  # start the workers
         for _ in range(3):
             t = time.perf_counter()
-            dask.compute(*tasks, scheduler="processes", pool=pool)
+            dask.compute(*tasks, scheduler="processes", pool=pool, chunksize=1)
             parallel.append(time.perf_counter() - t)
     par = statistics.median(parallel)
     print(f"hemisphere R=100 mm, s=5 mm, {2 * rings + 1}x{2 * rings + 1} net, geodesic")
