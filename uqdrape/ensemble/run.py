@@ -130,7 +130,7 @@ def _compute(tasks: list, scheduler: str | None, workers: int | None, progress: 
             options["chunksize"] = 1
         if workers is not None:
             options["num_workers"] = workers
-        bar = ProgressBar(minimum=1.0, out=sys.stderr) if progress else contextlib.nullcontext()
+        bar = ProgressBar(minimum=1.0, dt=1.0, out=sys.stderr) if progress else contextlib.nullcontext()
         with bar:
             dask.compute(*tasks, **options)
         return
