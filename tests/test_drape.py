@@ -421,3 +421,17 @@ def test_blocks_of_a_large_batch_give_the_numbers_of_one_block(monkeypatch):
         split = drape(Hemisphere(100.0), 5.0, 4, mode=mode, material=load_material("ebxhd936_like"), **args)
         monkeypatch.undo()
         xr.testing.assert_identical(whole, split)
+
+
+def test_full_net_cell_shear_equals_the_minimisers_quad_shear():
+    """solver.cell_shear (shared unit edges, whole net) and kernels.quad_shear (one cell
+    from its corners, used by the minimiser) are two routes to the same cell shear."""
+    from uqdrape.drape.kernels import quad_shear
+    from uqdrape.drape.solver import cell_shear
+
+    ds = drape(Hemisphere(100.0), 5.0, 8, orientation=20.0, skew=15.0, crossover=(10.0, -5.0))
+    P = np.stack([ds.x.values, ds.y.values, ds.z.values], axis=-1)
+    whole = cell_shear(P)
+    corners = quad_shear(P[:, :-1, :-1], P[:, 1:, :-1], P[:, 1:, 1:], P[:, :-1, 1:], 1.0)
+    assert np.abs(whole).max() > 0.1  # a sheared net
+    np.testing.assert_allclose(whole, corners, rtol=0, atol=1e-12)
