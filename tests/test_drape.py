@@ -435,3 +435,20 @@ def test_full_net_cell_shear_equals_the_minimisers_quad_shear():
     corners = quad_shear(P[:, :-1, :-1], P[:, 1:, :-1], P[:, 1:, 1:], P[:, :-1, 1:], 1.0)
     assert np.abs(whole).max() > 0.1  # a sheared net
     np.testing.assert_allclose(whole, corners, rtol=0, atol=1e-12)
+
+
+def test_a_node_is_locked_when_a_valid_cell_next_to_it_locks():
+    """`locked` (node) = any adjacent `cell_locked` (which follows each branch's own locking
+    angle and the zero-energy offset), NaN at invalid nodes."""
+    ds = drape(Hemisphere(100.0), 5.0, 20, material=load_material("twintex3_like"))  # shear to 48 deg, locks at 42
+    cells = ds.cell_locked.values[0]
+    locked = ds.locked.values[0]
+    assert 0 < np.nansum(locked) < np.isfinite(locked).sum()  # some, not all, nodes lock
+    n = cells.shape[0]
+    for a in range(n + 1):
+        for b in range(n + 1):
+            near = cells[max(a - 1, 0):a + 1, max(b - 1, 0):b + 1]
+            if ds.status.values[0, a, b] != Status.OK:
+                assert np.isnan(locked[a, b])
+            else:
+                assert locked[a, b] == float(near.any())

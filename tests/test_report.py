@@ -215,8 +215,10 @@ def linked_files(index):
 
 
 def test_write_report_links_and_summary_numbers(ensemble, exp_csv, tmp_path):
-    ds = ensemble.copy()
-    ds.attrs["locking_angle_deg"] = 8.0  # a threshold the ensemble straddles, so the risk is not all 0
+    # without the drape's `locked` flag the risk falls back to the locking-angle attribute:
+    # a threshold the ensemble straddles, so the risk is not all 0
+    ds = ensemble.drop_vars("locked")
+    ds.attrs["locking_angle_deg"] = 8.0
     study = '[study]\nname = "x<y>"\n'
     index = write_report(ds, tmp_path / "rep", title="Test <report>", study_text=study,
                          experimental_csv=exp_csv, summary={"wall time (s)": 3.5})
@@ -245,10 +247,22 @@ def test_write_report_links_and_summary_numbers(ensemble, exp_csv, tmp_path):
     at = ex.sel(i=wr["node"][0], j=wr["node"][1])
     assert wr["value"] == float(ex["probability"].max()) == float(at["probability"])
     assert 0 < wr["value"] and wr["lower"] == float(at["probability_lower"]) < wr["value"] <= wr["upper"]
-    assert wr["upper"] == float(at["probability_upper"]) and wr["threshold_deg"] == 8.0
+    assert wr["upper"] == float(at["probability_upper"]) and wr["measure"] == "P(|shear| > 8°)"
     assert summary["samples_needed"]["value"] == samples_needed(float(sd.max()), 1.0, 0.95)
     assert summary["extra"] == {"wall time (s)": 3.5}
     assert f"{summary['samples_needed']['value']}</td>" in html_text
+
+
+def test_wrinkle_risk_comes_from_the_locked_flag_when_the_drape_has_it(ensemble, tmp_path):
+    ds = ensemble.copy()
+    ds["locked"] = (abs(ds["shear"]) > 8.0).astype(float).where(ds["shear"].notnull())
+    index = write_report(ds, tmp_path, title="locked")
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    ex = exceedance_probability(ds, 0.5, var="locked")
+    wr = summary["max_wrinkle_probability"]
+    assert wr["measure"] == "P(next to a locked cell)"
+    assert 0 < wr["value"] == float(ex["probability"].max())
+    assert "wrinkle_risk.png" in summary["figures"] and "P(next to a locked cell)" in index.read_text()
 
 
 def test_write_report_sweep(sweep, tmp_path):

@@ -155,8 +155,9 @@ def cell_shear(P):
     return 0.25 * sum(np.arcsin(np.clip(c, -1.0, 1.0)) for c in corners)
 
 
-def node_shear(cells):
-    """Node shear: mean of the valid cells around each node; cells (R, 2n, 2n) -> (R, N, N)."""
+def node_mean(cells):
+    """Mean of the valid (finite) cells around each node; cells (R, 2n, 2n) -> (R, N, N), NaN
+    where a node has no valid cell. Node shear is this mean of the cell shears."""
     R, m, _ = cells.shape
     total = np.zeros((R, m + 1, m + 1))
     count = np.zeros((R, m + 1, m + 1))
@@ -181,6 +182,9 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
     else:
         shear_energy = np.full(prob.R, np.nan)
         locked = np.zeros(gamma.shape, bool)
+    # a node is locked when a valid cell next to it is (branch- and zero-angle-aware)
+    near = node_mean(np.where(np.isfinite(gamma), locked, np.nan))
+    node_locked = np.where(np.isnan(near), np.nan, near > 0) if material is not None else np.full(near.shape, np.nan)
     bh = prob.ring_blankholder(P, n)
     idx = np.arange(-n, n + 1)
     cidx = np.arange(-n, n) + 0.5
@@ -192,12 +196,14 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
             "x": (node, P[..., 0], {"units": "mm", "long_name": "node x"}),
             "y": (node, P[..., 1], {"units": "mm", "long_name": "node y"}),
             "z": (node, P[..., 2], {"units": "mm", "long_name": "node z (height)"}),
-            "shear": (node, np.rad2deg(node_shear(gamma)),
+            "shear": (node, np.rad2deg(node_mean(gamma)),
                       {"units": "degree", "long_name": "node shear angle (mean of adjacent cells)"}),
             "status": (node, status, {"long_name": "node status", "units": "1", "flag_values": [s.value for s in Status],
                                       "flag_meanings": " ".join(s.name.lower() for s in Status)}),
             "cell_shear": (cell, np.rad2deg(gamma), {"units": "degree", "long_name": "signed cell shear angle"}),
             "cell_locked": (cell, locked, {"long_name": "cell sheared beyond the locking angle", "units": "1"}),
+            "locked": (node, node_locked, {"units": "1", "long_name": "node next to a cell sheared beyond "
+                                           "its branch's locking angle (1) or not (0); NaN: invalid node"}),
             "gamma0": (cell, np.rad2deg(prob.gamma0), {"units": "degree", "long_name": "zero-energy shear angle"}),
             "turn": (("realization", "ring", "arm"), np.rad2deg(turns),
                      {"units": "degree", "long_name": "generator-arm turn angle about the surface normal"}),

@@ -143,14 +143,25 @@ def plot_sd_map(ds: xr.Dataset, path, *, node_stats: xr.Dataset | None = None) -
 @styled
 def plot_wrinkle_map(ds: xr.Dataset, path, *, threshold_deg: float | None = None,
                      exceedance: xr.Dataset | None = None) -> Path:
-    """Map of the wrinkle risk P(|shear| > threshold) per node, threshold defaulting to the locking angle.
-
-    The node of highest probability is marked with the probability and its binomial
-    confidence interval (from ``uqdrape.stats.exceedance_probability``). Returns the path.
+    """Map of the wrinkle risk per node: ``exceedance`` if given, else P(|shear| >
+    ``threshold_deg``) if given, else ``summary.wrinkle_risk`` (locked-cell flag, or the
+    locking angle). The node of highest probability is marked with the probability and
+    its binomial confidence interval. Returns the path.
     """
-    ex = exceedance_probability(ds, threshold_deg) if exceedance is None else exceedance
+    from .summary import wrinkle_risk
+
+    if exceedance is not None:
+        ex = exceedance
+    elif threshold_deg is not None:
+        ex = exceedance_probability(ds, threshold_deg)
+        ex.attrs["risk"] = f"P(|shear| > {float(threshold_deg):g}°)"
+    else:
+        ex = wrinkle_risk(ds)
+        if ex is None:
+            raise ValueError("no wrinkle risk: the ensemble has no 'locked' flag and no 'locking_angle_deg' "
+                             "attribute; pass threshold_deg")
     p = ex["probability"]
-    thr = float(ex["threshold"])
+    risk = ex.attrs.get("risk", f"P(|shear| > {float(ex['threshold']):g}°)")
 
     def text(site):
         s = ex.sel(site)
@@ -158,8 +169,8 @@ def plot_wrinkle_map(ds: xr.Dataset, path, *, threshold_deg: float | None = None
                 f"[{float(s['probability_lower']):.2f}, {float(s['probability_upper']):.2f}]")
 
     return _map(ds, p, path, norm=mpl.colors.Normalize(0.0, 1.0), cmap=mpl.colormaps["Reds"],
-                cbar_label=f"P(|γ| > {thr:g}°) (-)",
-                title=f"wrinkle risk: probability that |shear| exceeds {thr:g}° "
+                cbar_label=f"{risk} (-)",
+                title=f"wrinkle risk {risk} "
                       f"({ex.attrs.get('confidence', 0.95):.0%} {ex.attrs.get('interval', 'binomial interval')})",
                 mark=_node_mark(p, text))
 

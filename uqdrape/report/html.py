@@ -15,7 +15,7 @@ from pathlib import Path
 
 import xarray as xr
 
-from uqdrape.stats import exceedance_probability, line_statistics, node_statistics
+from uqdrape.stats import line_statistics, node_statistics
 
 from .ensemble_figures import (
     plot_convergence,
@@ -31,7 +31,7 @@ from .ensemble_figures import (
 from .experimental import read_experimental
 from .figures import FORCE, REALIZATION, levels, plot_lines, plot_net
 from .sensitivity_figures import INDICES, plot_sensitivity_bars, plot_sensitivity_map, plot_sensitivity_vs_force
-from .summary import headline_numbers, locking_threshold
+from .summary import headline_numbers, wrinkle_risk
 
 #: The node number along the max-shear lines the thesis shows histograms of (Fig 5.20).
 THESIS_HISTOGRAM_NODE = 6
@@ -93,7 +93,7 @@ def _rows(numbers: Mapping, extra: Mapping) -> list[tuple[str, str, str]]:
         rows.append(("max wrinkle-risk probability", "n/a", "no locking angle in the ensemble (geodesic drape "
                      "without a material)" if wr is None else "no valid node"))
     else:
-        rows.append((f"max P(|shear| > {wr['threshold_deg']:g}°)",
+        rows.append((f"max wrinkle risk {wr['measure']}",
                      f"{wr['value']:.3f} [{wr['lower']:.3f}, {wr['upper']:.3f}]",
                      f"{_where(wr)}; {wr['interval']}"))
     sn = numbers["samples_needed"]
@@ -148,10 +148,9 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, study_text: str | None 
     out.mkdir(parents=True, exist_ok=True)
 
     node_stats = node_statistics(ds)
-    threshold = locking_threshold(ds)
     # one realisation (per level) is a deterministic drape: no spread, so no spread figures
     spread = ds.sizes[REALIZATION] > 1
-    exceedance = exceedance_probability(ds, threshold) if threshold is not None and spread else None
+    exceedance = wrinkle_risk(ds) if spread else None
     nodes = default_histogram_nodes(ds, node_stats) if histogram_nodes is None else histogram_nodes
     figures: list[tuple[Path, str]] = []
     for force, level in levels(ds):
@@ -176,8 +175,8 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, study_text: str | None 
                         "Standard deviation of node shear on the mean node positions."))
     if exceedance is not None:
         figures.append((plot_wrinkle_map(ds, out / "wrinkle_risk.png", exceedance=exceedance),
-                        f"Wrinkle risk: probability that |shear| exceeds the locking angle {threshold:g}°, "
-                        "with its binomial confidence interval at the node of highest risk."))
+                        f"Wrinkle risk {exceedance.attrs['risk']} per node (a cell locks past its own "
+                        "branch's locking angle), with its binomial confidence interval at the node of highest risk."))
     if spread:
         figures += [
             (plot_line_statistics(ds, out / "line_statistics.png", line_stats=line_statistics(ds),

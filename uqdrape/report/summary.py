@@ -54,6 +54,26 @@ def locking_threshold(ds: xr.Dataset) -> float | None:
     return value if math.isfinite(value) else None
 
 
+def wrinkle_risk(ds: xr.Dataset, confidence: float = 0.95) -> xr.Dataset | None:
+    """Per-node wrinkle risk with its binomial interval, or None when nothing locks.
+
+    From the drape's ``locked`` flag (a node next to a cell sheared past its own branch's
+    locking angle, zero-energy offset included): the asymmetric locking of an NCF counts.
+    An ensemble without it (a file written before the flag existed) falls back to
+    P(|node shear| > ``locking_angle_deg``). ``attrs["risk"]`` names what was measured.
+    """
+    if "locked" in ds.data_vars and bool(np.isfinite(ds["locked"]).any()):
+        ex = exceedance_probability(ds, 0.5, var="locked", confidence=confidence)
+        ex.attrs["risk"] = "P(next to a locked cell)"
+        return ex
+    threshold = locking_threshold(ds)
+    if threshold is None:
+        return None
+    ex = exceedance_probability(ds, threshold, confidence=confidence)
+    ex.attrs["risk"] = f"P(|shear| > {threshold:g}°)"
+    return ex
+
+
 def headline_numbers(ds: xr.Dataset, *, node_stats: xr.Dataset | None = None,
                      exceedance: xr.Dataset | None = None, half_width_deg: float = 1.0,
                      confidence: float = 0.95) -> dict:
@@ -61,8 +81,8 @@ def headline_numbers(ds: xr.Dataset, *, node_stats: xr.Dataset | None = None,
 
     ``realizations`` (N per level), ``blankholder_force_levels_N``, ``valid_fraction``
     (valid node values / all node values), ``max_abs_mean_shear_deg`` and ``max_sd_deg``
-    (value, node, level), ``max_wrinkle_probability`` (P(|shear| > locking angle) with its
-    interval, or None without a locking angle) and ``samples_needed`` (N for a
+    (value, node, level), ``max_wrinkle_probability`` (the largest ``wrinkle_risk`` with
+    its interval and ``measure``, or None without a locking angle) and ``samples_needed`` (N for a
     ``confidence`` interval of the mean of half-width ``half_width_deg`` at the node of
     largest sd; None when that sd is 0).
     """
@@ -79,15 +99,14 @@ def headline_numbers(ds: xr.Dataset, *, node_stats: xr.Dataset | None = None,
         "max_wrinkle_probability": None,
         "samples_needed": None,
     }
-    threshold = locking_threshold(ds)
-    if exceedance is None and threshold is not None:
-        exceedance = exceedance_probability(ds, threshold, confidence=confidence)
+    if exceedance is None:
+        exceedance = wrinkle_risk(ds, confidence)
     if exceedance is not None:
         site = _site(exceedance["probability"])
         if site["value"] is not None:
             at = exceedance.sel(_sel(site))
             site.update(lower=float(at["probability_lower"]), upper=float(at["probability_upper"]),
-                        threshold_deg=float(exceedance["threshold"]),
+                        measure=exceedance.attrs.get("risk", f"P(|shear| > {float(exceedance['threshold']):g}°)"),
                         interval=f"{exceedance.attrs['confidence']:.0%} {exceedance.attrs['interval']}")
         out["max_wrinkle_probability"] = site
     sd = out["max_sd_deg"]
