@@ -24,9 +24,8 @@ def _per_realisation(name, value, tail, R):
     a = np.asarray(value, dtype=float)
     if a.shape == tail:
         a = np.broadcast_to(a, (R, *tail))
-    elif a.shape[1:] != tail or (R is not None and a.shape[0] != R):
-        want = f"{tail}" if not tail else f"{tail} or (R, *{tail})"
-        raise ValueError(f"{name} has shape {a.shape}; expected {want} with R = {R} realisations")
+    elif a.shape[1:] != tail or a.shape[0] != R:
+        raise ValueError(f"{name} has shape {a.shape}; expected {tail} or {(R, *tail)} for R = {R} realisations")
     return np.array(a)
 
 
@@ -91,10 +90,10 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     pre_shear = _per_realisation("pre_shear", pre_shear, (), R)
     skew = _per_realisation("skew", skew, (), R)
     crossover = _per_realisation("crossover", crossover, (2,), R)
-    seg_i = _per_realisation("seg_i", spacing if seg_i is None else seg_i, (2 * n, 2 * n + 1), R) \
-        if seg_i is not None else np.full((R, 2 * n, 2 * n + 1), float(spacing))
-    seg_j = _per_realisation("seg_j", seg_j, (2 * n + 1, 2 * n), R) \
-        if seg_j is not None else np.full((R, 2 * n + 1, 2 * n), float(spacing))
+    seg_i = np.full((R, 2 * n, 2 * n + 1), float(spacing)) if seg_i is None else \
+        _per_realisation("seg_i", seg_i, (2 * n, 2 * n + 1), R)
+    seg_j = np.full((R, 2 * n + 1, 2 * n), float(spacing)) if seg_j is None else \
+        _per_realisation("seg_j", seg_j, (2 * n + 1, 2 * n), R)
     gamma0 = np.zeros((R, 2 * n, 2 * n)) if gamma0 is None else _per_realisation("gamma0", gamma0, (2 * n, 2 * n), R)
     force = _per_realisation("blankholder_force", blankholder_force, (), R)
     mu = _per_realisation("friction", friction, (), R)
