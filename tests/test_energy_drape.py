@@ -35,13 +35,13 @@ class Steps:
     per-arm terms of ``sides`` plus the per-corner terms of ``corners``.
     """
 
-    def __init__(self, surface, ds, material, spacing, rings, force, friction):
+    def __init__(self, surface, ds, material, spacing, rings, force, friction, model):
         R, n, s = ds.sizes["realization"], rings, spacing
         prob = NetProblem(
             surface, s, n, np.zeros((R, 2)), np.tile([0.0, np.pi / 2, np.pi, 1.5 * np.pi], (R, 1)),
             np.full((R, 2 * n, 2 * n + 1), s), np.full((R, 2 * n + 1, 2 * n), s), np.zeros((R, 2 * n, 2 * n)),
             np.tile([1.0, 0.0], (R, 1)), np.tile([0.0, 1.0], (R, 1)),
-            BlankHolder(np.broadcast_to(force, R), np.broadcast_to(friction, R)), material,
+            BlankHolder(np.broadcast_to(force, R), np.broadcast_to(friction, R), model=model), material,
             1e-11 * max(float(surface.size), 1.0))
         self.rings = EnergyRings(prob, material.bending_stiffness, np.deg2rad(1e-3), 30, np.deg2rad(10.0))
         self.n = n
@@ -79,18 +79,21 @@ def test_symmetric_woven_without_blankholder_is_the_geodesic_drape():
 
 
 # -- local optimality of every step ----------------------------------------------------
+@pytest.mark.parametrize("model", ["radial", "slip"])
 @pytest.mark.parametrize("kind, params", [("hemisphere", dict(radius=100.0)), ("nose_cone", {})],
                          ids=["hemisphere", "nose_cone"])
-def test_each_step_chooses_a_local_minimum_of_its_energy(kind, params):
-    """ebxhd936_like, rings 6, F = 0 and 126 N, mu 0.2. Each step's chosen turns are perturbed
-    by +-1e-3 rad on each arm in turn: the step energy never falls by more than 1e-12 J
-    (measured: it rises by at least 3.8e-9 J)."""
+def test_each_step_chooses_a_local_minimum_of_its_energy(kind, params, model):
+    """ebxhd936_like, rings 6, F = 0 and 126 N, mu 0.2, both blank-holder models. Each step's
+    chosen turns are perturbed by +-1e-3 rad on each arm in turn: the step energy never falls
+    by more than 1e-12 J (measured: it rises by at least 3.8e-9 J)."""
     surf = build(kind, **params)
     material = load_material("ebxhd936_like")
     s, n, force, mu = 5.0, 6, np.array([0.0, 126.0]), 0.2
-    ds = drape(surf, s, n, mode="energy", material=material, blankholder_force=force, friction=mu)
+    ds = drape(surf, s, n, mode="energy", material=material, blankholder_force=force, friction=mu,
+               blankholder_model=model)
     assert (ds.status == Status.OK).all() and ds.converged.all()
-    steps = Steps(surf, ds, material, s, n, force, mu)
+    assert ds.attrs["blankholder_model"] == model
+    steps = Steps(surf, ds, material, s, n, force, mu, model)
     assert np.all(steps.turn[:, 0] == 0.0)  # ring 1 leaves at the fabric angles
     assert np.abs(steps.turn).max() < np.deg2rad(10.0) - 1e-3  # minima inside the bound
     assert np.abs(steps.turn[:, 1:]).max() > np.deg2rad(0.01)  # the asymmetric card steers
@@ -128,7 +131,7 @@ def _by_hand(p1, p2, f1, f2, centre, force, mu):
 
 
 def test_blankholder_energy_of_one_segment_by_hand():
-    bh = BlankHolder(np.array([200.0]), np.array([0.3]))
+    bh = BlankHolder(np.array([200.0]), np.array([0.3]), model="radial")
     centre = np.array([3.0, -2.0])
     f1, f2 = centre + [10.0, -5.0], centre + [10.0, 5.0]
     p1, p2 = np.r_[centre + [8.0, -3.0], 12.0], np.r_[centre + [8.0, 3.0], 14.0]
@@ -140,26 +143,29 @@ def test_blankholder_energy_of_one_segment_by_hand():
     assert float(bh.segment_energy(p2, p1, f2, f1, centre, 200.0, 0.3)) == pytest.approx(expected, rel=1e-12)
 
 
-def test_blankholder_energy_of_a_square_ring_by_hand():
+@pytest.mark.parametrize("model", ["radial", "slip"])
+def test_blankholder_energy_of_a_square_ring_by_hand(model):
     """Flat square of half-side 10 mm drawn in to half-side 8 mm: each side has dD = 2 mm and
-    subtends 90 deg, so U = 2 mu F dD = 0.24 J at F = 200 N, mu = 0.3."""
+    subtends 90 deg, so U = 2 mu F dD = 0.24 J at F = 200 N, mu = 0.3. The midpoints move
+    along their rays, so both models agree."""
     corners_f = np.array([[10.0, -10.0], [10.0, 10.0], [-10.0, 10.0], [-10.0, -10.0]])
     corners_d = np.c_[0.8 * corners_f, np.full(4, 5.0)]
     f1, f2 = corners_f, np.roll(corners_f, -1, axis=0)  # sides facing +x, +y, -x, -y
     p1, p2 = corners_d, np.roll(corners_d, -1, axis=0)
     centre = np.zeros(2)
-    uniform = BlankHolder(np.array([200.0]), np.array([0.3]))
+    uniform = BlankHolder(np.array([200.0]), np.array([0.3]), model=model)
     e = uniform.segment_energy(p1, p2, f1, f2, centre, 200.0, 0.3)
     np.testing.assert_allclose(e, 0.06, rtol=1e-12)
     assert e.sum() == pytest.approx(2 * 0.3 * 200.0 * 2.0 * 1e-3, rel=1e-12)
     # all the force in the first of four sectors (0-90 deg): the +x and +y sides take half each
-    sectored = BlankHolder(np.array([200.0]), np.array([0.3]), sectors=[1, 0, 0, 0])
+    sectored = BlankHolder(np.array([200.0]), np.array([0.3]), sectors=[1, 0, 0, 0], model=model)
     e = sectored.segment_energy(p1, p2, f1, f2, centre, 200.0, 0.3)
     np.testing.assert_allclose(e, [0.12, 0.12, 0.0, 0.0], rtol=1e-12, atol=1e-15)
 
 
+@pytest.mark.parametrize("model", ["radial", "slip"])
 @pytest.mark.parametrize("sectors", [[1] * 8, [3.0] * 5, [1]])
-def test_uniform_sectors_reproduce_the_formula(sectors):
+def test_uniform_sectors_reproduce_the_formula(sectors, model):
     rng = np.random.default_rng(2)
     m = 200
     centre = rng.uniform(-5, 5, 2)
@@ -168,11 +174,69 @@ def test_uniform_sectors_reproduce_the_formula(sectors):
     p1 = np.c_[centre + 0.9 * (f1 - centre) + rng.normal(0, 1, (m, 2)), rng.uniform(0, 50, m)]
     p2 = np.c_[centre + 0.9 * (f2 - centre) + rng.normal(0, 1, (m, 2)), rng.uniform(0, 50, m)]
     force, mu = rng.uniform(0, 400, m), rng.uniform(0.1, 0.4, m)
-    formula = BlankHolder(force, mu).segment_energy(p1, p2, f1, f2, centre, force, mu)
-    uniform = BlankHolder(force, mu, sectors).segment_energy(p1, p2, f1, f2, centre, force, mu)
+    formula = BlankHolder(force, mu, model=model).segment_energy(p1, p2, f1, f2, centre, force, mu)
+    uniform = BlankHolder(force, mu, sectors, model).segment_energy(p1, p2, f1, f2, centre, force, mu)
     np.testing.assert_allclose(uniform, formula, rtol=1e-10, atol=1e-15)
+    if model == "slip":
+        return
     hand = [_by_hand(p1[r], p2[r], f1[r], f2[r], centre, force[r], mu[r]) for r in range(0, m, 17)]
     np.testing.assert_allclose(formula[::17], hand, rtol=1e-10, atol=1e-15)
+
+
+def test_a_purely_radial_draw_in_costs_the_same_in_both_models():
+    """Segments built so that each draped midpoint lies on the ray of its flat midpoint (the
+    ends turned about the midpoint, lifted off the plane): |slip| = |dD| segment by segment."""
+    rng = np.random.default_rng(7)
+    m = 300
+    centre = rng.uniform(-5, 5, 2)
+    f1 = centre + rng.uniform(-80, 80, (m, 2))
+    f2 = f1 + rng.uniform(-8, 8, (m, 2))
+    mid = 0.5 * (f1 + f2)
+    pulled = centre + rng.uniform(0.5, 1.2, (m, 1)) * (mid - centre)  # in or out along the ray
+    half = rng.uniform(-5, 5, (m, 2))
+    p1 = np.c_[pulled - half, rng.uniform(0, 50, m)]
+    p2 = np.c_[pulled + half, rng.uniform(0, 50, m)]
+    force, mu = rng.uniform(0, 400, m), rng.uniform(0.1, 0.4, m)
+    for sectors in (None, [2, 0, 1, 3, 0.5]):
+        radial = BlankHolder(force, mu, sectors, "radial").segment_energy(p1, p2, f1, f2, centre, force, mu)
+        slip = BlankHolder(force, mu, sectors, "slip").segment_energy(p1, p2, f1, f2, centre, force, mu)
+        np.testing.assert_allclose(slip, radial, rtol=1e-10, atol=1e-15)
+        assert (radial > 0).sum() > m // 2
+
+
+@pytest.mark.parametrize("beta", [0.01, -0.2, 0.7])
+def test_a_rigid_rotation_of_the_held_blank_costs_friction_on_the_slip_only(beta):
+    """A flat annular blank (the boundary polygon of 96 segments on a circle of radius 60 mm)
+    rotated rigidly by beta about the crossover: every midpoint moves along a chord
+    2 r_m sin(|beta|/2), r_m = 60 cos(pi/96) mm, and keeps its distance to the crossover.
+    "slip" charges 2 mu F r_m 2 sin(|beta|/2) (= 2 mu F r_m |beta| to O(beta^3)); "radial"
+    charges nothing. All the force in one of four sectors: its share of that, in both."""
+    centre = np.array([4.0, -3.0])
+    phi = np.linspace(0.0, 2 * np.pi, 97)[:-1] + 0.1
+    flat = centre + 60.0 * np.c_[np.cos(phi), np.sin(phi)]
+    c, s_ = np.cos(beta), np.sin(beta)
+    turned = centre + (flat - centre) @ np.array([[c, s_], [-s_, c]])
+    f1, f2 = flat, np.roll(flat, -1, axis=0)
+    p1, p2 = np.c_[turned, np.zeros(96)], np.c_[np.roll(turned, -1, axis=0), np.zeros(96)]
+    force, mu = 250.0, 0.25
+    r_m = 60.0 * np.cos(np.pi / 96)
+    chord = 2 * r_m * np.sin(abs(beta) / 2)
+    slip = BlankHolder(force, mu, model="slip").segment_energy(p1, p2, f1, f2, centre, force, mu)
+    assert slip.sum() == pytest.approx(2 * mu * force * chord * 1e-3, rel=1e-12)
+    assert slip.sum() == pytest.approx(2 * mu * force * r_m * abs(beta) * 1e-3, rel=beta**2 / 20)
+    radial = BlankHolder(force, mu, model="radial").segment_energy(p1, p2, f1, f2, centre, force, mu)
+    assert np.abs(radial).max() < 1e-15
+    # all the force in the sector 0-90 deg: a segment wholly inside it carries four times its
+    # uniform share, one wholly outside nothing, and the total is unchanged (every segment
+    # slips alike); the segment's direction is the mean of its flat and draped directions
+    one = BlankHolder(force, mu, [1, 0, 0, 0], "slip").segment_energy(p1, p2, f1, f2, centre, force, mu)
+    assert one.sum() == pytest.approx(slip.sum(), rel=1e-12)
+    lo = np.mod(np.minimum(phi, phi + beta), 2 * np.pi)  # the angular span the segment covers
+    hi = lo + 2 * np.pi / 96 + abs(beta)
+    inside, outside = (lo > 0) & (hi < np.pi / 2), (lo > np.pi / 2) & (hi < 2 * np.pi)
+    assert inside.sum() >= 10 and outside.sum() >= 50
+    np.testing.assert_allclose(one[inside], 4 * slip[inside], rtol=1e-12)
+    assert np.all(one[outside] == 0.0)
 
 
 def test_blankholder_energy_of_a_drape_is_its_boundary_sum_zero_at_no_force_and_linear():
@@ -223,19 +287,23 @@ def test_sectors_reach_the_drape():
 
 
 # -- thesis Fig 5.6: skewed geodesic drapes over a hemisphere --------------------------
-def test_blankholder_energy_rises_with_the_skew():
-    """R = 100 mm hemisphere, s = 5 mm, rings 20, 200 N, mu 0.3, skew 0-55 deg: measured
-    2.44 J at 0 deg rising to 4.05 J at 55 deg (nodes over the rim fail at 35 deg)."""
+@pytest.mark.parametrize("model, first, last", [("radial", 2.44411838, 4.04760113),
+                                                 ("slip", 2.49354203, 5.83760009)])
+def test_blankholder_energy_rises_with_the_skew(model, first, last):
+    """R = 100 mm hemisphere, s = 5 mm, rings 20, 200 N, mu 0.3, skew 0-55 deg (geodesic, so
+    the net does not depend on the model): measured 2.444 J at 0 deg rising to 4.048 J at
+    55 deg under the thesis's radial model (nodes over the rim fail at 35 deg); "slip" also
+    charges the sideways slide of the skewed pattern and rises to 5.838 J."""
     skew = np.arange(0.0, 56.0, 5.0)
-    ds = drape(Hemisphere(100.0), 5.0, 20, skew=skew, blankholder_force=200.0, friction=0.3)
+    ds = drape(Hemisphere(100.0), 5.0, 20, skew=skew, blankholder_force=200.0, friction=0.3,
+               blankholder_model=model)
     quadrants = ds.energy_blankholder_quadrant.values
     total = ds.energy_blankholder.values
     np.testing.assert_allclose(quadrants.sum(-1), total, rtol=1e-12)
     valid = (ds.status == Status.OK).all(["i", "j"]).values
-    assert valid.sum() >= 10
+    assert valid.sum() == 11 and not valid[7]
     assert np.all(np.diff(total[valid]) > 0)
-    assert 1.0 < total[0] < total[-1] < 8.0
-    assert total[-1] > 1.3 * total[0]
+    np.testing.assert_allclose(total[[0, -1]], [first, last], rtol=1e-8)
     # zero skew: four equal quadrants; any skew: the 180 deg turn maps ++ to -- and -+ to +-
     np.testing.assert_allclose(quadrants[0], quadrants[0, 0], rtol=1e-9)
     np.testing.assert_allclose(quadrants[:, 0], quadrants[:, 2], rtol=1e-9)
@@ -244,13 +312,18 @@ def test_blankholder_energy_rises_with_the_skew():
 
 # -- thesis Figs 5.9-5.12: EBXhd-936-like over the nose cone ----------------------------
 FORCES = np.array([0.0, 126.0, 252.0, 378.0, 1e5])
+#: Gap (deg) between the mean |shear| on the - quadrants' max-shear lines and on the +
+#: quadrants', at FORCES, as measured; asserted to the minimiser's tolerance (1e-3 deg).
+GAP = {"radial": [42.50103, 35.67999, 30.96208, 27.48478, 0.36888],
+       "slip": [42.50103, 25.75022, 19.12477, 15.38897, 0.11152]}
 
 
 @pytest.fixture(scope="module")
 def nose_cone_sweep():
     nose = build("nose_cone")
     material = load_material("ebxhd936_like")
-    energy = drape(nose, 5.0, 30, mode="energy", material=material, blankholder_force=FORCES, friction=0.2)
+    energy = {model: drape(nose, 5.0, 30, mode="energy", material=material, blankholder_force=FORCES,
+                           friction=0.2, blankholder_model=model) for model in GAP}
     geodesic = drape(nose, 5.0, 30, material=material)
     return energy, geodesic
 
@@ -259,30 +332,42 @@ def _quadrant_means(ds):
     return np.abs(max_shear_lines(ds).shear).mean("k").transpose("realization", "quadrant")
 
 
-def test_nose_cone_compliant_quadrants_shear_more_and_the_gap_closes_with_force(nose_cone_sweep):
-    """Measured gap (mean |shear| on the -+/+- lines minus ++/--): 42.5, 35.7, 31.0, 27.5 deg
-    at 0, 126, 252, 378 N; 0.37 deg at 1e5 N, where the drape is the geodesic one to 0.25 mm."""
-    energy, geodesic = nose_cone_sweep
+def _gap(means):
+    return (means.sel(quadrant=["-+", "+-"]).mean("quadrant") - means.sel(quadrant=["++", "--"]).mean("quadrant")).values
+
+
+@pytest.mark.parametrize("model", list(GAP))
+def test_nose_cone_compliant_quadrants_shear_more_and_the_gap_closes_with_force(nose_cone_sweep, model):
+    """The gap closes monotonically with force under both blank-holder models, faster under
+    "slip" (which also charges the sideways slide of a skewed pattern); at 1e5 N the drape is
+    the geodesic one to 0.5 mm and 0.5 deg."""
+    energies, geodesic = nose_cone_sweep
+    energy = energies[model]
     assert (energy.status == Status.OK).all() and energy.converged.all()
     means = _quadrant_means(energy)
     negative = means.sel(quadrant=["-+", "+-"])
     positive = means.sel(quadrant=["++", "--"])
     np.testing.assert_allclose(negative.isel(quadrant=0), negative.isel(quadrant=1), atol=1e-6)
     np.testing.assert_allclose(positive.isel(quadrant=0), positive.isel(quadrant=1), atol=1e-6)
-    gap = (negative.mean("quadrant") - positive.mean("quadrant")).values
-    assert gap[0] > 30.0
+    gap = _gap(means)
+    np.testing.assert_allclose(gap, GAP[model], atol=1e-3)
     assert np.all(np.diff(gap) < 0)
-    assert gap[3] > 15.0  # still clearly asymmetric at 378 N with this card
-    assert gap[4] < 1.0
     symmetric = _quadrant_means(geodesic).isel(realization=0)
     assert float(np.abs(means.isel(realization=4) - symmetric).max()) < 0.5
     assert np.abs(positions(energy)[4] - positions(geodesic)[0]).max() < 0.5
     assert np.all(np.diff(energy.energy_blankholder.values) > 0)
 
 
+def test_slip_model_closes_the_gap_faster_at_every_force(nose_cone_sweep):
+    energies, _ = nose_cone_sweep
+    gaps = {model: _gap(_quadrant_means(ds)) for model, ds in energies.items()}
+    assert gaps["slip"][0] == gaps["radial"][0]  # no force: the models do not enter
+    assert np.all(gaps["slip"][1:] < gaps["radial"][1:] - 0.25)
+
+
 def test_nose_cone_locking_flag_is_two_sided(nose_cone_sweep):
     """ebxhd936_like locks at +60 deg (stitch extended) and -65 deg."""
-    energy, _ = nose_cone_sweep
+    energy = nose_cone_sweep[0]["radial"]
     d = energy.cell_shear - energy.gamma0
     assert np.array_equal(energy.cell_locked.values, ((d > 60.0) | (d < -65.0)).values)
     assert energy.cell_locked.isel(realization=0).any()
@@ -347,7 +432,7 @@ def test_steps_never_trade_placed_nodes_for_energy():
     material = load_material("ebxhd936_like")
     s, n = 5.0, 12
     ds = drape(surf, s, n, mode="energy", material=material)
-    steps = Steps(surf, ds, material, s, n, 0.0, 0.2)
+    steps = Steps(surf, ds, material, s, n, 0.0, 0.2, "slip")
     status = ds.status.values[0]
     for k in range(2, n + 1):
         _, _, _, invalid_geodesic = steps.energy(k, np.zeros((1, 4)))

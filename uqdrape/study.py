@@ -9,7 +9,8 @@ Sections and keys (units: mm, N, degrees)::
     [study]        name, seed, realizations, chunk_size = 64, description = ""
     [geometry]     kind + that kind's shape parameters (see uqdrape.geometry.KINDS)
     [fabric]       material, spacing_mm, orientation_deg = 0, pre_shear_deg = 0, skew_deg = 0, crossover = [0, 0]
-    [process]      blankholder_force_N (a number, or a list: a sweep), friction = 0.2, sectors
+    [process]      blankholder_force_N (a number, or a list: a sweep), friction = 0.2, sectors,
+                   blankholder_model = "slip" ("radial": thesis Eq 5.1-5.5)
     [solver]       mode = "energy", rings, tolerance_deg = 1e-3, max_iterations = 30
     [uncertainty.spacing]     cv, correlation = "iid", length_mm, kl_retained = 0.95
     [uncertainty.zero_angle]  mean_deg = 0, sd_deg, correlation = "iid", length_mm, kl_retained = 0.95
@@ -59,7 +60,7 @@ from pathlib import Path
 import numpy as np
 
 from . import geometry as _geometry
-from .drape import MODES
+from .drape import BLANKHOLDER_MODELS, MODES
 from . import material as _material
 from . import stochastic as _stochastic
 
@@ -134,11 +135,13 @@ class Fabric:
 
 @dataclass(frozen=True)
 class Process:
-    """Blank-holder force levels (N; one level unless a sweep), friction (-), sector weights."""
+    """Blank-holder force levels (N; one level unless a sweep), friction (-), sector weights,
+    and which slip the friction works on (``uqdrape.drape.energy.BlankHolder``)."""
 
     blankholder_force_N: tuple[float, ...]
     friction: float
     sectors: tuple[float, ...] | None
+    blankholder_model: str = "slip"
 
 
 @dataclass(frozen=True)
@@ -235,7 +238,7 @@ class Study:
         (``json.dumps`` it for a netCDF attribute or a provenance record)."""
         forces = self.force_levels
         process = {"blankholder_force_N": list(forces) if self.is_sweep else forces[0],
-                   "friction": self.process.friction}
+                   "friction": self.process.friction, "blankholder_model": self.process.blankholder_model}
         if self.process.sectors is not None:
             process["sectors"] = list(self.process.sectors)
         uncertainty = {}
@@ -504,7 +507,8 @@ def _fabric(src: _Source, doc: dict, mould) -> Fabric:
 
 
 def _process(src: _Source, doc: dict) -> Process:
-    t = _Table(src, "process", doc.get("process", {}), ("blankholder_force_N", "friction", "sectors"))
+    t = _Table(src, "process", doc.get("process", {}), ("blankholder_force_N", "friction", "sectors",
+                                                                    "blankholder_model"))
     hint = ("blankholder_force_N must be a number >= 0 (N), "
             "or a non-empty list of distinct numbers >= 0 (a sweep)")
     force = t.raw("blankholder_force_N", _REQUIRED, hint)
@@ -521,7 +525,8 @@ def _process(src: _Source, doc: dict) -> Process:
         sectors = t.numbers("sectors", hint=hint)
         if any(w < 0 for w in sectors) or sum(sectors) <= 0:
             t.invalid("sectors", hint)
-    return Process(levels, friction, sectors)
+    model = t.string("blankholder_model", "slip", choices=BLANKHOLDER_MODELS)
+    return Process(levels, friction, sectors, model)
 
 
 def _solver(src: _Source, doc: dict) -> Solver:
@@ -759,7 +764,7 @@ def validate_study(path) -> str:
         f"{s.name}: {s.realizations} realisations, seed {s.seed}, {s.sampling.plan} plan, chunks of {s.chunk_size}",
         f"  mould {s.geometry.build_mould().describe()}; "
         f"material {material}; spacing {s.fabric.spacing_mm:g} mm, {s.solver.rings} rings, {s.solver.mode} mode",
-        f"  blank-holder force {force}, friction {s.process.friction:g}",
+        f"  blank-holder force {force}, friction {s.process.friction:g}, {s.process.blankholder_model} friction model",
         f"  varying: {'; '.join(varying) if varying else 'nothing (deterministic)'}",
         f"  sensitivity: {sens}; output: {s.output_dir}",
     ])

@@ -42,7 +42,7 @@ def _batch_size(**arrays):
 def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
           crossover=(0.0, 0.0), seg_i=None, seg_j=None, gamma0=None, mode="geodesic",
           material=None, blankholder_force=0.0, friction=0.2, sectors=None,
-          tolerance=1e-3, max_iterations=30, max_turn=10.0, factors=None) -> xr.Dataset:
+          blankholder_model="slip", tolerance=1e-3, max_iterations=30, max_turn=10.0, factors=None) -> xr.Dataset:
     """Drape a batch of pin-jointed nets over ``surface``; one Python loop for the batch.
 
     Arguments that may differ per realisation take a scalar (or base shape) or an array
@@ -61,6 +61,8 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     material           a ``uqdrape.material.Material``; needed for mode="energy"
     blankholder_force  total blank-holder force F_BH (N); friction: mu_BH (-)
     sectors            relative blank-holder force per equal angular sector (None: uniform)
+    blankholder_model  "slip" (friction on the held fabric's whole plan slip, the default) or
+                       "radial" (thesis Eq 5.1-5.5: radial draw-in only); see ``BlankHolder``
     tolerance          minimiser tolerance on the turn angles (deg)
     max_iterations     minimiser iterations per step; max_turn: bound on a turn (deg)
     factors            dict of extra per-realisation values stored along ``realization``
@@ -119,7 +121,7 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     b = psi + np.deg2rad(90.0 - pre_shear)
     e2 = np.stack([np.cos(b), np.sin(b)], -1)
     tol = 1e-11 * max(float(surface.size), 1.0)
-    BlankHolder(force, mu, sectors)  # raises on bad sectors before any work
+    BlankHolder(force, mu, sectors, blankholder_model)  # raises on bad sectors before any work
     stored = dict(orientation=orientation, pre_shear=pre_shear, skew=skew, crossover_x=crossover[:, 0],
                   crossover_y=crossover[:, 1], blankholder_force=force, friction=mu,
                   **{k: np.broadcast_to(np.asarray(v, dtype=float), (R,)) for k, v in (factors or {}).items()})
@@ -127,7 +129,8 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     for start in range(0, R, BLOCK):
         b = slice(start, start + BLOCK)
         prob = NetProblem(surface, float(spacing), n, crossover[b], arm_angles[b], seg_i[b], seg_j[b],
-                          np.deg2rad(gamma0[b]), e1[b], e2[b], BlankHolder(force[b], mu[b], sectors), material, tol)
+                          np.deg2rad(gamma0[b]), e1[b], e2[b], BlankHolder(force[b], mu[b], sectors, blankholder_model),
+                          material, tol)
         if mode == "geodesic":
             P, status = build_geodesic(prob)
             r = prob.R
@@ -220,6 +223,7 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
         attrs={"spacing_mm": prob.s, "rings": n, "mode": mode, "geometry": prob.surface.describe(),
                "material": getattr(material, "name", "none"),
                "locking_angle_deg": float(getattr(material, "locking_angle_deg", np.nan) or np.nan),
+               "blankholder_model": prob.blankholder.model,
                "status_codes": Status.describe(), "uqdrape_version": __version__,
                "Conventions": "CF-1.8"},
     )

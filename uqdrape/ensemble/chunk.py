@@ -54,7 +54,7 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
         mode=solver.mode,
         material=load_material(fabric.material) if material is None else material,
         blankholder_force=value["blankholder_force"], friction=value["friction"],
-        sectors=process.sectors,
+        sectors=process.sectors, blankholder_model=process.blankholder_model,
         tolerance=solver.tolerance_deg, max_iterations=solver.max_iterations,
     )
     ds = ds.assign_coords(realization=r)
