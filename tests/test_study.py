@@ -84,6 +84,9 @@ def test_shipped_studies_hold_the_thesis_settings():
     skew = hemi.uncertainty.factors["skew"]
     assert skew.dist == "uniform" and skew.ppf([0.0, 0.5, 1.0]).tolist() == pytest.approx([0, 27.5, 55], abs=1e-9)
     assert (hemi.sampling.plan, hemi.solver.mode, hemi.process.friction) == ("sobol", "geodesic", 0.3)
+    # the thesis reproductions run the thesis's blank-holder model
+    assert {z.process.blankholder_model, sweep.process.blankholder_model, hemi.process.blankholder_model,
+            load_study(STUDIES / "nosecone-blankholder-levels.toml").process.blankholder_model} == {"radial"}
 
 
 # ---------------------------------------------------------------- defaults and sweeps
@@ -94,7 +97,7 @@ def test_defaults_are_filled(tmp_path):
     assert (s.chunk_size, s.description) == (64, "")
     assert s.fabric.orientation_deg == 0.0 and s.fabric.pre_shear_deg == 0.0
     assert s.fabric.crossover == (0.0, 0.0)
-    assert s.process.friction == 0.2 and s.process.sectors is None
+    assert s.process.friction == 0.2 and s.process.sectors is None and s.process.blankholder_model == "slip"
     assert s.solver.mode == "energy" and s.solver.tolerance_deg == 1e-3 and s.solver.max_iterations == 30
     assert s.sampling.plan == "monte_carlo"
     assert s.sensitivity.method == "none" and s.sensitivity.base_samples is None
@@ -197,6 +200,8 @@ BAD = [
     ("negative-force", force("[0, -10]"), ["process.blankholder_force_N = [0, -10]", ">= 0"]),
     ("negative-friction", force("100.0", "\nfriction = -0.1"), ["process.friction = -0.1", ">= 0"]),
     ("all-zero-sectors", force("100.0", "\nsectors = [0, 0]"), ["process.sectors", "not all zero"]),
+    ("bad-blankholder-model", force("100.0", '\nblankholder_model = "circular"'),
+     ['process.blankholder_model = "circular"', '"slip"', '"radial"']),
     ("bad-mode", edit("rings = 4", 'rings = 4\nmode = "fast"'), ['solver.mode = "fast"', '"geodesic"', '"energy"']),
     ("missing-rings", edit("rings = 4", "max_iterations = 3"), ["solver.rings is missing", "integer >= 1"]),
     ("cv-too-big", BASE + "\n[uncertainty.spacing]\ncv = 1.2\n",

@@ -51,6 +51,7 @@ def cmd_drape(args) -> int:
     ds = drape(surface, args.spacing, args.rings, orientation=args.orientation, pre_shear=args.pre_shear,
                skew=args.skew, crossover=tuple(args.crossover), mode=args.mode, material=material,
                blankholder_force=args.blankholder_force, friction=args.friction,
+               blankholder_model=args.blankholder_model,
                tolerance=args.tolerance)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -145,6 +146,9 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--material", help="material card name or path (uqdrape materials lists them)")
     d.add_argument("--blankholder-force", type=float, default=0.0, help="total blank-holder force, N")
     d.add_argument("--friction", type=float, default=0.2, help="fabric/blank-holder friction coefficient")
+    d.add_argument("--blankholder-model", choices=("slip", "radial"), default="slip",
+                   help="friction on the held fabric's whole plan slip (slip, default) or on the radial "
+                        "draw-in only (radial, thesis Eq 5.1-5.5)")
     d.add_argument("--tolerance", type=float, default=1e-3, help="minimiser tolerance on turn angles, deg")
     d.add_argument("--out", default="results/drape/drape", help="output path stem (default results/drape/drape)")
     d.set_defaults(func=cmd_drape)

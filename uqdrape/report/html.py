@@ -84,6 +84,10 @@ def _rows(numbers: Mapping, extra: Mapping) -> list[tuple[str, str, str]]:
     if numbers["blankholder_force_levels_N"]:
         rows.append(("blank-holder force levels (N)",
                      ", ".join(f"{f:g}" for f in numbers["blankholder_force_levels_N"]), ""))
+    model = numbers["blankholder_model"]
+    rows.append(("blank-holder friction model", model,
+                 "friction on the radial draw-in only (thesis Eq 5.1-5.5)" if model == "radial"
+                 else "friction on the whole plan slip of the held fabric"))
     rows.append(("valid fraction", f"{numbers['valid_fraction']:.4f}", "valid node values / all node values"))
     for key, name in (("max_abs_mean_shear_deg", "max |mean shear| (deg)"), ("max_sd_deg", "max sd of shear (deg)")):
         site = numbers[key]

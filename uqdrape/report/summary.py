@@ -79,7 +79,9 @@ def headline_numbers(ds: xr.Dataset, *, node_stats: xr.Dataset | None = None,
                      confidence: float = 0.95) -> dict:
     """The report's headline numbers as a JSON-ready dict (angles in deg).
 
-    ``realizations`` (N per level), ``blankholder_force_levels_N``, ``valid_fraction``
+    ``realizations`` (N per level), ``blankholder_force_levels_N``, ``blankholder_model``
+    (which slip the blank-holder friction works on; ensembles written before the choice
+    existed used the thesis's "radial" model), ``valid_fraction``
     (valid node values / all node values), ``max_abs_mean_shear_deg`` and ``max_sd_deg``
     (value, node, level), ``max_wrinkle_probability`` (the largest ``wrinkle_risk`` with
     its interval and ``measure``, or None without a locking angle) and ``samples_needed`` (N for a
@@ -93,6 +95,7 @@ def headline_numbers(ds: xr.Dataset, *, node_stats: xr.Dataset | None = None,
     out = {
         "realizations": n,
         "blankholder_force_levels_N": levels,
+        "blankholder_model": ds.attrs.get("blankholder_model", "radial"),
         "valid_fraction": float(count.sum()) / (n * count.size),
         "max_abs_mean_shear_deg": _site(abs(node_stats["mean"])),
         "max_sd_deg": _site(node_stats["sd"]),
