@@ -96,6 +96,13 @@ def _sweep_headline(ds: xr.Dataset) -> dict:
     return out
 
 
+def _levels_headline(ds: xr.Dataset) -> dict:
+    asym = line_scalars(ds)["asymmetry"].mean("realization")
+    levels = ", ".join(f"{float(f):g}" for f in asym["blankholder_force"].values)
+    return {"blank-holder model": ds.attrs["blankholder_model"],
+            f"asymmetry (+ plus - line means) at {levels} N (deg)": ", ".join(f"{v:.1f}" for v in asym.values)}
+
+
 def _sweep_scatter_headline(ds: xr.Dataset) -> dict:
     out = _sweep_headline(ds)
     sd = line_statistics(ds)["shear_sd"].sel(k=slice(1, None)).max(("quadrant", "k"))
@@ -171,8 +178,11 @@ class Entry:
 GALLERY = (
     Entry("hemisphere-skew", "Figs 5.5/5.6", "vs_skew.png", _skew_headline,
           "total blank-holder energy rises as the generator paths are skewed 0-55 deg; a few J (axis to 7 J)"),
-    Entry("nosecone-blankholder-levels", "Figs 5.9-5.12", "lines.png", _sweep_headline,
+    Entry("nosecone-blankholder-levels", "Figs 5.9-5.12", "lines.png", _levels_headline,
           "the - quadrants shear more at 0 N; the gap closes with force, symmetric at 378 N"),
+    Entry("nosecone-blankholder-levels-slip", "Figs 5.9-5.12, blank-holder friction on the full slip",
+          "lines.png", _levels_headline,
+          "circumferential restraint not modelled (radial draw-in only); here friction on the whole slip"),
     Entry("plate-spacing", "Figs 5.15/5.16", "sd_shear.png", _plate_headline,
           "fibre angles ~ Normal(45.75, 11.04 deg); the scatter grows with distance from the crossover"),
     Entry("nosecone-blankholder-sweep", "Figs 5.17/5.18", "line_statistics.png", _sweep_scatter_headline,
@@ -226,6 +236,77 @@ def build_entry(entry: Entry, *, workers: int | None = None, resume: bool = Fals
     return target
 
 
+#: Gallery entries compared on one plot of the nose-cone asymmetry against force.
+LEVEL_ENTRIES = ("nosecone-blankholder-levels", "nosecone-blankholder-levels-slip")
+COMPARISON = "blankholder-models"
+
+
+def write_level_comparison() -> Path | None:
+    """Plot the nose-cone asymmetry against blank-holder force for every level study of
+    :data:`LEVEL_ENTRIES` whose ensemble is under ``results/`` (one line per material card
+    and blank-holder model) and keep the numbers; returns the PNG, or None if none ran."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .ensemble import open_ensemble
+
+    series = []
+    for name in LEVEL_ENTRIES:
+        folder = Path("results") / name
+        if not (folder / "run.json").is_file():
+            continue
+        ds = open_ensemble(folder)
+        asym = line_scalars(ds)["asymmetry"].mean("realization")
+        series.append({"study": name, "material": ds.attrs["material"], "blankholder_model": ds.attrs["blankholder_model"],
+                       "force_N": [float(f) for f in asym["blankholder_force"].values],
+                       "gap_deg": [_round(-float(v)) for v in asym.values]})
+    if not series:
+        return None
+    fig, ax = plt.subplots(figsize=(6.4, 4.0), layout="constrained")
+    for line in series:
+        ax.plot(line["force_N"], line["gap_deg"], marker="o",
+                label=f"{line['material']}, {line['blankholder_model']} friction")
+    ax.set_xlabel("blank-holder force (N)")
+    ax.set_ylabel("gap: |- line mean| - |+ line mean| (deg)")
+    ax.set_title("Nose cone: shear asymmetry against blank-holder force")
+    ax.set_ylim(bottom=0)
+    ax.grid(alpha=0.3)
+    ax.legend()
+    png = GALLERY_DIR / f"{COMPARISON}.png"
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+    (GALLERY_DIR / f"{COMPARISON}.json").write_text(json.dumps(series, indent=2) + "\n", encoding="utf-8")
+    return png
+
+
+def _comparison_section() -> list[str]:
+    path = GALLERY_DIR / f"{COMPARISON}.json"
+    if not path.is_file():
+        return []
+    series = json.loads(path.read_text(encoding="utf-8"))
+    forces = series[0]["force_N"]
+    lines = [
+        "",
+        "## Blank-holder friction: radial draw-in or the whole slip",
+        "",
+        "The nose-cone drapes of Figs 5.9-5.12 under the thesis's blank-holder model (friction on",
+        "the radial draw-in, Eq 5.1-5.5) and with friction on the whole plan slip of the held",
+        "fabric (`blankholder_model = \"slip\"`). The gap is the mean |shear| along the - quadrants'",
+        "max-shear lines minus that along the + quadrants' (= minus the asymmetry above).",
+        "",
+        f"![gap against force]({COMPARISON}.png)",
+        "",
+        "| material card | blank-holder model | " + " | ".join(f"gap at {f:g} N (deg)" for f in forces) + " |",
+        "|---|---|" + "---|" * len(forces),
+    ]
+    for line in series:
+        lines.append(f"| {line['material']} | {line['blankholder_model']} | "
+                     + " | ".join(f"{g:.1f}" for g in line["gap_deg"]) + " |")
+    return lines
+
+
 def _cell(text: str) -> str:
     """Text for a markdown table cell (a bare | would end the cell)."""
     return text.replace("|", "\\|")
@@ -260,6 +341,7 @@ def write_readme() -> Path:
         lines.append(f"| [{entry.name}]({entry.name}/index.html)<br>"
                      f"[![{entry.name}]({entry.name}/{entry.picture})]({entry.name}/index.html) "
                      f"| {_cell(record['thesis_figure'])}: {_cell(record['thesis'])} | {numbers} |")
+    lines += _comparison_section()
     readme = GALLERY_DIR / "README.md"
     readme.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return readme
@@ -284,6 +366,9 @@ def main(argv=None) -> int:
             print(f"gallery: {entry.name} ({entry.figure})", file=sys.stderr)
             target = build_entry(entry, workers=args.workers, resume=args.resume, progress=not args.quiet)
             print(f"gallery: wrote {target}", file=sys.stderr)
+        comparison = write_level_comparison()
+        if comparison is not None:
+            print(f"gallery: wrote {comparison}", file=sys.stderr)
         print(f"gallery: wrote {write_readme()}", file=sys.stderr)
     return 0
 
