@@ -29,7 +29,7 @@ N = 20
 
 
 def study_file(tmp_path, name="tiny", *, realizations=N, chunk_size=7, mode="geodesic", rings=5,
-               force="100.0", plan="monte_carlo", seed=11, out=None):
+               force="100.0", plan="monte_carlo", seed=11, out=None, blankholder_model="slip"):
     """Write a tiny hemisphere study; its output folder is tmp_path/out (or ``out``)."""
     text = f"""
         [study]
@@ -49,6 +49,7 @@ def study_file(tmp_path, name="tiny", *, realizations=N, chunk_size=7, mode="geo
         [process]
         blankholder_force_N = {force}
         friction = 0.2
+        blankholder_model = "{blankholder_model}"
 
         [solver]
         mode = "{mode}"
@@ -259,6 +260,19 @@ def test_energy_sweep_uses_common_random_numbers(tmp_path):
                       chunk_size=64, progress=False)
     with open_ensemble(again) as other:
         assert_same_numbers(other, ds)
+
+
+def test_the_studys_blankholder_model_reaches_every_drape(tmp_path, reference):
+    """The same tiny geodesic study under the radial model: the same nets (geodesic), a
+    blank-holder energy recomputed with the radial model, and the model recorded."""
+    study, slip = reference
+    radial = run_study(load_study(study_file(tmp_path, blankholder_model="radial")), scheduler="synchronous",
+                       progress=False)
+    with open_ensemble(radial) as ds:
+        ds = ds.load()
+    assert (slip.attrs["blankholder_model"], ds.attrs["blankholder_model"]) == ("slip", "radial")
+    np.testing.assert_array_equal(ds.x, slip.x)
+    assert (ds.energy_blankholder < slip.energy_blankholder).all()  # the slip exceeds its radial part
 
 
 # ----------------------------------------------------------------------------- store and resume
