@@ -340,14 +340,18 @@ def crossover_slip(arch: Architecture, theta_end_rad: float):
     m = CROSSOVER_ELEMENTS
     centres = (np.arange(m) + 0.5) / m * a - a / 2.0
     x, y = (v.ravel() for v in np.meshgrid(centres, centres))
-    steps = max(1, int(math.ceil(abs(math.degrees(theta_end_rad)) / CROSSOVER_STEP_DEG)))
-    ts = np.linspace(0.0, theta_end_rad, steps + 1)
-    h = ts[1] - ts[0]
+    # fixed steps from 0 (the last one shorter), so that every grid shares the same path
+    step = math.copysign(math.radians(CROSSOVER_STEP_DEG), theta_end_rad)
+    whole = int(theta_end_rad / step + 1e-9)
+    ts = step * np.arange(whole + 1)
+    if abs(theta_end_rad - ts[-1]) > 1e-12:
+        ts = np.append(ts, theta_end_rad)
+    steps = ts.size - 1
     ratio = 1.0 - arch.tow_shear_ratio
     phi0 = math.radians(arch.phi0_deg)
 
     def rate(t, px, py):
-        om = ratio * (1.0 - math.sin(abs(t))) * math.copysign(1.0, h)
+        om = ratio * (1.0 - math.sin(abs(t))) * math.copysign(1.0, theta_end_rad)
         return -om * py, om * px
 
     def inside(t, px, py):
@@ -360,7 +364,7 @@ def crossover_slip(arch: Architecture, theta_end_rad: float):
     out = np.zeros(steps)
     was_in = inside(0.0, x, y)
     for k in range(steps):
-        t = ts[k]
+        t, h = ts[k], ts[k + 1] - ts[k]
         k1 = rate(t, x, y)
         k2 = rate(t + h / 2, x + abs(h) / 2 * k1[0], y + abs(h) / 2 * k1[1])
         k3 = rate(t + h / 2, x + abs(h) / 2 * k2[0], y + abs(h) / 2 * k2[1])
@@ -449,9 +453,9 @@ def summed(arch: Architecture, theta_rad=None) -> dict:
 ZERO_SEARCH_DEG = 40.0
 
 
-def _zero_force(theta, total, ns_total):
+def _zero_force(theta, total):
     """γ0 (deg): walking downhill on the summed energy from θ = 0 (the knitted state) to
-    the first local minimum, refined to the zero of N_s next to it. A fabric whose
+    the first local minimum, refined within the grid step (see below). A fabric whose
     stitch friction resists more than the stitch tension pulls stays at 0."""
     k = int(np.argmin(np.abs(theta)))
     step = -1 if total[k - 1] < total[k] else 1 if total[k + 1] < total[k] else 0
@@ -461,14 +465,13 @@ def _zero_force(theta, total, ns_total):
         k += step
     if not 0 < k + step < theta.size - 1:
         raise ValueError(f"the zero-force angle lies beyond ±{np.rad2deg(abs(theta[k])):g} deg")
-    if ns_total[k] <= 0.0 < ns_total[k + 1]:
-        lo, hi = k, k + 1
-    elif ns_total[k - 1] <= 0.0 < ns_total[k]:
-        lo, hi = k - 1, k
-    else:
+    # the slopes of the two grid steps next to the minimum (at their midpoints) change sign:
+    # their zero, by linear interpolation, is the minimum to within one grid step
+    down, up = total[k] - total[k - 1], total[k + 1] - total[k]
+    if up - down <= 0.0:
         return float(np.rad2deg(theta[k]))
-    f = ns_total[lo] / (ns_total[lo] - ns_total[hi])
-    return float(np.rad2deg(theta[lo] + f * (theta[hi] - theta[lo])))
+    h = theta[k + 1] - theta[k]
+    return float(np.rad2deg(theta[k] - h / 2.0 + h * (-down) / (up - down)))
 
 
 class _FixedTerms:
@@ -484,7 +487,7 @@ class _FixedTerms:
         arch = replace(self.arch, prestrain=float(prestrain))
         w_t, w_f, _ = _stitch_terms(arch, self.theta)
         total = self.w + w_t + w_f
-        return _zero_force(self.theta, total, shear_force(arch, self.theta, total))
+        return _zero_force(self.theta, total)
 
 
 def zero_force_angle(arch: Architecture) -> float:
