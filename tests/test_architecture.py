@@ -232,3 +232,58 @@ def test_bad_architecture_is_one_line_naming_the_key_and_writes_nothing(tmp_path
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and str(path) in err and f"{key} = " in err and "Traceback" not in err
     assert not out.exists() and not out.with_suffix(".png").exists()
+
+
+# -- stochastic architecture: a stitch pre-strain field mapped to gamma0 per cell ----------
+STUDY = """
+[study]
+name = "pre"
+seed = 7
+realizations = 3
+[geometry]
+kind = "plate"
+[fabric]
+material = "{material}"
+spacing_mm = 5.0
+[process]
+blankholder_force_N = 0
+[solver]
+rings = 4
+{extra}
+[uncertainty.stitch_prestrain]
+mean = {mean}
+sd = {sd}
+"""
+
+
+def study_file(tmp_path, material="fge106hd_derived", mean=0.003844, sd=0.001, extra=""):
+    path = tmp_path / "pre.toml"
+    path.write_text(STUDY.format(material=material, mean=mean, sd=sd, extra=extra), encoding="utf-8")
+    return path
+
+
+def test_prestrain_field_becomes_gamma0_through_the_cards_architecture(tmp_path, shipped):
+    from uqdrape.ensemble.inputs import sampled_inputs
+    from uqdrape.study import load_study
+
+    table = zero_force_table(shipped["fge106hd"])
+    constant = sampled_inputs(load_study(study_file(tmp_path, sd=0.0)), [0, 2])["gamma0"]
+    assert constant.shape == (2, 8, 8)
+    np.testing.assert_allclose(constant, table(0.003844), rtol=0, atol=1e-12)
+    assert constant[0, 0, 0] == pytest.approx(-2.3, abs=0.02)  # the card's own zero-force angle
+    noisy = sampled_inputs(load_study(study_file(tmp_path, sd=0.002)), [1])["gamma0"]
+    assert noisy.std() > 0.5 and np.all(noisy <= 0.0)  # a slack stitch (ε0 < 0) rests at 0
+
+
+@pytest.mark.parametrize("material, sd, extra, words", [
+    ("fge106hd_like", 0.001, "", "has no [architecture] record"),
+    ("fge106hd_derived", 0.005, "", "passes the largest mapped pre-strain 0.03"),
+    ("fge106hd_derived", 0.001, "[uncertainty.zero_angle]\nsd_deg = 5.0\n", "remove [uncertainty.zero_angle]"),
+])
+def test_prestrain_field_errors_name_file_and_key(tmp_path, material, sd, extra, words):
+    from uqdrape.study import StudyError, load_study
+
+    with pytest.raises(StudyError) as err:
+        load_study(study_file(tmp_path, material=material, sd=sd, extra=extra))
+    text = str(err.value)
+    assert text.startswith(str(tmp_path / "pre.toml")) and "uncertainty.stitch_prestrain" in text and words in text
