@@ -37,6 +37,7 @@ Units: lengths mm, angles deg at the interface (rad inside), forces N, N_s N/m, 
 
 from __future__ import annotations
 
+import functools
 import math
 import tomllib
 from importlib import resources
@@ -326,6 +327,13 @@ def _compaction(arch: Architecture, theta, sigma):
 
 
 def crossover_slip(arch: Architecture, theta_end_rad: float):
+    """Slip-area of one crossover per path step (mm³) and the step ends θ (rad); see
+    _crossover_slip (cached: it depends only on the crossover's geometry)."""
+    return _crossover_slip(arch.crossover_side_mm, arch.tow_shear_ratio, arch.phi0_deg, float(theta_end_rad))
+
+
+@functools.lru_cache(maxsize=64)
+def _crossover_slip(a: float, tow_shear_ratio: float, phi0_deg: float, theta_end_rad: float):
     """Slip-area of one crossover: Σ_j A_j l_ij per path step (mm³) and the step ends θ (rad).
 
     Relative velocity of the two tow layers, Eq 4.37: v = Ω(θ)·(−Y, X) with
@@ -336,7 +344,6 @@ def crossover_slip(arch: Architecture, theta_end_rad: float):
     crossover (two tow strips of width a·sin(2φ0−θ)/sin 2φ0 crossing at 2φ0 − θ) at both
     ends of the step (thesis L7335-7355).
     """
-    a = arch.crossover_side_mm
     m = CROSSOVER_ELEMENTS
     centres = (np.arange(m) + 0.5) / m * a - a / 2.0
     x, y = (v.ravel() for v in np.meshgrid(centres, centres))
@@ -347,8 +354,8 @@ def crossover_slip(arch: Architecture, theta_end_rad: float):
     if abs(theta_end_rad - ts[-1]) > 1e-12:
         ts = np.append(ts, theta_end_rad)
     steps = ts.size - 1
-    ratio = 1.0 - arch.tow_shear_ratio
-    phi0 = math.radians(arch.phi0_deg)
+    ratio = 1.0 - tow_shear_ratio
+    phi0 = math.radians(phi0_deg)
 
     def rate(t, px, py):
         om = ratio * (1.0 - math.sin(abs(t))) * math.copysign(1.0, theta_end_rad)
@@ -375,6 +382,7 @@ def crossover_slip(arch: Architecture, theta_end_rad: float):
         both = was_in & now_in
         out[k] = area * np.hypot(nx - x, ny - y)[both].sum()
         x, y, was_in = nx, ny, now_in
+    ts.flags.writeable = out.flags.writeable = False  # shared by the cache
     return ts, out
 
 
