@@ -265,11 +265,11 @@ def _stitch_terms(arch: Architecture, theta):
             stored[idx[broken]] = stored[first]
             tension[idx[broken]] = 0.0
     to_j_per_m2 = 1e3 / arch.unit_area_mm2  # N·mm per mm² -> J/m²
-    w_tension = (stored - stored[_outward(theta)[0][0]]) * free * to_j_per_m2
+    zero = _outward(theta)[0][0]
+    w_tension = (stored - stored[zero]) * free * to_j_per_m2
     # friction, Eq 4.30-4.33: slip through every pass-through point against the uniform strain
     lengths = _pass_through_lengths(arch, theta)
     geometric = stitch_length(arch, theta) / stitch_length(arch, 0.0) - 1.0
-    zero = _outward(theta)[0][0]
     slip = np.abs(lengths - (1.0 + geometric)[:, None, None] * lengths[zero]).sum(axis=(-1, -2))
 
     def friction(idx):
