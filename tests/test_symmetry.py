@@ -9,7 +9,7 @@ from uqdrape.material import load_material
 from uqdrape.stats import line_scalars
 from uqdrape.symmetry import symmetrising_force
 
-SPACING, RINGS = 8.0, 8
+SPACING, RINGS = 10.0, 6
 
 
 @pytest.fixture(scope="module")
@@ -20,14 +20,14 @@ def setup():
 @pytest.fixture(scope="module")
 def found(setup):
     nose, material = setup
-    return symmetrising_force(nose, SPACING, RINGS, material, fraction=0.25, rtol=0.25, friction=0.2)
+    return symmetrising_force(nose, SPACING, RINGS, material, fraction=0.25, rtol=0.5, friction=0.2)
 
 
 def test_bracket_holds_the_target_and_is_as_tight_as_asked(found):
     assert found.reached and found.gap0 > 10.0
     lo, hi = found.bracket
     assert found.gap_at(lo) > found.target >= found.gap_at(hi)
-    assert hi / lo - 1.0 <= 0.25 and lo <= found.force <= hi
+    assert hi / lo - 1.0 <= 0.5 and lo <= found.force <= hi
     assert found.target == pytest.approx(0.25 * found.gap0, rel=1e-12)
     assert {0.0, 126.0, 252.0, 378.0} <= set(found.forces)
     assert "falls to 0.25 x that" in found.describe()

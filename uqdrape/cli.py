@@ -26,9 +26,8 @@ def _geometry_help() -> str:
 
 
 def _architectures() -> list[str]:
-    from .material.architecture import available_architectures
-
-    return available_architectures()
+    """Shipped architecture names, without importing the (numpy/scipy) material package."""
+    return sorted(p.stem for p in (Path(__file__).parent / "material" / "architectures").glob("*.toml"))
 
 
 def _parse_params(pairs):
@@ -115,9 +114,10 @@ def cmd_materials(args) -> int:
     if args.plot is True:
         raise ValueError("--plot needs a PNG path when showing a card")
     if not args.name:
-        for name in available_materials():
-            m = load_material(name)
-            print(f"{name:16s} {m.description}")
+        names = available_materials()
+        width = max(map(len, names))
+        for name in names:
+            print(f"{name:{width}s}  {load_material(name).description}")
         return 0
     m = load_material(args.name)
     print(f"{m.name}: {m.description}\nlocking angle +{m.locking_angle_deg} / -{m.locking_angle_neg_deg} deg, "
