@@ -12,7 +12,8 @@ grid, integrated outward from θ = 0 along each branch:
   the thread is slack (no force) below its free length and carries nothing once the
   strain has reached the failure strain (the energy stays where it was);
 - ``stitch_friction``  Eq 4.24-4.33: slip of the thread through the 3 pass-through points
-  of each course, U = μ_s Σ ∫ S_s de / A_s (trapezium rule, as the thesis);
+  of each course, U = μ_s Σ ∫ S_s de / A_s, e = |L(θ) − (1 + ε_s) L(0)| measured from the
+  knitted state (trapezium rule, as the thesis);
 - ``compaction``       Eq 4.35 with the Cai-Gutowski/McBride law, Eq 2.23-2.29: the tows
   (two layers of thickness t0/2, constant thickness: dry fabric) are compacted laterally
   as the fabric area falls; U = -∫ σ_b dV per unit initial area (the energy route; the
@@ -23,8 +24,12 @@ grid, integrated outward from θ = 0 along each branch:
 
 The terms are summed at the energy level and differentiated numerically (np.gradient)
 to N_s = (dW/dθ) · sin 2φ0 / sin(2φ0 − θ) (Eq 4.14-4.15). :func:`derive_card` turns the
-sum into a material card whose branches start at the zero-force angle γ0 (the minimum of
-the summed energy; negative when the stitch is pre-strained: thesis L9189-9195).
+sum into a material card whose branches start at the zero-force angle γ0: the rest state
+reached by walking downhill on the summed energy from the knitted state θ = 0; negative
+when the pre-strained stitch pulls harder than its friction holds (thesis L9189-9195).
+
+Not modelled: the variable-thickness balance of §4.3.3 (thickness from stitch tension =
+compaction pressure × unit area / 4); every term here is at constant thickness.
 
 Calibration (:func:`calibrate`): the thesis does not print McBride's compaction constants
 or the stitch pre-strain. ``beta`` is fitted so that the negative branch (stitch slack:
