@@ -278,6 +278,7 @@ def test_prestrain_field_becomes_gamma0_through_the_cards_architecture(tmp_path,
 @pytest.mark.parametrize("material, sd, extra, words", [
     ("fge106hd_like", 0.001, "", "has no [architecture] record"),
     ("fge106hd_derived", 0.005, "", "passes the largest mapped pre-strain 0.03"),
+    ("ebxhd936_derived", 0.001, "", "is 0 deg at every pre-strain up to 0.03"),
     ("fge106hd_derived", 0.001, "[uncertainty.zero_angle]\nsd_deg = 5.0\n", "remove [uncertainty.zero_angle]"),
 ])
 def test_prestrain_field_errors_name_file_and_key(tmp_path, material, sd, extra, words):

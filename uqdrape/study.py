@@ -569,6 +569,11 @@ def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, materia
             table = _prestrain_map(material)
         except ValueError as err:
             src.invalid(section, data, str(err))
+        if np.ptp(table.gamma0_deg) == 0.0:
+            src.invalid(section, data, f"the zero-force angle of {Path(material).stem} is "
+                                       f"{table.gamma0_deg[0]:g} deg at every pre-strain up to "
+                                       f"{table.max_prestrain:g} (its stitch friction holds the fabric), "
+                                       "so this field would change nothing")
         top = params["mean"] + 7.0 * params["sd"]
         if top > table.max_prestrain:
             src.invalid(section, data, f"mean + 7 sd = {top:g} passes the largest mapped pre-strain "
