@@ -222,6 +222,7 @@ GOOD = (ARCH_DIR / "fge106hd.toml").read_text(encoding="utf-8")
     ('prestrain = "calibrate"', "prestrain = 0.2", "stitch.prestrain"),
     ("vf0 = 0.35 ", "vf0 = 0.95 ", "compaction.vf0"),
     ("thickness_mm = 2.0 ", "thickness_mm = -1.0 ", "thickness_mm"),
+    ("zero_force_angle_deg = -2.3 ", 'from = "bad.toml" #', "calibration.from"),
 ])
 def test_bad_architecture_is_one_line_naming_the_key_and_writes_nothing(tmp_path, capsys, old, new, key):
     assert old in GOOD

@@ -750,7 +750,7 @@ def _number(label, key, value, *, integer=False):
     return value if integer else float(value)
 
 
-def architecture_from_document(doc: dict, label: str, base_dir: Path | None = None) -> Architecture:
+def architecture_from_document(doc: dict, label: str, base_dir: Path | None = None, _chain=()) -> Architecture:
     """An Architecture from a file-layout document; ``label`` names the file in errors.
 
     ``"calibrate"`` for stitch.prestrain or compaction.beta fits it to the targets of
@@ -815,7 +815,11 @@ def architecture_from_document(doc: dict, label: str, base_dir: Path | None = No
         if not isinstance(ref, str) or base_dir is None or not (Path(base_dir) / ref).is_file():
             raise ArchitectureError(f"{label}: calibration.from = {ref!r} is invalid: must name an architecture file "
                                     "next to this one")
-        donor = load_architecture(Path(base_dir) / ref)
+        donor_path = (Path(base_dir) / ref).resolve()
+        if donor_path in _chain:
+            raise ArchitectureError(f"{label}: calibration.from = {ref!r} is invalid: the files' calibration.from "
+                                    "entries form a cycle")
+        donor = _load(donor_path, _chain)
         fitted = {f: getattr(donor, f) for f in pending}
         record = {f"{f}": fitted[f] for f in pending} | {"from": ref}
         return replace(arch, **fitted, calibration=record)
@@ -852,8 +856,12 @@ def load_architecture(name_or_path) -> Architecture:
     path = _architectures_dir() / f"{text}.toml" if text in available_architectures() else Path(text)
     if not path.is_file():
         raise ArchitectureError(f"{path}: architecture file not found (shipped: {', '.join(available_architectures())})")
+    return _load(path, ())
+
+
+def _load(path: Path, chain) -> Architecture:
     try:
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise ArchitectureError(f"{path}: not valid TOML ({exc})") from None
-    return architecture_from_document(doc, str(path), path.parent)
+    return architecture_from_document(doc, str(path), path.parent, (*chain, path.resolve()))
