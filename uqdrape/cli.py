@@ -76,7 +76,7 @@ def cmd_drape(args) -> int:
 
 
 def cmd_derive(args) -> int:
-    from .material.architecture import derive_card, load_architecture, summed, zero_force_angle
+    from .material.architecture import derive_card, load_architecture, summed
     from .material.cards import card_material, card_text
     from .material.plot import plot_architecture
 
@@ -91,16 +91,19 @@ def cmd_derive(args) -> int:
     text = card_text(doc, f"Material card derived by `uqdrape materials derive {Path(args.source).name}`: "
                           "regenerate it, do not edit it.")
     material = card_material(text, str(out))  # a card that would not load is not written
+    gamma0 = doc["architecture"]["zero_force_angle_deg"]
     out.parent.mkdir(parents=True, exist_ok=True)
+    if args.plot:  # the picture first: if it fails, no card is left behind either
+        png = out.with_suffix(".png") if args.plot is True else Path(args.plot)
+        png.parent.mkdir(parents=True, exist_ok=True)
+        plot_architecture(arch, png, terms, gamma0)
     tmp = out.with_name(out.name + ".tmp")
     tmp.write_text(text, encoding="utf-8")
     tmp.replace(out)
-    gamma0 = doc["architecture"]["zero_force_angle_deg"]
     print(f"wrote {out}: {material.name}, zero-force angle {gamma0:.2f} deg, locking +{material.locking_angle_deg:g} / "
           f"-{material.locking_angle_neg_deg:g} deg (pre-strain {100 * arch.prestrain:.3g} %, beta {arch.beta:.4g})")
     if args.plot:
-        png = out.with_suffix(".png") if args.plot is True else Path(args.plot)
-        print(f"wrote {plot_architecture(arch, png, terms, zero_force_angle(arch))}")
+        print(f"wrote {png}")
     return 0
 
 
