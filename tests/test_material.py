@@ -8,6 +8,8 @@ from uqdrape.material import Material, available_materials, load_material, plot_
 from uqdrape.material.model import LOCK_STIFFNESS_PER_RAD
 
 SHIPPED = ["ebxhd936_like", "fge106hd_like", "generic_woven", "twintex3_like"]
+#: cards derived from the shipped fabric architectures (tests/test_architecture.py)
+DERIVED = ["ebxhd936_derived", "fge106hd_1p65mm_derived", "fge106hd_5mm_derived", "fge106hd_derived"]
 
 
 def constant(ns=100.0, end_deg=60.0, **props):
@@ -131,7 +133,7 @@ def test_woven_is_symmetric():
 
 
 def test_shipped_cards_load():
-    assert available_materials() == SHIPPED
+    assert available_materials() == sorted(SHIPPED + DERIVED)
     for name in SHIPPED:
         mat = load_material(name)
         assert mat.name == name
@@ -202,7 +204,8 @@ def test_bad_files_raise_with_file_and_problem(tmp_path, filename, text, message
 
 
 def test_unknown_name_and_missing_file(tmp_path):
-    with pytest.raises(ValueError, match="unknown material 'ebx936'.*ebxhd936_like, fge106hd_like, generic_woven, twintex3_like"):
+    with pytest.raises(ValueError, match="unknown material 'ebx936'.*ebxhd936_derived, ebxhd936_like, fge106hd_1p65mm_derived, "
+                       "fge106hd_5mm_derived, fge106hd_derived, fge106hd_like, generic_woven, twintex3_like"):
         load_material("ebx936")
     with pytest.raises(ValueError, match="material file not found"):
         load_material(tmp_path / "nope.toml")

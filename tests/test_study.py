@@ -217,7 +217,7 @@ BAD = [
     ("negative-sd-deg", BASE + "\n[uncertainty.zero_angle]\nsd_deg = -1.0\n",
      ["uncertainty.zero_angle.sd_deg = -1.0", "sd_deg >= 0"]),
     ("unknown-factor", BASE + '\n[uncertainty.speed]\ndist = "normal"\n',
-     ["uncertainty.speed", "valid keys in [uncertainty]: spacing, zero_angle, blankholder_force"]),
+     ["uncertainty.speed", "valid keys in [uncertainty]: spacing, zero_angle, stitch_prestrain, blankholder_force"]),
     ("unknown-dist", BASE + '\n[uncertainty.friction]\ndist = "beta"\n',
      ['uncertainty.friction.dist = "beta"', '"uniform"', '"lognormal"']),
     ("dist-keys", BASE + '\n[uncertainty.friction]\ndist = "uniform"\nmean = 0.2\n',

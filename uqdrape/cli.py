@@ -25,6 +25,11 @@ def _geometry_help() -> str:
     return "\n".join(lines)
 
 
+def _architectures() -> list[str]:
+    """Shipped architecture names, without importing the (numpy/scipy) material package."""
+    return sorted(p.stem for p in (Path(__file__).parent / "material" / "architectures").glob("*.toml"))
+
+
 def _parse_params(pairs):
     params = {}
     for pair in pairs or []:
@@ -71,13 +76,52 @@ def cmd_drape(args) -> int:
     return 0
 
 
+def cmd_derive(args) -> int:
+    from .material.architecture import derive_card, load_architecture, summed
+    from .material.cards import card_material, card_text
+    from .material.plot import plot_architecture
+
+    if not args.source:
+        raise ValueError("derive needs an architecture: uqdrape materials derive ARCH.toml --out CARD.toml")
+    if not args.out or Path(args.out).suffix.lower() != ".toml":
+        raise ValueError(f"derive needs --out CARD.toml (a .toml path), got {args.out!r}")
+    out = Path(args.out)
+    arch = load_architecture(args.source)
+    terms = summed(arch)
+    doc = derive_card(arch, name=out.stem, source=Path(args.source).name, terms=terms)
+    text = card_text(doc, f"Material card derived by `uqdrape materials derive {Path(args.source).name}`: "
+                          "regenerate it, do not edit it.")
+    material = card_material(text, str(out))  # a card that would not load is not written
+    gamma0 = doc["architecture"]["zero_force_angle_deg"]
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if args.plot:  # the picture first: if it fails, no card is left behind either
+        png = out.with_suffix(".png") if args.plot is True else Path(args.plot)
+        png.parent.mkdir(parents=True, exist_ok=True)
+        plot_architecture(arch, png, terms, gamma0)
+    tmp = out.with_name(out.name + ".tmp")
+    tmp.write_text(text, encoding="utf-8")
+    tmp.replace(out)
+    print(f"wrote {out}: {material.name}, zero-force angle {gamma0:.2f} deg, locking +{material.locking_angle_deg:g} / "
+          f"-{material.locking_angle_neg_deg:g} deg (pre-strain {100 * arch.prestrain:.3g} %, beta {arch.beta:.4g})")
+    if args.plot:
+        print(f"wrote {png}")
+    return 0
+
+
 def cmd_materials(args) -> int:
     from .material import available_materials, load_material, plot_material
 
+    if args.name == "derive":
+        return cmd_derive(args)
+    if args.source or args.out:
+        raise ValueError("only `uqdrape materials derive ARCH.toml --out CARD.toml` takes a second argument or --out")
+    if args.plot is True:
+        raise ValueError("--plot needs a PNG path when showing a card")
     if not args.name:
-        for name in available_materials():
-            m = load_material(name)
-            print(f"{name:16s} {m.description}")
+        names = available_materials()
+        width = max(map(len, names))
+        for name in names:
+            print(f"{name:{width}s}  {load_material(name).description}")
         return 0
     m = load_material(args.name)
     print(f"{m.name}: {m.description}\nlocking angle +{m.locking_angle_deg} / -{m.locking_angle_neg_deg} deg, "
@@ -180,9 +224,23 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("files", nargs="+", help="study files (TOML)")
     v.set_defaults(func=cmd_validate)
 
-    m = sub.add_parser("materials", help="list material cards, or show and plot one")
-    m.add_argument("name", nargs="?", help="a card name or path")
-    m.add_argument("--plot", metavar="PNG", help="write the card's N_s and W curves to this PNG")
+    m = sub.add_parser(
+        "materials", formatter_class=argparse.RawDescriptionHelpFormatter,
+        help="list material cards, show and plot one, or derive one from a fabric architecture",
+        description="List the shipped material cards, show one, or derive a card from a fabric "
+                    "architecture (thesis ch. 4 stitch and compaction model).\n\n"
+                    "Examples:\n"
+                    "  uqdrape materials\n"
+                    "  uqdrape materials ebxhd936_like --plot ebx.png\n"
+                    "  uqdrape materials derive fge106hd --out fge.toml --plot\n"
+                    "  uqdrape materials derive my_fabric.toml --out cards/my_fabric.toml\n\n"
+                    "Shipped architectures: " + ", ".join(_architectures()))
+    m.add_argument("name", nargs="?", help="a card name or path, or the word derive")
+    m.add_argument("source", nargs="?", help="derive: an architecture TOML file or a shipped architecture name")
+    m.add_argument("--out", metavar="CARD.toml", help="derive: the card to write")
+    m.add_argument("--plot", metavar="PNG", nargs="?", const=True,
+                   help="write the card's N_s and W curves to this PNG; with derive, the contributions "
+                        "of each term (thesis Fig 4.18), by default next to the card")
     m.set_defaults(func=cmd_materials)
     return p
 

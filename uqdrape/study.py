@@ -14,6 +14,10 @@ Sections and keys (units: mm, N, degrees)::
     [solver]       mode = "energy", rings, tolerance_deg = 1e-3, max_iterations = 30
     [uncertainty.spacing]     cv, correlation = "iid", length_mm, kl_retained = 0.95
     [uncertainty.zero_angle]  mean_deg = 0, sd_deg, correlation = "iid", length_mm, kl_retained = 0.95
+    [uncertainty.stitch_prestrain]  mean, sd (fractions), correlation = "iid", length_mm, kl_retained = 0.95:
+                   each cell's stitch pre-strain, mapped to its zero-energy angle gamma0 through the
+                   material card's [architecture] (uqdrape.material.architecture.material_zero_force_table);
+                   needs a card derived from an architecture; not together with zero_angle
     [uncertainty.<factor>]    dist + parameters, factor in FACTOR_SETTINGS
     [sampling]     plan = "monte_carlo"
     [sensitivity]  method = "none", base_samples, qoi = all of QOIS
@@ -48,6 +52,7 @@ error too, because it usually means another key was forgotten.
 from __future__ import annotations
 
 import argparse
+import functools
 import inspect
 import json
 import math
@@ -80,7 +85,9 @@ FACTOR_SETTINGS = {
     "skew": "fabric.skew_deg",
 }
 #: Random fields of [uncertainty.<field>].
-FIELDS = ("spacing", "zero_angle")
+FIELDS = ("spacing", "zero_angle", "stitch_prestrain")
+#: Study-file keys of each field's own parameters.
+_FIELD_KEYS = {"spacing": ("cv",), "zero_angle": ("mean_deg", "sd_deg"), "stitch_prestrain": ("mean", "sd")}
 #: Scalar quantities of interest for [sensitivity] qoi.
 QOIS = (
     "max_abs_shear",
@@ -157,7 +164,9 @@ class RandomField:
     """A random fabric field (``name`` in FIELDS) and its correlation model.
 
     ``params`` is ``{"cv": ...}`` for spacing, ``{"mean_deg": ..., "sd_deg": ...}`` for the
-    zero-energy angle; ``length_mm`` (along fibre 1, fibre 2) is None for iid.
+    zero-energy angle, ``{"mean": ..., "sd": ...}`` for the stitch pre-strain (whose map to
+    gamma0 comes from ``material``, the fabric's card); ``length_mm`` (along fibre 1,
+    fibre 2) is None for iid.
     """
 
     name: str
@@ -165,12 +174,25 @@ class RandomField:
     correlation: str
     length_mm: tuple[float, float] | None
     kl_retained: float
+    material: str | None = None
 
     def build_input(self, rings: int, spacing_mm: float):
-        """The exact-sampling input map (uqdrape.stochastic SpacingInput / ZeroAngleInput);
-        call ``.kl(self.kl_retained)`` on it for a design that needs a finite variable set."""
+        """The exact-sampling input map (uqdrape.stochastic SpacingInput / ZeroAngleInput /
+        PrestrainInput); call ``.kl(self.kl_retained)`` on it for a design that needs a
+        finite variable set."""
+        common = dict(correlation=self.correlation, length_mm=self.length_mm, **self.params)
+        if self.name == "stitch_prestrain":
+            return _stochastic.PrestrainInput(rings, spacing_mm, to_gamma0=_prestrain_map(self.material), **common)
         cls = _stochastic.SpacingInput if self.name == "spacing" else _stochastic.ZeroAngleInput
-        return cls(rings, spacing_mm, correlation=self.correlation, length_mm=self.length_mm, **self.params)
+        return cls(rings, spacing_mm, **common)
+
+
+@functools.lru_cache(maxsize=8)
+def _prestrain_map(material: str):
+    """The stitch pre-strain -> gamma0 table of a material card (built once per process)."""
+    from .material.architecture import material_zero_force_table
+
+    return material_zero_force_table(_material.load_material(material))
 
 
 @dataclass(frozen=True)
@@ -539,14 +561,28 @@ def _solver(src: _Source, doc: dict) -> Solver:
     )
 
 
-def _field(src: _Source, name: str, data, rings: int, spacing_mm: float) -> RandomField:
-    own = ("cv",) if name == "spacing" else ("mean_deg", "sd_deg")
+def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, material: str) -> RandomField:
     section = f"uncertainty.{name}"
-    t = _Table(src, section, data, (*own, "correlation", "length_mm", "kl_retained"))
+    t = _Table(src, section, data, (*_FIELD_KEYS[name], "correlation", "length_mm", "kl_retained"))
     if name == "spacing":
         params = {"cv": t.number("cv")}  # its range is checked by SpacingInput
-    else:
+    elif name == "zero_angle":
         params = {"mean_deg": t.number("mean_deg", 0.0), "sd_deg": t.number("sd_deg")}
+    else:
+        params = {"mean": t.number("mean"), "sd": t.number("sd", ge=0)}
+        try:
+            table = _prestrain_map(material)
+        except ValueError as err:
+            src.invalid(section, data, str(err))
+        if np.ptp(table.gamma0_deg) == 0.0:
+            src.invalid(section, data, f"the zero-force angle of {Path(material).stem} is "
+                                       f"{table.gamma0_deg[0]:g} deg at every pre-strain up to "
+                                       f"{table.max_prestrain:g} (its stitch friction holds the fabric), "
+                                       "so this field would change nothing")
+        top = params["mean"] + 7.0 * params["sd"]
+        if top > table.max_prestrain:
+            src.invalid(section, data, f"mean + 7 sd = {top:g} passes the largest mapped pre-strain "
+                                       f"{table.max_prestrain:g}; use a smaller mean or sd")
     correlation = t.string("correlation", "iid", choices=_stochastic.CORRELATIONS)
     length = None
     if t.has("length_mm"):
@@ -555,7 +591,8 @@ def _field(src: _Source, name: str, data, rings: int, spacing_mm: float) -> Rand
                       '"exponential" or "squared_exponential", or remove length_mm')
         length = t.numbers("length_mm", length=2, hint="length_mm must be two numbers [L1, L2] in mm, > 0")
     retained = t.number("kl_retained", 0.95)
-    spec = RandomField(name, params, correlation, length, retained)
+    spec = RandomField(name, params, correlation, length, retained,
+                       material if name == "stitch_prestrain" else None)
     given = {k: (t.dotted(k), v) for k, v in t.data.items()}
     given["retained"] = (t.dotted("kl_retained"), retained)
     required = {"length_mm": t.dotted("length_mm")} if length is None and correlation != "iid" else {}
@@ -596,7 +633,11 @@ def _uncertainty(src: _Source, doc: dict, fabric: Fabric, process: Process, solv
         if not t.has(name):
             continue
         if name in FIELDS:
-            fields[name] = _field(src, name, t.data[name], solver.rings, fabric.spacing_mm)
+            if name == "stitch_prestrain" and "zero_angle" in fields:
+                src.invalid("uncertainty.stitch_prestrain", t.data[name],
+                            "the stitch pre-strain sets each cell's zero-energy angle itself: remove "
+                            "[uncertainty.zero_angle] or this field")
+            fields[name] = _field(src, name, t.data[name], solver.rings, fabric.spacing_mm, fabric.material)
         else:
             factors[name] = _factor(src, name, t.data[name])
     if "blankholder_force" in factors and len(process.blankholder_force_N) > 1:

@@ -1,7 +1,8 @@
 """Per-realisation solver inputs of a study, from standard random variables.
 
 Every uncertain input is a function of *standard variables*: standard normals drive the
-random fields (spacing: segment lengths in mm; zero angle: gamma0 per cell in degrees)
+random fields (spacing: segment lengths in mm; zero angle, or stitch pre-strain mapped
+through the card's architecture: gamma0 per cell in degrees)
 and standard uniforms drive the scalar factors (through ``Factor.ppf``, in the factor's
 own unit). Two sources of standard variables share one map (:func:`_inputs`):
 
@@ -58,8 +59,9 @@ def _inputs(study, fields: dict, xi: dict, u: np.ndarray) -> dict:
     out = {}
     if "spacing" in fields:
         out["seg_i"], out["seg_j"] = fields["spacing"](xi["spacing"])
-    if "zero_angle" in fields:
-        out["gamma0"] = fields["zero_angle"](xi["zero_angle"])
+    for name in ("zero_angle", "stitch_prestrain"):  # the study allows one of them
+        if name in fields:
+            out["gamma0"] = fields[name](xi[name])
     for k, (name, factor) in enumerate(study.uncertainty.factors.items()):
         out[name] = factor.ppf(u[:, k])
     return out
@@ -84,7 +86,8 @@ def sampled_inputs(study, realizations) -> dict:
 def design_variables(study) -> list[str]:
     """Column names of a design matrix for :func:`inputs_from_design`: the scalar factors
     (standard uniforms), then ``field[k]`` for each field's KL modes (standard normals),
-    fields in the order ``spacing``, ``zero_angle`` (as uqdrape.sensitivity names them)."""
+    fields in the order ``spacing``, ``zero_angle``, ``stitch_prestrain`` (as uqdrape.sensitivity
+    names them)."""
     names = list(study.uncertainty.factors)
     for name, inp in _field_inputs(study, kl=True).items():
         names += [f"{name}[{k}]" for k in range(inp.n_variables)]

@@ -17,6 +17,9 @@ A TOML card (angles in degrees, N_s in N/m, bending stiffness in N·m²):
     [shear.negative]                   # optional magnitudes; omitted = symmetric (woven)
     angle_deg = [...]
     ns = [...]
+    [architecture]                     # cards derived from a fabric architecture only:
+    ...                                # inputs, calibration, model version (see
+                                       # uqdrape.material.architecture.derive_card)
 
 Instead of the inline tables, `[shear] csv = "curves.csv"` names a CSV file (relative to the
 card) in the CSV format below. A bare CSV can also be loaded on its own; the material is then
@@ -31,6 +34,8 @@ from __future__ import annotations
 
 import csv
 import io
+import json
+import math
 import tomllib
 from importlib import resources
 from pathlib import Path
@@ -47,6 +52,7 @@ _CARD_KEYS = {
     "bending_stiffness": float,
     "stitch_direction_deg": float,
     "shear": dict,
+    "architecture": dict,
 }
 _CSV_COLUMNS = ("angle_deg", "ns_positive", "ns_negative")
 
@@ -83,6 +89,12 @@ def load_material(name_or_path) -> Material:
     return _material_from_toml(path.read_text(encoding="utf-8"), str(path), path.stem, path.parent)
 
 
+def card_material(text: str, label: str) -> Material:
+    """A `Material` from the TOML text of a self-contained card (no [shear] csv); ``label``
+    names it in errors and its stem is the default name."""
+    return _material_from_toml(text, label, Path(label).stem, None)
+
+
 def _material_from_toml(text, label, stem, base_dir):
     """Parse a TOML card; `base_dir` (Path or importlib Traversable) resolves a `[shear] csv`."""
     try:
@@ -102,7 +114,7 @@ def _material_from_toml(text, label, stem, base_dir):
         elif not isinstance(value, kind):
             raise ValueError(f"{label}: {key} must be a {'table' if kind is dict else 'string'}, got {value!r}")
         elif key != "shear":
-            props[key] = value
+            props[key] = value  # "architecture": a derived card's record, kept as read
     props.setdefault("name", stem)
     if "shear" not in card:
         raise ValueError(f"{label}: missing the [shear] table (inline [shear.positive] points or csv = \"file.csv\")")
@@ -177,3 +189,57 @@ def _build(label, props):
         return Material.from_curves(**props)
     except ValueError as exc:
         raise ValueError(f"{label}: {exc}") from None
+
+
+def material_document(material: Material) -> dict:
+    """The card of a `Material` as a TOML-layout dict (inverse of loading a TOML card)."""
+    doc = {"name": material.name}
+    for key in ("description", "note"):
+        if getattr(material, key):
+            doc[key] = getattr(material, key)
+    doc.update(phi0_deg=material.phi0_deg, locking_angle_deg=material.locking_angle_deg,
+               locking_angle_neg_deg=material.locking_angle_neg_deg,
+               bending_stiffness=material.bending_stiffness)
+    if material.stitch_direction_deg is not None:
+        doc["stitch_direction_deg"] = material.stitch_direction_deg
+    branches = ("positive",) if material.symmetric else ("positive", "negative")
+    doc["shear"] = {}
+    for branch in branches:
+        angles, ns = material.curve(branch)
+        doc["shear"][branch] = {"angle_deg": angles.tolist(), "ns": ns.tolist()}
+    if material.architecture is not None:
+        doc["architecture"] = material.architecture
+    return doc
+
+
+def _toml_value(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, (int, float)):
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ValueError(f"cannot write the non-finite number {value!r} to a card")
+        return repr(value)
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    raise TypeError(f"cannot write {value!r} to TOML")
+
+
+def card_text(doc: dict, header: str = "") -> str:
+    """TOML text of a card document (plain keys first, then each table in order)."""
+    lines = [f"# {line}" for line in header.splitlines()]
+
+    def emit(table: dict, prefix: str):
+        for key, value in table.items():
+            if not isinstance(value, dict):
+                lines.append(f"{key} = {_toml_value(value)}")
+        for key, value in table.items():
+            if isinstance(value, dict):
+                name = f"{prefix}{key}"
+                if any(not isinstance(v, dict) for v in value.values()) or not value:
+                    lines.extend(["", f"[{name}]"])
+                emit(value, name + ".")
+
+    emit(doc, "")
+    return "\n".join(lines) + "\n"

@@ -144,7 +144,8 @@ class Material:
     locking_angle_deg [deg] (positive branch; None: end of the positive curve),
     locking_angle_neg_deg [deg, magnitude] (None: locking_angle_deg if that is given,
     else the end of the negative curve),
-    bending_stiffness [N·m²], stitch_direction_deg [deg] or None, description, note.
+    bending_stiffness [N·m²], stitch_direction_deg [deg] or None, description, note,
+    architecture (a derived card's [architecture] record, dict, or None).
     """
 
     def __init__(
@@ -162,12 +163,15 @@ class Material:
         stitch_direction_deg=None,
         description="",
         note="",
+        architecture=None,
     ):
         if not isinstance(name, str) or not name:
             raise ValueError(f"name must be a non-empty string, got {name!r}")
         self.name = name
         self.description = str(description)
         self.note = str(note)
+        #: the [architecture] record of a card derived by uqdrape.material.architecture (else None)
+        self.architecture = architecture
 
         phi0_deg = float(phi0_deg)
         if not 0.0 < phi0_deg < 90.0:
@@ -227,6 +231,7 @@ class Material:
                 )
         self.stitch_direction_deg = stitch_direction_deg
 
+        self._curves = {"positive": (a_pos, n_pos), "negative": (a_neg, n_neg)}
         stiffness = LOCK_STIFFNESS_PER_RAD * max(float(n_pos.max()), float(n_neg.max()), 1.0)
         self._pos = _Branch(np.deg2rad(a_pos), n_pos, np.deg2rad(lock_pos), self.phi0_rad, +1, stiffness)
         self._neg = _Branch(np.deg2rad(a_neg), n_neg, np.deg2rad(lock_neg), self.phi0_rad, -1, stiffness)
@@ -240,8 +245,8 @@ class Material:
         """The input points of one branch ("positive" or "negative"): (angles [deg], N_s [N/m])."""
         if branch not in ("positive", "negative"):
             raise ValueError(f"branch must be 'positive' or 'negative', got {branch!r}")
-        b = self._pos if branch == "positive" else self._neg
-        return np.rad2deg(b.angles_rad), b.ns.copy()
+        angles, ns = self._curves[branch]
+        return angles.copy(), ns.copy()
 
     def energy_density(self, gamma_rad):
         """W(γ) in J/m² per unit initial area; γ signed, in rad, any array shape; NaN -> NaN."""

@@ -40,3 +40,47 @@ def plot_material(material, path):
                  f"−{material.locking_angle_neg_deg:g}°")
     fig.savefig(path, dpi=120)
     return path
+
+
+def plot_architecture(arch, path, terms=None, gamma0_deg=None):
+    """Write a thesis Fig 4.18-style PNG: each term's N_s (N/m) against θ (deg), −75..75.
+
+    Left: the four contributions on the thesis's axes (±200 N/m); right: their sum on an
+    axis that fits it (to 1000 N/m), with the zero-force angle γ0 marked. ``terms`` is
+    ``uqdrape.material.architecture.summed(arch)`` (computed if None). Returns the path.
+    """
+    from .architecture import LOCK_FORCE_N_PER_M, TERMS, summed
+
+    path = Path(path)
+    terms = summed(arch) if terms is None else terms
+    deg = np.rad2deg(terms["theta"])
+    fig = Figure(figsize=(10.0, 4.0), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax_t, ax_s = fig.subplots(1, 2)
+    colours = {"stitch_tension": "tab:red", "stitch_friction": "tab:orange", "compaction": "tab:blue",
+               "crossover": "tab:green", "total": "k"}
+    for term in (*TERMS, "total"):
+        ax = ax_s if term == "total" else ax_t
+        ns = np.where(np.isfinite(terms[f"ns_{term}"]), terms[f"ns_{term}"], np.nan)
+        ax.plot(deg, ns, color=colours[term], label=term.replace("_", " "))
+    ax_t.set_ylim(-200.0, 200.0)
+    total = terms["ns_total"]
+    shown = np.abs(total[np.isfinite(total)])
+    top = min(LOCK_FORCE_N_PER_M, 1.1 * float(shown.max()))
+    ax_s.set_ylim(-top, top)
+    if gamma0_deg is not None:
+        ax_s.axvline(gamma0_deg, color="0.4", linestyle="--", linewidth=1.0,
+                     label=f"zero-force angle {gamma0_deg:.2f}°")
+    for ax, title in ((ax_t, "contributions (thesis Fig 4.18 axes)"), (ax_s, "summed")):
+        ax.set_xlim(-75.0, 75.0)
+        ax.axhline(0.0, color="0.8", linewidth=0.8)
+        ax.axvline(0.0, color="0.8", linewidth=0.8)
+        ax.set_xlabel("shear angle θ (deg)")
+        ax.set_ylabel("normalised shear force $N_s$ (N/m)")
+        ax.set_title(title, fontsize=10)
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper left", fontsize=8)
+    fig.suptitle(f"{arch.name}: stitch {arch.stitch_length_mm:g} mm, gauge {arch.gauge:g}, lapping "
+                 f"{tuple(arch.lapping)}, pre-strain {100 * arch.prestrain:.3g} %, β = {arch.beta:.4g}")
+    fig.savefig(path, dpi=120)
+    return path

@@ -129,3 +129,28 @@ class ZeroAngleInput(_FieldInput):
                 f"{_first_bad(bad, np.ndim(xi) - 1)}; use a smaller sd_deg"
             )
         return gamma0
+
+
+class PrestrainInput(_FieldInput):
+    """Stitch pre-strain per cell ε0 = mean + sd ξ_c (fractions), mapped to the cell's
+    zero-energy angle γ0 (degrees) by ``to_gamma0`` (a vectorised map such as
+    ``uqdrape.material.architecture.ZeroForceTable``): the thesis's explanation of the
+    negative mean fibre angle (L9189-9195) applied cell by cell.
+
+    One (2n, 2n) lattice of cell centres, like :class:`ZeroAngleInput`.
+    """
+
+    def __init__(self, rings: int, spacing_mm: float, mean: float, sd: float, to_gamma0,
+                 correlation: str = "iid", length_mm=None):
+        n = _rings(rings)
+        ok = all(isinstance(v, (int, float, np.number)) and math.isfinite(v) for v in (mean, sd))
+        if not ok or sd < 0:
+            raise ValueError(f"stitch pre-strain needs finite mean and sd >= 0 (fractions), got mean={mean!r}, sd={sd!r}")
+        self.mean, self.sd = float(mean), float(sd)
+        self.to_gamma0 = to_gamma0
+        super().__init__([(2 * n, 2 * n)], _spacing(spacing_mm), correlation, length_mm)
+
+    def __call__(self, xi) -> np.ndarray:
+        """Zero-energy angles (..., 2n, 2n), degrees."""
+        (z,) = self._field_values(xi)
+        return self.to_gamma0(self.mean + self.sd * z)
