@@ -120,7 +120,7 @@ def bench_nosecone(runs: int = 3) -> None:
 
 
 def bench_hemisphere(n: int, chunk: int) -> None:
-    from uqdrape.ensemble import run_study
+    from uqdrape.workflow import run_study
 
     print(f"(b) {n} geodesic hemisphere drapes (R 100 mm, s 5 mm, 41 x 41 net, spacing cv 0.5 %), "
           f"chunks of {chunk}, streamed to disk; {load()}", flush=True)

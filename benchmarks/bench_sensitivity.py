@@ -17,8 +17,7 @@ import dataclasses
 import time
 from pathlib import Path
 
-from uqdrape.ensemble import run_study
-from uqdrape.report import write_run_report
+from uqdrape.workflow import run_report, run_study
 from uqdrape.study import load_study
 
 STUDY = Path(__file__).resolve().parents[1] / "studies" / "sensitivity-vs-blankholder.toml"
@@ -48,7 +47,7 @@ def main():
     run_study(study, workers=args.workers, resume=True, progress=False)  # design + analysis only
     overhead = time.perf_counter() - t0
     t0 = time.perf_counter()
-    report = write_run_report(out)
+    report = run_report(out)
     report_time = time.perf_counter() - t0
 
     drape_time = total - overhead

@@ -21,9 +21,10 @@ import pytest
 import xarray as xr
 
 from uqdrape.ensemble import (
-    design_variables, drape_inputs, inputs_from_design, open_ensemble, run_study, sampled_inputs,
+    design_variables, drape_inputs, inputs_from_design, open_ensemble, sampled_inputs,
 )
 from uqdrape.study import FACTOR_SETTINGS, load_study
+from uqdrape.workflow import run_study
 
 N = 20
 
@@ -282,7 +283,7 @@ def test_interrupted_run_resumes_to_the_same_ensemble(tmp_path, reference):
     study, ref = reference
     path = study_file(tmp_path, chunk_size=1)
     chunks = tmp_path / "out" / "chunks"
-    code = (f"from uqdrape.ensemble import run_study; "
+    code = (f"from uqdrape.workflow import run_study; "
             f"run_study({str(path)!r}, workers=1, progress=False)")
     proc = subprocess.Popen([sys.executable, "-c", code], start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)

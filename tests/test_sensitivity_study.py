@@ -22,17 +22,18 @@ from SALib.test_functions import Ishigami
 from scipy.stats import qmc
 
 from uqdrape.cli import main
-from uqdrape.ensemble import inputs_from_design, open_ensemble, run_study
-from uqdrape.sensitivity import (
+from uqdrape.ensemble import inputs_from_design, open_ensemble
+from uqdrape.sensitivity import qoi_indices
+from uqdrape.stats import QOIS, realization_qois
+from uqdrape.study import StudyError, load_study
+from uqdrape.workflow import (
     MORRIS_SCREENING_TRAJECTORIES,
     design_base_samples,
     open_sensitivity,
-    qoi_indices,
-    realization_qois,
+    run_study,
     study_design,
     study_problem,
 )
-from uqdrape.study import QOIS, StudyError, load_study
 
 FORCES = (0.0, 378.0)
 ISHIGAMI_S1 = np.array([0.3139, 0.4424, 0.0])

@@ -131,28 +131,54 @@ def cmd_materials(args) -> int:
     return 0
 
 
-def cmd_validate(args) -> int:
-    from .study import main_validate
+def _study_summary(s) -> str:
+    """A few lines saying what a validated study will run."""
+    material = Path(s.fabric.material).name
+    levels = ", ".join(f"{f:g}" for f in s.force_levels)
+    force = f"sweep {levels} N" if s.is_sweep else f"{levels} N"
+    varying = []
+    for name, f in s.uncertainty.fields.items():
+        what = ", ".join(f"{k} {v:g}" for k, v in f.params.items())
+        length = f", L = {f.length_mm[0]:g} x {f.length_mm[1]:g} mm" if f.length_mm else ""
+        varying.append(f"{name} field ({what}; {f.correlation}{length})")
+    varying += [f"{name} ~ {factor.describe()}" for name, factor in s.uncertainty.factors.items()]
+    sens = s.sensitivity.method
+    if sens != "none":
+        sens += f", {s.sensitivity.base_samples} base samples"
+    return "\n".join([
+        f"{s.name}: {s.realizations} realisations, seed {s.seed}, {s.sampling.plan} plan, chunks of {s.chunk_size}",
+        f"  mould {s.geometry.build_mould().describe()}; "
+        f"material {material}; spacing {s.fabric.spacing_mm:g} mm, {s.solver.rings} rings, {s.solver.mode} mode",
+        f"  blank-holder force {force}, friction {s.process.friction:g}, {s.process.blankholder_model} friction model",
+        f"  varying: {'; '.join(varying) if varying else 'nothing (deterministic)'}",
+        f"  sensitivity: {sens}; output: {s.output_dir}",
+    ])
 
-    return main_validate(args.files)
+
+def cmd_validate(args) -> int:
+    """Print each study's summary; the first invalid file ends the command (exit 2)."""
+    from .study import load_study
+
+    for name in args.files:
+        print(_study_summary(load_study(name)))
+    return 0
 
 
 def cmd_run(args) -> int:
-    from .ensemble import run_study
-    from .report import write_run_report
+    from .workflow import run_report, run_study
 
     out = run_study(args.study, scheduler=args.scheduler, workers=args.workers, chunk_size=args.chunk_size,
                     resume=not args.no_resume, progress=not args.quiet, method=args.method)
     print(f"ensemble written to {out}")
     if not args.no_report:
-        print(f"report: {write_run_report(out)}")
+        print(f"report: {run_report(out)}")
     return 0
 
 
 def cmd_report(args) -> int:
-    from .report import write_run_report
+    from .workflow import run_report
 
-    print(f"report: {write_run_report(args.results, args.out)}")
+    print(f"report: {run_report(args.results, args.out)}")
     return 0
 
 

@@ -165,7 +165,7 @@ def _wrinkle_headline(ds: xr.Dataset) -> dict:
 
 
 def _sensitivity_headline(ds: xr.Dataset, out: Path) -> dict:
-    from .sensitivity.study import open_sensitivity
+    from .workflow import open_sensitivity
 
     indices = open_sensitivity(out)[0]
     out_ = {}
@@ -239,11 +239,11 @@ def palette_png(path: Path) -> None:
 def build_entry(entry: Entry, *, workers: int | None = None, resume: bool = False, progress: bool = True) -> Path:
     """Run ``entry``'s study, write its report and copy it into the gallery; returns the
     gallery folder. Call with the checkout root as the current directory (``main`` does)."""
-    from .ensemble import open_ensemble, run_study
-    from .report import write_run_report
+    from .ensemble import open_ensemble
+    from .workflow import run_report, run_study
 
     out = run_study(entry.study, workers=workers, resume=resume, progress=progress)
-    report = write_run_report(out).parent
+    report = run_report(out).parent
     ds = open_ensemble(out)
     headline = entry.headline(ds, out) if entry.reads_folder else entry.headline(ds)
     target = GALLERY_DIR / entry.name

@@ -8,6 +8,7 @@ import numpy as np
 import xarray as xr
 
 from .. import __version__
+from ..schema import SOLVER_INPUTS
 from .energy import BlankHolder
 from .kernels import dot, unit
 from .net import QUADRANTS, EnergyRings, NetProblem, build_geodesic
@@ -227,13 +228,8 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
                "status_codes": Status.describe(), "uqdrape_version": __version__,
                "Conventions": "CF-1.8"},
     )
-    described = {"orientation": ("degree", "fibre-1 plan angle from the x axis"),
-                 "pre_shear": ("degree", "shear of the flat blank"),
-                 "skew": ("degree", "generator-path skew at the crossover"),
-                 "crossover_x": ("mm", "crossover x"), "crossover_y": ("mm", "crossover y"),
-                 "blankholder_force": ("N", "total blank-holder force"),
-                 "friction": ("1", "fabric/blank-holder friction coefficient")}
     for name, value in factors.items():
-        units, long_name = described.get(name, ("1", f"sampled input {name}"))
-        ds[name] = ("realization", np.asarray(value, dtype=float), {"units": units, "long_name": long_name})
+        inp = SOLVER_INPUTS.get(name)
+        attrs = {"units": inp.units, "long_name": inp.long_name} if inp else {"units": "1", "long_name": f"sampled input {name}"}
+        ds[name] = ("realization", np.asarray(value, dtype=float), attrs)
     return ds

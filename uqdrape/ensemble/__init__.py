@@ -1,16 +1,16 @@
 """uqdrape.ensemble: run a study's realisations as dask tasks into a netCDF chunk store.
 
-``run_study(study)`` drapes every realisation (locally or on a dask.distributed cluster,
+``run_ensemble(study)`` drapes every realisation (or the rows of a design) (locally or on a dask.distributed cluster,
 resumable) and returns the output folder; ``open_ensemble(folder)`` opens it lazily as
 one xarray Dataset. ``sampled_inputs`` / ``inputs_from_design`` give the solver inputs of
 realisations as deterministic functions of standard variables, and ``drape_inputs``
 drapes them (e.g. for a sensitivity design).
 """
 
-from .chunk import drape_inputs
+from .chunk import drape_inputs, write_atomic
 from .inputs import design_variables, inputs_from_design, sampled_inputs
-from .run import run_study
+from .run import run_ensemble
 from .store import open_ensemble
 
-__all__ = ["run_study", "open_ensemble", "sampled_inputs", "inputs_from_design", "design_variables",
-           "drape_inputs"]
+__all__ = ["run_ensemble", "open_ensemble", "sampled_inputs", "inputs_from_design", "design_variables",
+           "drape_inputs", "write_atomic"]

@@ -19,6 +19,7 @@ import xarray as xr
 
 from ..drape import drape
 from ..material import load_material
+from ..schema import SOLVER_INPUTS
 
 
 def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None, material=None) -> xr.Dataset:
@@ -36,10 +37,7 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
     elif force is not None:
         raise ValueError(f"force={force!r}: study {study.name!r} is not a blank-holder-force sweep; pass force=None")
     fabric, process, solver = study.fabric, study.process, study.solver
-    # each scalar factor of the study (study.FACTOR_SETTINGS) and its fixed setting
-    settings = {"orientation": fabric.orientation_deg, "pre_shear": fabric.pre_shear_deg, "skew": fabric.skew_deg,
-                "crossover_x": fabric.crossover[0], "crossover_y": fabric.crossover[1],
-                "friction": process.friction, "blankholder_force": levels[0] if force is None else force}
+    settings = {name: study.setting(name, force) for name in SOLVER_INPUTS}
     unknown = sorted(set(inputs) - set(settings) - {"seg_i", "seg_j", "gamma0"})
     if unknown:
         raise ValueError(f"inputs {unknown} are not solver inputs; valid: seg_i, seg_j, gamma0, {', '.join(settings)}")

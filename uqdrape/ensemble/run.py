@@ -1,4 +1,4 @@
-"""``run_study``: a study's ensemble as dask tasks, one netCDF file per chunk, resumable.
+"""``run_ensemble``: a study's ensemble as dask tasks, one netCDF file per chunk, resumable.
 
 Realisations 0..N-1 are cut into consecutive chunks of ``chunk_size``; a sweep repeats
 the same chunks at every blank-holder-force level with the same random inputs (common
@@ -11,10 +11,9 @@ scheduler.
 Resume: the run folder's manifest records the study; a rerun of the same study skips
 chunks whose final file exists (a ``.part`` file is an unfinished chunk and is redone).
 
-A sensitivity study (``[sensitivity] method`` sobol/morris) drapes the rows of its SALib
-design (``uqdrape.sensitivity.study_design``) as realisations 0..n-1 instead of the
-Monte Carlo sample, through the same chunks, and is analysed once all chunks exist
-(``uqdrape.sensitivity.write_sensitivity``).
+Given a design matrix (a sensitivity study's rows, ``uqdrape.workflow.study_design``),
+its rows are draped as realisations 0..n-1 instead of the Monte Carlo sample, through
+the same chunks; what the outputs mean is not this package's business.
 """
 
 from __future__ import annotations
@@ -31,7 +30,7 @@ from dask.diagnostics import ProgressBar
 from tqdm import tqdm
 
 from .. import __version__
-from ..study import SENSITIVITY_METHODS, Study, load_study
+from ..study import Study
 from .chunk import drape_inputs, write_atomic
 from .inputs import inputs_from_design, sampled_inputs
 from .store import CHUNKS, read_manifest, write_manifest
@@ -143,28 +142,29 @@ def _compute(tasks: list, scheduler: str | None, workers: int | None, progress: 
             future.result()
 
 
-def run_study(study, *, scheduler: str | None = None, workers: int | None = None,
-              chunk_size: int | None = None, resume: bool = True, progress: bool = True,
-              method: str | None = None) -> Path:
-    """Run a study's ensemble; return its output folder (open it with ``open_ensemble``).
+def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance: dict | None = None,
+                 attrs: dict | None = None, scheduler: str | None = None, workers: int | None = None,
+                 chunk_size: int | None = None, resume: bool = True, progress: bool = True) -> Path:
+    """Drape a study's realisations into chunk files; return the output folder (open it
+    with ``open_ensemble``).
 
-    study       a ``Study`` or the path of a study TOML file
-    scheduler   None or "processes": a pool of local processes; "synchronous": in this
-                process; "tcp://host:port" (any "://" address): that dask.distributed cluster
-    workers     local processes (default: one per CPU); not allowed with a cluster address
-    chunk_size  realisations per chunk (one batched drape call); default: the study's
-    resume      skip chunks already written by an earlier run of the same study; False
-                deletes the folder's chunk files first
-    progress    show a progress bar (stderr)
-    method      None: the study's [sensitivity] method; "sobol" / "morris": drape that SALib
-                design and write sensitivity.nc; "none": the Monte Carlo sample. Another
-                method than the study's writes to ``<output_dir>-<method>``.
+    design_rows  None: the study's own sample (``sampled_inputs``); else a design matrix
+                 of standard variables (``inputs_from_design``), row k draped as realisation k
+    output_dir   default: the study's [output] directory
+    provenance   the study record kept in the manifest and every chunk (default ``study.to_dict()``)
+    attrs        further attributes of every chunk
+    scheduler    None or "processes": a pool of local processes; "synchronous": in this
+                 process; "tcp://host:port" (any "://" address): that dask.distributed cluster
+    workers      local processes (default: one per CPU); not allowed with a cluster address
+    chunk_size   realisations per chunk (one batched drape call); default: the study's
+    resume       skip chunks already written by an earlier run of the same study; False
+                 deletes the folder's chunk files first
+    progress     show a progress bar (stderr)
 
     Local worker processes are spawned and import the calling script, so a script needs
     the usual ``if __name__ == "__main__":`` guard. Cluster workers need uqdrape installed
     and must see the output folder (a shared file system).
     """
-    study = study if isinstance(study, Study) else load_study(study)
     chunk_size = study.chunk_size if chunk_size is None else _positive_int("chunk_size", chunk_size)
     if scheduler is not None and not (isinstance(scheduler, str) and (scheduler in LOCAL_SCHEDULERS or "://" in scheduler)):
         raise ValueError(f"scheduler must be None, one of {LOCAL_SCHEDULERS} or a dask.distributed "
@@ -173,25 +173,9 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
         workers = _positive_int("workers", workers)
         if scheduler is not None and scheduler not in LOCAL_SCHEDULERS:
             raise ValueError(f"workers={workers} sets local processes; the cluster at {scheduler} has its own workers")
-
-    method = study.sensitivity.method if method is None else method
-    if method not in SENSITIVITY_METHODS:
-        raise ValueError(f"method must be None or one of {SENSITIVITY_METHODS}, got {method!r}")
-    design = None
-    if method != "none":
-        from ..sensitivity import study_design  # SALib: imported only for a sensitivity run
-
-        design = study_design(study, method)
-
-    out = study.output_dir.absolute()
-    provenance = study.to_dict()
-    if method != study.sensitivity.method:
-        out = out.with_name(f"{out.name}-{method}")
-        provenance["sensitivity"]["method"] = method
-        provenance["sensitivity"].pop("base_samples", None)
-    if design is not None:
-        provenance["sensitivity"]["base_samples"] = design.meta["base_samples"]
-    chunks = plan_chunks(study, chunk_size, None if design is None else design.n_evaluations)
+    out = Path(study.output_dir if output_dir is None else output_dir).absolute()
+    provenance = study.to_dict() if provenance is None else provenance
+    chunks = plan_chunks(study, chunk_size, None if design_rows is None else len(design_rows))
     _prepare(out, {"study": provenance, "chunk_size": chunk_size, "chunks": [c.name for c in chunks],
                    "uqdrape_version": __version__}, resume)
 
@@ -202,18 +186,8 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
               file=sys.stderr)
     attrs = {"study_name": study.name, "study_seed": study.seed, "study_realizations": study.realizations,
              "sampling_plan": study.sampling.plan, "study_toml": Path(study.path).read_text(encoding="utf-8"),
-             "study_json": json.dumps(provenance)}
-    if design is not None:
-        attrs.update(design_method=design.method, design_base_samples=design.meta["base_samples"],
-                     design_evaluations=design.n_evaluations)
+             "study_json": json.dumps(provenance), **(attrs or {})}
     run = dask.delayed(_run_chunk, pure=False)
-    _compute([run(study, c, str(folder), attrs, None if design is None else design.standard[c.start:c.stop])
+    _compute([run(study, c, str(folder), attrs, None if design_rows is None else design_rows[c.start:c.stop])
               for c in todo], scheduler, workers, progress)
-    if design is not None:
-        from ..sensitivity import write_sensitivity
-
-        if progress:
-            print(f"{study.name}: analysing {design.method} indices of {design.n_evaluations} evaluations"
-                  + (f" at {len(study.force_levels)} force levels" if study.is_sweep else ""), file=sys.stderr)
-        write_sensitivity(out, design, qoi=study.sensitivity.qoi, seed=study.seed)
     return out

@@ -22,7 +22,7 @@ from .ensemble_figures import (
 )
 from .experimental import ExperimentalPoints, read_experimental
 from .figures import plot_lines, plot_net
-from .html import write_report, write_run_report
+from .html import write_report
 from .sensitivity_figures import plot_sensitivity_bars, plot_sensitivity_map, plot_sensitivity_vs_force
 from .summary import headline_numbers
 
@@ -42,7 +42,6 @@ __all__ = [
     "plot_sensitivity_vs_force",
     "plot_sensitivity_map",
     "write_report",
-    "write_run_report",
     "headline_numbers",
     "read_experimental",
     "ExperimentalPoints",

@@ -61,7 +61,7 @@ def mean_positions(ds: xr.Dataset) -> xr.Dataset:
     return ds[["x", "y"]].mean(REALIZATION).compute()
 
 
-def _triangulation(x: np.ndarray, y: np.ndarray, valid: np.ndarray):
+def triangulation(x: np.ndarray, y: np.ndarray, valid: np.ndarray):
     """Triangles (two per net cell with four valid nodes) on the valid nodes; (Triangulation, flat index)."""
     index = np.full(valid.shape, -1)
     used = np.flatnonzero(valid)
@@ -86,7 +86,7 @@ def _map(ds: xr.Dataset, values: xr.DataArray, path, *, norm, cmap, cbar_label: 
     for ax, (force, xy) in zip(axes, groups):
         v = (values.sel({FORCE: force}) if force is not None else values).transpose("i", "j").values
         x, y = xy["x"].transpose("i", "j").values, xy["y"].transpose("i", "j").values
-        tri, used = _triangulation(x, y, np.isfinite(x) & np.isfinite(y) & np.isfinite(v))
+        tri, used = triangulation(x, y, np.isfinite(x) & np.isfinite(y) & np.isfinite(v))
         ax.tripcolor(tri, v.flat[used], shading="gouraud", norm=norm, cmap=cmap)
         ax.set(xlabel="x (mm)", ylabel="y (mm)", aspect="equal")
         if force is not None:

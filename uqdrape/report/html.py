@@ -139,7 +139,7 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, study_text: str | None 
     without a sweep whose realisations vary exactly one scalar factor (e.g. ``skew``)
     gets ``vs_<factor>.png`` (energies and line means against it). ``sensitivity`` /
     ``sensitivity_maps``: the QoI indices and node-shear index maps of a sensitivity run
-    (``uqdrape.sensitivity.open_sensitivity``), drawn as bar charts, index-vs-force lines
+    (``uqdrape.workflow.open_sensitivity``), drawn as bar charts, index-vs-force lines
     and maps, and tabulated in a Sensitivity section. Returns the index.html path.
     """
     if REALIZATION not in ds.dims:
@@ -327,27 +327,3 @@ Numbers also in <a href="{esc(summary_name)}">{esc(summary_name)}</a>.</p>
 </body>
 </html>
 """
-
-
-def write_run_report(output_dir, out_dir=None) -> Path:
-    """Report of a finished ``uqdrape run``: opens the ensemble under ``output_dir`` and takes
-    the title, study text, histogram nodes and experimental CSV from the study stored in
-    the run's attributes, and the sensitivity results if the run has them (``sensitivity.nc``).
-    Writes into ``out_dir`` (default ``output_dir/report``)."""
-    from uqdrape.ensemble import open_ensemble
-
-    from uqdrape.sensitivity import open_sensitivity
-
-    ds = open_ensemble(output_dir)
-    sensitivity = open_sensitivity(output_dir)
-    study = json.loads(ds.attrs.get("study_json", "{}"))
-    report = study.get("report", {})
-    info = study.get("study", {})
-    title = info.get("name") or Path(output_dir).name
-    if info.get("description"):
-        title = f"{title}: {info['description']}"
-    return write_report(ds, Path(out_dir) if out_dir else Path(output_dir) / "report", title=title,
-                        study_text=ds.attrs.get("study_toml"),
-                        histogram_nodes=report.get("histogram_nodes") or None,
-                        experimental_csv=report.get("experimental_csv"),
-                        **({} if sensitivity is None else dict(zip(("sensitivity", "sensitivity_maps"), sensitivity))))

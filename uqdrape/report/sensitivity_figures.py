@@ -2,7 +2,7 @@
 confidence intervals per quantity of interest, indices against blank-holder force per
 factor, and index maps of node shear on the net.
 
-Inputs are the Datasets ``write_sensitivity`` stores: QoI indices (dims factor, qoi
+Inputs are the Datasets ``uqdrape.workflow.write_sensitivity`` stores: QoI indices (dims factor, qoi
 [, blankholder_force]) and node-shear index maps (dims factor, i, j[, blankholder_force]),
 Sobol' (S1, ST and their ``_conf`` half-widths) or Morris (mu_star, mu_star_conf).
 Error bars and bands are the stored bootstrap confidence half-widths.
@@ -16,7 +16,7 @@ import xarray as xr
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from .ensemble_figures import _triangulation, mean_positions
+from .ensemble_figures import triangulation, mean_positions
 from .figures import FORCE, describe, force_title, save, styled, suptitle, unit_text
 
 #: The indices drawn per method: (variable, its confidence half-width, label).
@@ -165,7 +165,7 @@ def plot_sensitivity_map(ds: xr.Dataset, maps: xr.Dataset, path, index: str = "S
             v = level[index].sel(factor=factor).transpose("i", "j").values
             ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(v)
             if ok.sum() >= 3:
-                tri, used = _triangulation(x, y, ok)
+                tri, used = triangulation(x, y, ok)
                 ax.tripcolor(tri, v.flat[used], shading="gouraud", norm=norm, cmap=cmap)
             ax.set(aspect="equal", xticks=[], yticks=[])
             ax.set_title(factor + ("" if force is None else f", {force_title(force)}"), fontsize=9)

@@ -2,10 +2,9 @@
 Sobol'/Morris indices as xarray Datasets, and indices versus blank-holder force.
 
 Flow (as SALib's): ``make_problem`` -> ``sample`` -> evaluate -> ``analyze``;
-``run_sensitivity`` does all three for any callable model. For a study,
-``study_design`` gives the design whose rows ``uqdrape run`` drapes, and
-``write_sensitivity`` analyses the run's quantities of interest (``realization_qois``)
-and node shear per blank-holder level (``open_sensitivity`` reads the result).
+``run_sensitivity`` does all three for any callable model; ``qoi_indices`` and
+``map_indices`` analyse the outputs of a design per blank-holder force level. The
+study-level flow (a study's design, its drapes, the files) is ``uqdrape.workflow``.
 """
 
 from .analysis import CONSTANT_RTOL, VARIABLES, analyze, analyze_map, indices_vs_levels
@@ -20,27 +19,12 @@ from .design import (
 )
 from .pipeline import run_sensitivity
 from .problem import check_problem, field_group, make_problem
-from .qoi import QOI_ATTRS, realization_qois
-from .study import (
-    INDICES_FILE,
-    MAPS_FILE,
-    MORRIS_SCREENING_TRAJECTORIES,
-    StudyDesign,
-    design_base_samples,
-    map_indices,
-    open_sensitivity,
-    qoi_indices,
-    study_design,
-    study_problem,
-    write_sensitivity,
-)
+from .indices import ROUNDOFF, Design, map_indices, qoi_indices
 
 __all__ = [
     "CONSTANT_RTOL", "METHODS", "MORRIS_MIN_TRAJECTORIES", "MORRIS_NUM_LEVELS",
     "MORRIS_TAIL_QUANTILE", "SOBOL_MIN_BASE_SAMPLES", "VARIABLES", "analyze",
     "analyze_map", "check_base_samples", "check_problem", "field_group", "indices_vs_levels",
     "make_problem", "run_sensitivity", "sample",
-    "QOI_ATTRS", "realization_qois",
-    "INDICES_FILE", "MAPS_FILE", "MORRIS_SCREENING_TRAJECTORIES", "StudyDesign", "design_base_samples",
-    "map_indices", "open_sensitivity", "qoi_indices", "study_design", "study_problem", "write_sensitivity",
+    "ROUNDOFF", "Design", "map_indices", "qoi_indices",
 ]

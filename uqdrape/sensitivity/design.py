@@ -29,7 +29,7 @@ MORRIS_NUM_LEVELS = 4
 # those (and only those) distributions the levels are moved affinely into
 # [q, 1 - q]: the extreme Morris levels become the 0.5 % and 99.5 % quantiles.
 MORRIS_TAIL_QUANTILE = 0.005
-_UNBOUNDED = ("norm", "lognorm")
+UNBOUNDED = ("norm", "lognorm")
 
 
 def check_seed(seed) -> int:
@@ -95,7 +95,7 @@ def sample(problem: Mapping, method: str = "sobol", *, base_samples: int, seed: 
                 "groups": problem.get("groups")}
         levels = morris_sample.sample(unit, n, num_levels=MORRIS_NUM_LEVELS, seed=seed)
         dists = problem.get("dists") or ["unif"] * d
-        unbounded = np.array([dist in _UNBOUNDED for dist in dists])
+        unbounded = np.array([dist in UNBOUNDED for dist in dists])
         q = MORRIS_TAIL_QUANTILE
         levels[:, unbounded] = q + (1.0 - 2.0 * q) * levels[:, unbounded]
         X = scale_samples(levels, dict(problem))

@@ -2,7 +2,8 @@
 
 Per-node mean, sd, skewness, quantiles and their confidence limits; exceedance
 probability (wrinkle risk) with binomial intervals; summaries along the max/min-shear
-lines; node histograms with a fitted Normal; convergence with N. Every function
+lines; node histograms with a fitted Normal; convergence with N; the scalar quantities
+of interest of each drape that sensitivity studies rank. Every function
 reduces along ``realization`` (dask-friendly) and returns an in-memory xarray Dataset
 with CF ``units`` / ``long_name`` attributes.
 """
@@ -11,6 +12,7 @@ from .convergence import convergence, samples_needed
 from .exceedance import clopper_pearson_interval, exceedance_probability, wilson_interval
 from .histogram import node_histogram
 from .lines import line_scalars, line_statistics
+from .qoi import QOI_ATTRS, QOIS, realization_qois
 from .summary import mean_statistics, node_statistics
 
 __all__ = [
@@ -24,4 +26,7 @@ __all__ = [
     "node_histogram",
     "convergence",
     "samples_needed",
+    "QOIS",
+    "QOI_ATTRS",
+    "realization_qois",
 ]

@@ -1,8 +1,7 @@
-"""The study file: parse a study TOML, validate it, explain what is wrong.
+"""The study file: read a study TOML, validate it, explain what is wrong.
 
 ``load_study(path)`` reads a study file (TOML, via ``tomllib``) into a frozen
-:class:`Study`; ``validate_study(path)`` returns a short human summary;
-``main_validate(argv)`` is the ``uqdrape validate FILE...`` command.
+:class:`~uqdrape.study.spec.Study`.
 
 Sections and keys (units: mm, N, degrees)::
 
@@ -21,7 +20,7 @@ Sections and keys (units: mm, N, degrees)::
     [uncertainty.<factor>]    dist + parameters, factor in FACTOR_SETTINGS
     [sampling]     plan = "monte_carlo"
     [sensitivity]  method = "none", base_samples, qoi = all of QOIS
-    [report]       lines = "max_shear", histogram_nodes = [], experimental_csv
+    [report]       histogram_nodes = [], experimental_csv
     [output]       directory = "results/<study name>"
 
 Factor distributions (values in the units of the setting they override): normal
@@ -48,258 +47,36 @@ tie sections together. A key that would be silently ignored (``length_mm`` of an
 field, ``base_samples`` without a sensitivity method) is an
 error too, because it usually means another key was forgotten.
 """
-
 from __future__ import annotations
 
-import argparse
-import functools
 import inspect
 import json
 import math
 import re
-import sys
 import tomllib
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from . import geometry as _geometry
-from .drape import BLANKHOLDER_MODELS, MODES
-from . import material as _material
-from . import stochastic as _stochastic
+from .. import geometry as _geometry
+from .. import material as _material
+from .. import stochastic as _stochastic
+from ..drape import BLANKHOLDER_MODELS, MODES
+from ..schema import SOLVER_INPUTS
+from ..stats import QOIS
+from .spec import (DIST_KEYS, FACTOR_SETTINGS, FIELD_KEYS, FIELDS, SECTIONS, SENSITIVITY_METHODS, Fabric,
+                   Geometry, Process, RandomField, Report, Sampling, Sensitivity, Solver, Study, Uncertainty,
+                   prestrain_map)
 
 
 class StudyError(ValueError):
     """A problem in a study file; the message names the file, the key, the value and what is valid."""
 
 
-#: Scalar factors of [uncertainty.<factor>] -> the fixed setting each one overrides.
-FACTOR_SETTINGS = {
-    "blankholder_force": "process.blankholder_force_N",
-    "friction": "process.friction",
-    "orientation": "fabric.orientation_deg",
-    "crossover_x": "fabric.crossover[0]",
-    "crossover_y": "fabric.crossover[1]",
-    "pre_shear": "fabric.pre_shear_deg",
-    "skew": "fabric.skew_deg",
-}
-#: Random fields of [uncertainty.<field>].
-FIELDS = ("spacing", "zero_angle", "stitch_prestrain")
-#: Study-file keys of each field's own parameters.
-_FIELD_KEYS = {"spacing": ("cv",), "zero_angle": ("mean_deg", "sd_deg"), "stitch_prestrain": ("mean", "sd")}
-#: Scalar quantities of interest for [sensitivity] qoi.
-QOIS = (
-    "max_abs_shear",
-    "mean_shear_positive",
-    "mean_shear_negative",
-    "asymmetry",
-    "blankholder_energy",
-    "locked_fraction",
-)
-SENSITIVITY_METHODS = ("sobol", "morris", "none")
-LINES = ("max_shear",)
-SECTIONS = (
-    "study", "geometry", "fabric", "process", "solver",
-    "uncertainty", "sampling", "sensitivity", "report", "output",
-)
 # factor distributions offered in a study file (a constant is the fixed setting itself)
 _DISTS = tuple(d for d in _stochastic.DISTRIBUTIONS if d != "constant")
-# study-file parameter names of each distribution; "bounds" = [lower, upper]
-_DIST_KEYS = {"normal": ("mean", "sd"), "truncnormal": ("mean", "sd", "bounds"),
-              "uniform": ("bounds",), "lognormal": ("mean", "sd")}
 _NAME_RE = re.compile(r"^[A-Za-z0-9_-]+$")
 _REQUIRED = object()
-
-
-# ----------------------------------------------------------------------------- the Study
-
-
-@dataclass(frozen=True)
-class Geometry:
-    """The mould: ``kind`` (a key of uqdrape.geometry.KINDS) and its full shape parameters."""
-
-    kind: str
-    params: dict
-
-    def build_mould(self):
-        """A new Surface for this mould (an STL mould is re-read: keep the result)."""
-        return _geometry.build(self.kind, **self.params)
-
-
-@dataclass(frozen=True)
-class Fabric:
-    """Fabric and blank: material (shipped card name or absolute card path), mm, degrees."""
-
-    material: str
-    spacing_mm: float
-    orientation_deg: float
-    pre_shear_deg: float
-    crossover: tuple[float, float]
-    #: extra angle closed between the generator paths at the crossover (thesis Fig 5.5)
-    skew_deg: float = 0.0
-
-
-@dataclass(frozen=True)
-class Process:
-    """Blank-holder force levels (N; one level unless a sweep), friction (-), sector weights,
-    and which slip the friction works on (``uqdrape.drape.energy.BlankHolder``)."""
-
-    blankholder_force_N: tuple[float, ...]
-    friction: float
-    sectors: tuple[float, ...] | None
-    blankholder_model: str = "slip"
-
-
-@dataclass(frozen=True)
-class Solver:
-    mode: str
-    rings: int
-    tolerance_deg: float
-    max_iterations: int
-
-
-@dataclass(frozen=True)
-class RandomField:
-    """A random fabric field (``name`` in FIELDS) and its correlation model.
-
-    ``params`` is ``{"cv": ...}`` for spacing, ``{"mean_deg": ..., "sd_deg": ...}`` for the
-    zero-energy angle, ``{"mean": ..., "sd": ...}`` for the stitch pre-strain (whose map to
-    gamma0 comes from ``material``, the fabric's card); ``length_mm`` (along fibre 1,
-    fibre 2) is None for iid.
-    """
-
-    name: str
-    params: dict
-    correlation: str
-    length_mm: tuple[float, float] | None
-    kl_retained: float
-    material: str | None = None
-
-    def build_input(self, rings: int, spacing_mm: float):
-        """The exact-sampling input map (uqdrape.stochastic SpacingInput / ZeroAngleInput /
-        PrestrainInput); call ``.kl(self.kl_retained)`` on it for a design that needs a
-        finite variable set."""
-        common = dict(correlation=self.correlation, length_mm=self.length_mm, **self.params)
-        if self.name == "stitch_prestrain":
-            return _stochastic.PrestrainInput(rings, spacing_mm, to_gamma0=_prestrain_map(self.material), **common)
-        cls = _stochastic.SpacingInput if self.name == "spacing" else _stochastic.ZeroAngleInput
-        return cls(rings, spacing_mm, **common)
-
-
-@functools.lru_cache(maxsize=8)
-def _prestrain_map(material: str):
-    """The stitch pre-strain -> gamma0 table of a material card (built once per process)."""
-    from .material.architecture import material_zero_force_table
-
-    return material_zero_force_table(_material.load_material(material))
-
-
-@dataclass(frozen=True)
-class Uncertainty:
-    """Random fields by name (FIELDS) and scalar factors by name (FACTOR_SETTINGS)."""
-
-    fields: dict
-    factors: dict
-
-    @property
-    def varying(self) -> tuple[str, ...]:
-        return tuple(self.fields) + tuple(self.factors)
-
-
-@dataclass(frozen=True)
-class Sampling:
-    plan: str
-
-
-@dataclass(frozen=True)
-class Sensitivity:
-    method: str
-    base_samples: int | None
-    qoi: tuple[str, ...]
-
-
-@dataclass(frozen=True)
-class Report:
-    lines: str
-    histogram_nodes: tuple[tuple[int, int], ...]
-    experimental_csv: Path | None
-
-
-@dataclass(frozen=True)
-class Study:
-    """A validated study; ``path`` is the study file, ``output_dir`` relative to the cwd."""
-
-    path: Path
-    name: str
-    seed: int
-    realizations: int
-    chunk_size: int
-    description: str
-    geometry: Geometry
-    fabric: Fabric
-    process: Process
-    solver: Solver
-    uncertainty: Uncertainty
-    sampling: Sampling
-    sensitivity: Sensitivity
-    report: Report
-    output_dir: Path
-
-    @property
-    def force_levels(self) -> tuple[float, ...]:
-        """Blank-holder force levels (N); length 1 unless the study is a sweep."""
-        return self.process.blankholder_force_N
-
-    @property
-    def is_sweep(self) -> bool:
-        return len(self.force_levels) > 1
-
-    def to_dict(self) -> dict:
-        """The study with defaults filled, in the file's own layout, as plain JSON types
-        (``json.dumps`` it for a netCDF attribute or a provenance record)."""
-        forces = self.force_levels
-        process = {"blankholder_force_N": list(forces) if self.is_sweep else forces[0],
-                   "friction": self.process.friction, "blankholder_model": self.process.blankholder_model}
-        if self.process.sectors is not None:
-            process["sectors"] = list(self.process.sectors)
-        uncertainty = {}
-        for name, f in self.uncertainty.fields.items():
-            entry = dict(f.params, correlation=f.correlation, kl_retained=f.kl_retained)
-            if f.length_mm is not None:
-                entry["length_mm"] = list(f.length_mm)
-            uncertainty[name] = entry
-        for name, factor in self.uncertainty.factors.items():
-            p = dict(factor.params)
-            if "lower" in p:
-                p["bounds"] = [p.pop("lower"), p.pop("upper")]
-            uncertainty[name] = {"dist": factor.dist, **p}
-        sensitivity = {"method": self.sensitivity.method, "qoi": list(self.sensitivity.qoi)}
-        if self.sensitivity.base_samples is not None:
-            sensitivity["base_samples"] = self.sensitivity.base_samples
-        report = {"lines": self.report.lines,
-                  "histogram_nodes": [list(n) for n in self.report.histogram_nodes]}
-        if self.report.experimental_csv is not None:
-            report["experimental_csv"] = str(self.report.experimental_csv)
-        return {
-            "study": {"name": self.name, "seed": self.seed, "realizations": self.realizations,
-                      "chunk_size": self.chunk_size, "description": self.description},
-            "geometry": {"kind": self.geometry.kind, **self.geometry.params},
-            "fabric": {"material": self.fabric.material, "spacing_mm": self.fabric.spacing_mm,
-                       "orientation_deg": self.fabric.orientation_deg,
-                       "pre_shear_deg": self.fabric.pre_shear_deg,
-                       "skew_deg": self.fabric.skew_deg,
-                       "crossover": list(self.fabric.crossover)},
-            "process": process,
-            "solver": {"mode": self.solver.mode, "rings": self.solver.rings,
-                       "tolerance_deg": self.solver.tolerance_deg,
-                       "max_iterations": self.solver.max_iterations},
-            "uncertainty": uncertainty,
-            "sampling": {"plan": self.sampling.plan},
-            "sensitivity": sensitivity,
-            "report": report,
-            "output": {"directory": str(self.output_dir)},
-        }
 
 
 # ----------------------------------------------------------------------------- messages
@@ -563,7 +340,7 @@ def _solver(src: _Source, doc: dict) -> Solver:
 
 def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, material: str) -> RandomField:
     section = f"uncertainty.{name}"
-    t = _Table(src, section, data, (*_FIELD_KEYS[name], "correlation", "length_mm", "kl_retained"))
+    t = _Table(src, section, data, (*FIELD_KEYS[name], "correlation", "length_mm", "kl_retained"))
     if name == "spacing":
         params = {"cv": t.number("cv")}  # its range is checked by SpacingInput
     elif name == "zero_angle":
@@ -571,7 +348,7 @@ def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, materia
     else:
         params = {"mean": t.number("mean"), "sd": t.number("sd", ge=0)}
         try:
-            table = _prestrain_map(material)
+            table = prestrain_map(material)
         except ValueError as err:
             src.invalid(section, data, str(err))
         if np.ptp(table.gamma0_deg) == 0.0:
@@ -607,7 +384,7 @@ def _factor(src: _Source, name: str, data):
     section = f"uncertainty.{name}"
     t = _Table(src, section, data)
     dist = t.string("dist", choices=_DISTS)  # first: it decides the valid keys
-    keys = _DIST_KEYS[dist]
+    keys = DIST_KEYS[dist]
     t.only(("dist", *keys))
     params = {}
     for key in keys:
@@ -644,20 +421,13 @@ def _uncertainty(src: _Source, doc: dict, fabric: Fabric, process: Process, solv
         src.invalid("process.blankholder_force_N", list(process.blankholder_force_N),
                     "a sweep cannot be combined with [uncertainty.blankholder_force]; "
                     "give one nominal force or remove the factor")
-    ranges = {"blankholder_force": (0.0, math.inf, "must be >= 0 N"),
-              "friction": (0.0, math.inf, "must be >= 0"),
-              "pre_shear": (-90.0, 90.0, "must lie in (-90, 90) degrees"),
-              "skew": (-90.0, 90.0, "must lie in (-90, 90) degrees")}
     for name, factor in factors.items():
+        inp = SOLVER_INPUTS[name]
         lo, hi = _extent(factor)
-        if name in ranges:
-            rlo, rhi, why = ranges[name]
-            open_ends = name in ("pre_shear", "skew")
-            bad = (lo <= rlo or hi >= rhi) if open_ends else (lo < rlo or hi > rhi)
-            if bad:
-                src.invalid(f"uncertainty.{name}", t.data[name],
-                            f"its values reach [{lo:g}, {hi:g}] but {name} {why}; "
-                            "use bounds (uniform/truncnormal) or a smaller sd")
+        if not (inp.admits(lo) and inp.admits(hi)):
+            src.invalid(f"uncertainty.{name}", t.data[name],
+                        f"its values reach [{lo:g}, {hi:g}] but {name} {inp.describe_range()}; "
+                        "use bounds (uniform/truncnormal) or a smaller sd")
     if {"crossover_x", "crossover_y"} & set(factors):
         xs = _extent(factors["crossover_x"]) if "crossover_x" in factors else (fabric.crossover[0],) * 2
         ys = _extent(factors["crossover_y"]) if "crossover_y" in factors else (fabric.crossover[1],) * 2
@@ -708,7 +478,7 @@ def _sensitivity(src: _Source, doc: dict, uncertainty: Uncertainty) -> Sensitivi
     else:
         # imported here: SALib is slow to import and only needed for a sensitivity study.
         # check_base_samples holds the design's minimum and power-of-two rules.
-        from .sensitivity import check_base_samples
+        from ..sensitivity import check_base_samples
 
         base = t.number("base_samples", integer=True, ge=1)
         try:
@@ -728,8 +498,7 @@ def _sensitivity(src: _Source, doc: dict, uncertainty: Uncertainty) -> Sensitivi
 
 
 def _report(src: _Source, doc: dict, rings: int) -> Report:
-    t = _Table(src, "report", doc.get("report", {}), ("lines", "histogram_nodes", "experimental_csv"))
-    lines = t.string("lines", "max_shear", choices=LINES)
+    t = _Table(src, "report", doc.get("report", {}), ("histogram_nodes", "experimental_csv"))
     hint = f"histogram_nodes must be a list of [i, j] integer pairs with |i|, |j| <= rings = {rings}"
     nodes = t.raw("histogram_nodes", [], hint)
     ok = isinstance(nodes, list) and all(
@@ -739,7 +508,7 @@ def _report(src: _Source, doc: dict, rings: int) -> Report:
     csv = None
     if t.has("experimental_csv"):
         csv = src.relative_file("report.experimental_csv", t.data["experimental_csv"])
-    return Report(lines, tuple((int(i), int(j)) for i, j in nodes), csv)
+    return Report(tuple((int(i), int(j)) for i, j in nodes), csv)
 
 
 def _output(src: _Source, doc: dict, name: str) -> Path:
@@ -786,44 +555,3 @@ def load_study(path) -> Study:
     )
 
 
-def validate_study(path) -> str:
-    """Validate a study file and return a short summary of it; raises StudyError."""
-    s = load_study(path)
-    material = Path(s.fabric.material).name
-    levels = ", ".join(f"{f:g}" for f in s.force_levels)
-    force = f"sweep {levels} N" if s.is_sweep else f"{levels} N"
-    varying = []
-    for name, f in s.uncertainty.fields.items():
-        what = ", ".join(f"{k} {v:g}" for k, v in f.params.items())
-        length = f", L = {f.length_mm[0]:g} x {f.length_mm[1]:g} mm" if f.length_mm else ""
-        varying.append(f"{name} field ({what}; {f.correlation}{length})")
-    varying += [f"{name} ~ {factor.describe()}" for name, factor in s.uncertainty.factors.items()]
-    sens = s.sensitivity.method
-    if sens != "none":
-        sens += f", {s.sensitivity.base_samples} base samples"
-    return "\n".join([
-        f"{s.name}: {s.realizations} realisations, seed {s.seed}, {s.sampling.plan} plan, chunks of {s.chunk_size}",
-        f"  mould {s.geometry.build_mould().describe()}; "
-        f"material {material}; spacing {s.fabric.spacing_mm:g} mm, {s.solver.rings} rings, {s.solver.mode} mode",
-        f"  blank-holder force {force}, friction {s.process.friction:g}, {s.process.blankholder_model} friction model",
-        f"  varying: {'; '.join(varying) if varying else 'nothing (deterministic)'}",
-        f"  sensitivity: {sens}; output: {s.output_dir}",
-    ])
-
-
-def main_validate(argv) -> int:
-    """``uqdrape validate FILE...``: print each summary and return 0, or print the first
-    error (no traceback) to stderr and return 2."""
-    parser = argparse.ArgumentParser(prog="uqdrape validate", description="Check study files.")
-    parser.add_argument("files", nargs="+", metavar="FILE", help="study TOML file(s)")
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as stop:  # argparse already printed usage or help
-        return int(stop.code or 0)
-    for name in args.files:
-        try:
-            print(validate_study(name))
-        except StudyError as err:
-            print(f"error: {err}", file=sys.stderr)
-            return 2
-    return 0

@@ -1,7 +1,7 @@
 """Scalar quantities of interest of each drape, the outputs a sensitivity study ranks.
 
-Names are ``uqdrape.study.QOIS``. Each is one number per realisation (and per
-blank-holder level of a sweep):
+Names are :data:`QOIS`, the choices of a study's ``[sensitivity] qoi``. Each is one
+number per realisation (and per blank-holder level of a sweep):
 
 - ``max_abs_shear``        largest |node shear| over the valid nodes (degree)
 - ``mean_shear_positive``  signed shear averaged along the max-shear lines of the i*j > 0
@@ -19,8 +19,7 @@ from __future__ import annotations
 
 import xarray as xr
 
-from ..stats import line_scalars
-from ..study import QOIS
+from .lines import line_scalars
 
 #: (units, long_name) of each quantity of interest.
 QOI_ATTRS = {
@@ -31,7 +30,7 @@ QOI_ATTRS = {
     "blankholder_energy": ("J", "blank-holder friction energy"),
     "locked_fraction": ("1", "fraction of the valid cells that are locked"),
 }
-assert tuple(QOI_ATTRS) == QOIS
+QOIS = tuple(QOI_ATTRS)
 
 
 def realization_qois(ds: xr.Dataset, qoi=QOIS) -> xr.Dataset:

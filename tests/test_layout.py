@@ -1,0 +1,110 @@
+"""The package's shape: dependencies between uqdrape's parts point one way, and no module
+reaches into another's private names. Every import counts, including those inside
+functions (lazy imports hide a cycle from Python, not from this test)."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import uqdrape
+
+PACKAGE = Path(uqdrape.__file__).parent
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _imports(path: Path):
+    """(imported module, names) of every import statement in ``path``, relative ones resolved."""
+    name = _module_name(path)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                yield alias.name, []
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[: len(base) - node.level + 1]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module
+            yield target, [alias.name for alias in node.names]
+
+
+def _part(module: str) -> str | None:
+    """The part of uqdrape a module belongs to: ``uqdrape.<part>`` (None outside uqdrape)."""
+    parts = module.split(".")
+    if parts[0] != "uqdrape":
+        return None
+    return parts[1] if len(parts) > 1 else "uqdrape"
+
+
+def _graph() -> dict[str, set[str]]:
+    graph: dict[str, set[str]] = {}
+    for path in PACKAGE.rglob("*.py"):
+        source = _part(_module_name(path))
+        for target, names in _imports(path):
+            # "from . import geometry" names a part through the package itself
+            candidates = [target] + [f"{target}.{n}" for n in names] if target == "uqdrape" else [target]
+            for module in candidates:
+                part = _part(module)
+                if part not in (None, source, "uqdrape", "__version__"):
+                    graph.setdefault(source, set()).add(part)
+    return graph
+
+
+def _cycle(graph):
+    """One dependency cycle as a list of parts, or None."""
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(node):
+        state[node] = 1
+        stack.append(node)
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == 1:
+                return stack[stack.index(nxt):] + [nxt]
+            if nxt not in state and (found := visit(nxt)):
+                return found
+        stack.pop()
+        state[node] = 2
+        return None
+
+    for node in sorted(graph):
+        if node not in state and (found := visit(node)):
+            return found
+    return None
+
+
+def test_no_import_cycle_between_the_parts_of_uqdrape():
+    graph = _graph()
+    assert {"study", "ensemble", "stats", "sensitivity", "report", "drape"} <= set(graph)
+    assert _cycle(graph) is None, " -> ".join(_cycle(graph))
+
+
+def test_the_flow_points_down_from_the_cli():
+    """cli -> workflow -> {study, ensemble, stats, sensitivity, report} -> drape -> {geometry,
+    material}: nothing below imports the workflow or the cli, the solver imports none of the
+    study-level parts, and sensitivity and report never open the ensemble's chunk store."""
+    graph = _graph()
+    for part, targets in graph.items():
+        assert "cli" not in targets, part
+        if part not in ("cli", "gallery"):  # the gallery is an application too
+            assert "workflow" not in targets, part
+    assert not graph.get("drape", set()) & {"study", "ensemble", "stats", "sensitivity", "report", "workflow"}
+    for part in ("sensitivity", "report"):
+        assert "ensemble" not in graph.get(part, set()), part
+
+
+def test_no_private_name_is_imported_from_another_module():
+    offenders = []
+    for path in PACKAGE.rglob("*.py"):
+        for target, names in _imports(path):
+            if _part(target) is not None:
+                offenders += [f"{_module_name(path)}: from {target} import {n}" for n in names
+                              if n.startswith("_") and n != "__version__"]
+    assert offenders == []

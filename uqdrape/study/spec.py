@@ -1,0 +1,263 @@
+"""The study specification: what a validated study file says, as frozen dataclasses.
+
+A section's dataclass fields are named as its study-file keys, so one walk over
+``dataclasses.fields`` writes a study back in its file layout (:meth:`Study.to_dict`, the
+provenance stored with every ensemble) and reads it again (:func:`from_dict`) without a
+second list of keys. Values are validated where a study file is read
+(``uqdrape.study.validate``), never here.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+
+from .. import geometry as _geometry
+from .. import material as _material
+from .. import stochastic as _stochastic
+from ..schema import SOLVER_INPUTS
+
+#: Scalar factors of [uncertainty.<factor>] -> the study-file setting each one overrides.
+FACTOR_SETTINGS = {name: inp.setting for name, inp in SOLVER_INPUTS.items()}
+#: Random fields of [uncertainty.<field>] and the study-file keys of their own parameters.
+FIELD_KEYS = {"spacing": ("cv",), "zero_angle": ("mean_deg", "sd_deg"), "stitch_prestrain": ("mean", "sd")}
+FIELDS = tuple(FIELD_KEYS)
+SENSITIVITY_METHODS = ("sobol", "morris", "none")
+SECTIONS = (
+    "study", "geometry", "fabric", "process", "solver",
+    "uncertainty", "sampling", "sensitivity", "report", "output",
+)
+#: Study-file parameter names of each factor distribution; "bounds" = [lower, upper].
+DIST_KEYS = {"normal": ("mean", "sd"), "truncnormal": ("mean", "sd", "bounds"),
+             "uniform": ("bounds",), "lognormal": ("mean", "sd")}
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """The mould: ``kind`` (a key of uqdrape.geometry.KINDS) and its full shape parameters."""
+
+    kind: str
+    params: dict
+
+    def build_mould(self):
+        """A new Surface for this mould (an STL mould is re-read: keep the result)."""
+        return _geometry.build(self.kind, **self.params)
+
+
+@dataclass(frozen=True)
+class Fabric:
+    """Fabric and blank: material (shipped card name or absolute card path), mm, degrees."""
+
+    material: str
+    spacing_mm: float
+    orientation_deg: float
+    pre_shear_deg: float
+    crossover: tuple[float, float]
+    #: extra angle closed between the generator paths at the crossover (thesis Fig 5.5)
+    skew_deg: float = 0.0
+
+
+@dataclass(frozen=True)
+class Process:
+    """Blank-holder force levels (N; one level unless a sweep), friction (-), sector weights,
+    and which slip the friction works on (``uqdrape.drape.energy.BlankHolder``)."""
+
+    blankholder_force_N: tuple[float, ...]
+    friction: float
+    sectors: tuple[float, ...] | None
+    blankholder_model: str = "slip"
+
+
+@dataclass(frozen=True)
+class Solver:
+    mode: str
+    rings: int
+    tolerance_deg: float
+    max_iterations: int
+
+
+@dataclass(frozen=True)
+class RandomField:
+    """A random fabric field (``name`` in FIELDS) and its correlation model.
+
+    ``params`` is ``{"cv": ...}`` for spacing, ``{"mean_deg": ..., "sd_deg": ...}`` for the
+    zero-energy angle, ``{"mean": ..., "sd": ...}`` for the stitch pre-strain (whose map to
+    gamma0 comes from ``material``, the fabric's card); ``length_mm`` (along fibre 1,
+    fibre 2) is None for iid.
+    """
+
+    name: str
+    params: dict
+    correlation: str
+    length_mm: tuple[float, float] | None
+    kl_retained: float
+    material: str | None = None
+
+    def build_input(self, rings: int, spacing_mm: float):
+        """The exact-sampling input map (uqdrape.stochastic SpacingInput / ZeroAngleInput /
+        PrestrainInput); call ``.kl(self.kl_retained)`` on it for a design that needs a
+        finite variable set."""
+        common = dict(correlation=self.correlation, length_mm=self.length_mm, **self.params)
+        if self.name == "stitch_prestrain":
+            return _stochastic.PrestrainInput(rings, spacing_mm, to_gamma0=prestrain_map(self.material), **common)
+        cls = _stochastic.SpacingInput if self.name == "spacing" else _stochastic.ZeroAngleInput
+        return cls(rings, spacing_mm, **common)
+
+
+@functools.lru_cache(maxsize=8)
+def prestrain_map(material: str):
+    """The stitch pre-strain -> gamma0 table of a material card (built once per process)."""
+    from .material.architecture import material_zero_force_table
+
+    return material_zero_force_table(_material.load_material(material))
+
+
+@dataclass(frozen=True)
+class Uncertainty:
+    """Random fields by name (FIELDS) and scalar factors by name (FACTOR_SETTINGS)."""
+
+    fields: dict
+    factors: dict
+
+    @property
+    def varying(self) -> tuple[str, ...]:
+        return tuple(self.fields) + tuple(self.factors)
+
+
+@dataclass(frozen=True)
+class Sampling:
+    plan: str
+
+
+@dataclass(frozen=True)
+class Sensitivity:
+    method: str
+    base_samples: int | None
+    qoi: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Report:
+    histogram_nodes: tuple[tuple[int, int], ...]
+    experimental_csv: Path | None
+
+
+@dataclass(frozen=True)
+class Study:
+    """A validated study; ``path`` is the study file, ``output_dir`` relative to the cwd."""
+
+    path: Path
+    name: str
+    seed: int
+    realizations: int
+    chunk_size: int
+    description: str
+    geometry: Geometry
+    fabric: Fabric
+    process: Process
+    solver: Solver
+    uncertainty: Uncertainty
+    sampling: Sampling
+    sensitivity: Sensitivity
+    report: Report
+    output_dir: Path
+
+    @property
+    def force_levels(self) -> tuple[float, ...]:
+        """Blank-holder force levels (N); length 1 unless the study is a sweep."""
+        return self.process.blankholder_force_N
+
+    @property
+    def is_sweep(self) -> bool:
+        return len(self.force_levels) > 1
+
+    def setting(self, name: str, force: float | None = None) -> float:
+        """The fixed value of solver input ``name`` (``uqdrape.schema.SOLVER_INPUTS``); the
+        blank-holder force is ``force`` for one level of a sweep, else the only level."""
+        if name == "blankholder_force":
+            return self.force_levels[0] if force is None else float(force)
+        inp = SOLVER_INPUTS[name]
+        value = getattr(getattr(self, inp.section), inp.key)
+        return value if inp.index is None else value[inp.index]
+
+    def to_dict(self) -> dict:
+        """The study with defaults filled, in the file's own layout, as plain JSON types
+        (``json.dumps`` it for a netCDF attribute or a provenance record)."""
+        doc = {"study": {f.name: getattr(self, f.name) for f in _HEADER}}
+        doc["geometry"] = {"kind": self.geometry.kind, **self.geometry.params}
+        for section in _PLAIN:
+            doc[section] = {f.name: _plain(getattr(getattr(self, section), f.name))
+                            for f in dataclasses.fields(getattr(self, section))
+                            if getattr(getattr(self, section), f.name) is not None}
+        if not self.is_sweep:
+            doc["process"]["blankholder_force_N"] = self.force_levels[0]
+        doc["uncertainty"] = {name: _plain({**dataclasses.asdict(f), "name": None, "params": None, "material": None,
+                                            **f.params})
+                              for name, f in self.uncertainty.fields.items()}
+        for name, factor in self.uncertainty.factors.items():
+            p = dict(factor.params)
+            if "lower" in p:
+                p["bounds"] = [p.pop("lower"), p.pop("upper")]
+            doc["uncertainty"][name] = {"dist": factor.dist, **p}
+        doc["output"] = {"directory": str(self.output_dir)}
+        return doc
+
+
+#: Sections whose dataclass fields are exactly their study-file keys.
+_PLAIN = ("fabric", "process", "solver", "sampling", "sensitivity", "report")
+#: The [study] header: Study fields between ``path`` and ``geometry``.
+_HEADER = tuple(f for f in dataclasses.fields(Study) if f.name in ("name", "seed", "realizations", "chunk_size",
+                                                                    "description"))
+
+
+def _plain(value):
+    """A spec value as JSON types: tuples -> lists, paths -> strings, None entries dropped."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items() if v is not None}
+    if isinstance(value, (tuple, list)):
+        return [_plain(v) for v in value]
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def from_dict(doc: dict, path) -> Study:
+    """The Study that :meth:`Study.to_dict` wrote (e.g. an ensemble's provenance record),
+    for the study file ``path``. Not a validator: read study files with ``load_study``."""
+    def section(cls, data, **override):
+        kwargs = {f.name: data.get(f.name) for f in dataclasses.fields(cls)}
+        kwargs.update(override)
+        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in kwargs.items()})
+
+    process = dict(doc["process"])
+    force = process["blankholder_force_N"]
+    process["blankholder_force_N"] = list(force) if isinstance(force, list) else [force]
+    report = doc["report"]
+    fields, factors = {}, {}
+    for name, entry in doc["uncertainty"].items():
+        entry = dict(entry)
+        if name in FIELDS:
+            params = {k: entry.pop(k) for k in FIELD_KEYS[name]}
+            material = doc["fabric"]["material"] if name == "stitch_prestrain" else None
+            fields[name] = section(RandomField, entry, name=name, params=params, material=material)
+        else:
+            dist = entry.pop("dist")
+            if "bounds" in entry:
+                entry["lower"], entry["upper"] = entry.pop("bounds")
+            factors[name] = _stochastic.make_factor(dist, **entry)
+    geometry = dict(doc["geometry"])
+    return Study(
+        path=Path(path), **doc["study"],
+        geometry=Geometry(geometry.pop("kind"), geometry),
+        fabric=section(Fabric, doc["fabric"]),
+        process=section(Process, process),
+        solver=section(Solver, doc["solver"]),
+        uncertainty=Uncertainty(fields, factors),
+        sampling=section(Sampling, doc["sampling"]),
+        sensitivity=section(Sensitivity, doc["sensitivity"]),
+        report=section(Report, report, histogram_nodes=tuple(tuple(n) for n in report["histogram_nodes"]),
+                       experimental_csv=Path(report["experimental_csv"]) if report.get("experimental_csv") else None),
+        output_dir=Path(doc["output"]["directory"]),
+    )
