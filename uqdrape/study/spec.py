@@ -109,7 +109,7 @@ class RandomField:
 @functools.lru_cache(maxsize=8)
 def prestrain_map(material: str):
     """The stitch pre-strain -> gamma0 table of a material card (built once per process)."""
-    from .material.architecture import material_zero_force_table
+    from ..material.architecture import material_zero_force_table
 
     return material_zero_force_table(_material.load_material(material))
 
