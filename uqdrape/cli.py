@@ -1,4 +1,4 @@
-"""The ``uqdrape`` command: drape | run | report | validate | materials.
+"""The ``uqdrape`` command: drape | run | report | validate | materials | export.
 
 Heavy imports (xarray, dask, matplotlib, SALib) happen inside the sub-commands so that
 ``uqdrape --help`` answers at once. Every user error is printed as one line on stderr
@@ -111,6 +111,33 @@ def cmd_report(args) -> int:
     return 0
 
 
+def cmd_export(args) -> int:
+    import numpy as np
+
+    from .export import fe_files, flat_files, levels, open_result, vtk_files, write_all
+
+    if "fe" in args.to and not args.mesh:
+        raise ValueError("--to fe needs --mesh FILE (a surface mesh meshio reads: .inp, .msh, .vtu, .stl, ...)")
+    result = Path(args.result)
+    ds, is_ensemble = open_result(result)
+    stem = Path(args.out) if args.out else (result / "export" / result.name if is_ensemble else result.with_suffix(""))
+    levels_ = levels(ds, is_ensemble)
+    writers = {}  # every file is computed first and written together: all or nothing
+    if "vtk" in args.to:
+        writers.update(vtk_files(levels_, ds, stem))
+    if "fe" in args.to:
+        fe, statuses = fe_files(levels_, ds, args.mesh, stem, args.tolerance)
+        writers.update(fe)
+        counts = [int(n) for n in np.bincount(statuses[0], minlength=3)]
+        print(f"{args.mesh}: {sum(counts)} elements, {counts[0]} on the net, {counts[1]} outside it, "
+              f"{counts[2]} off the mould (flagged in map_status and *ELSET UQDRAPE_UNMAPPED)")
+    if "flat" in args.to:
+        writers.update(flat_files(levels_, stem))
+    written = write_all(writers)
+    print("wrote " + ", ".join(map(str, written)))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="uqdrape",
@@ -176,6 +203,28 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("files", nargs="+", help="study files (TOML)")
     v.set_defaults(func=cmd_validate)
 
+    e = sub.add_parser(
+        "export", formatter_class=argparse.RawDescriptionHelpFormatter,
+        help="write a drape or an ensemble as VTK, FE-mesh orientations or a flat pattern",
+        description="Export a result: a drape file (uqdrape drape --out) or a run folder (uqdrape run; "
+                    "its per-node statistics). One file set per force level of a sweep.\n\n"
+                    "  vtk   STEM.vtu (net: shear, status, locked or ensemble statistics, fibre directions,\n"
+                    "        fibre deviation) and STEM-mould.vtu\n"
+                    "  fe    STEM-fe.vtu (the mesh with per-element fibre directions and shear) and\n"
+                    "        STEM-orientations.inp (Abaqus *DISTRIBUTION + *ORIENTATION); needs --mesh\n"
+                    "  flat  STEM-flat-nodes.csv, STEM-flat-outline.csv, STEM-flat.dxf (flat blank, mm)\n\n"
+                    "Examples:\n"
+                    "  uqdrape export results/drape/nosecone.nc --to vtk flat\n"
+                    "  uqdrape export results/nosecone-zero-angle --to fe --mesh part.inp")
+    e.add_argument("result", help="a drape netCDF file or a run folder")
+    e.add_argument("--to", nargs="+", required=True, choices=("vtk", "fe", "flat"), help="what to write")
+    e.add_argument("--mesh", help="surface mesh for --to fe (any format meshio reads), in mm")
+    e.add_argument("--tolerance", type=float, metavar="MM",
+                   help="how far an element may lie from the mould for --to fe (default: the fibre spacing)")
+    e.add_argument("--out", metavar="STEM",
+                   help="output path stem (default: the drape file without .nc, or RUN/export/RUN)")
+    e.set_defaults(func=cmd_export)
+
     m = sub.add_parser("materials", help="list material cards, or show and plot one")
     m.add_argument("name", nargs="?", help="a card name or path")
     m.add_argument("--plot", metavar="PNG", help="write the card's N_s and W curves to this PNG")
@@ -193,6 +242,9 @@ def main(argv=None) -> int:
     except BrokenPipeError:  # output piped into e.g. `head`, which closed early
         sys.stderr.close()
         return 0
+    except OSError as err:  # reading or writing files (a missing input is a user error above; a closed pipe before)
+        print(f"uqdrape {args.command}: error: {err}", file=sys.stderr)
+        return 3
     except KeyboardInterrupt:
         print(f"uqdrape {args.command}: interrupted; finished chunks are kept, run again to resume",
               file=sys.stderr)

@@ -11,6 +11,8 @@ the mould's tangent plane and opened to 90 deg - the interpolated shear
 
 from __future__ import annotations
 
+import contextlib
+import io
 from functools import partial
 from pathlib import Path
 
@@ -42,10 +44,13 @@ def read_surface_mesh(path) -> tuple[meshio.Mesh, list]:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such mesh file")
-    try:
-        mesh = meshio.read(path)
-    except Exception as err:  # meshio's readers raise anything from ReadError to IndexError
-        raise ValueError(f"{path}: cannot read it as a mesh ({type(err).__name__}: {err})") from None
+    said = io.StringIO()
+    try:  # meshio prints what each reader said and exits when none could read the file
+        with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said):
+            mesh = meshio.read(path)
+    except (Exception, SystemExit) as err:  # its readers raise anything from ReadError to IndexError
+        cause = " ".join(said.getvalue().split()) or f"{type(err).__name__}: {err}"
+        raise ValueError(f"{path}: cannot read it as a mesh ({cause[:300]})") from None
     volume = sorted({b.type for b in mesh.cells if b.type.startswith(VOLUME_CELLS)})
     if volume:
         raise ValueError(f"{path}: a volume mesh ({', '.join(volume)} cells); fibre directions map onto "
@@ -163,12 +168,13 @@ def _abaqus(tmp: Path, values: dict, source: str) -> None:
     tmp.write_text("\n".join(lines) + "\n", encoding="ascii")
 
 
-def export_fe(levels: list[Level], ds, mesh_path, stem, tolerance_mm: float | None = None):
-    """Map each level onto the surface mesh at ``mesh_path``; write ``STEM[-LEVEL]-fe.vtu``
+def fe_files(levels: list[Level], ds, mesh_path, stem, tolerance_mm: float | None = None):
+    """Map each level onto the surface mesh at ``mesh_path``: writers (for ``write_all``)
+    of ``STEM[-LEVEL]-fe.vtu``
     (cell data: fibre1, fibre2, shear, [shear_sd, p_locked], map_status, distance_mm) and
     ``STEM[-LEVEL]-orientations.inp``. ``tolerance_mm`` (default: the fibre spacing) is how
     far from the mould an element may lie; a mesh whose median element lies farther
-    (wrong units or placement) is an error. Returns (paths, map_status of each level)."""
+    (wrong units or placement) is an error. Returns (writers, map_status of each level)."""
     stem = Path(stem)
     surface = surface_of(ds)
     tol = float(ds.attrs["spacing_mm"]) if tolerance_mm is None else float(tolerance_mm)
@@ -189,4 +195,10 @@ def export_fe(levels: list[Level], ds, mesh_path, stem, tolerance_mm: float | No
         source = f"{ds.attrs.get('geometry', 'a drape')}{' at ' + level.label if level.label else ''}"
         writers[stem.with_name(f"{base}-orientations.inp")] = partial(_abaqus, values=values, source=source)
         statuses.append(values["map_status"])
+    return writers, statuses
+
+
+def export_fe(levels: list[Level], ds, mesh_path, stem, tolerance_mm: float | None = None):
+    """Write the files of :func:`fe_files`; returns (paths, map_status of each level)."""
+    writers, statuses = fe_files(levels, ds, mesh_path, stem, tolerance_mm)
     return write_all(writers), statuses

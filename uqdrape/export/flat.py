@@ -97,10 +97,10 @@ def _dxf(tmp: Path, nodes: np.ndarray, loops: list[np.ndarray]) -> None:
     doc.saveas(tmp)
 
 
-def export_flat(levels: list[Level], stem) -> list[Path]:
-    """Write per level ``STEM[-LEVEL]-flat-nodes.csv`` (i, j, x_mm, y_mm[, p_valid]),
+def flat_files(levels: list[Level], stem) -> dict:
+    """Writers (for ``write_all``) of, per level, ``STEM[-LEVEL]-flat-nodes.csv`` (i, j, x_mm, y_mm[, p_valid]),
     ``-flat-outline.csv`` (loop, i, j, x_mm, y_mm) and ``-flat.dxf`` (layers NODES:
-    points, OUTLINE: closed polylines; units mm); returns the paths."""
+    points, OUTLINE: closed polylines; units mm)."""
     stem = Path(stem)
     writers = {}
     for level in levels:
@@ -114,15 +114,20 @@ def export_flat(levels: list[Level], stem) -> list[Path]:
         loops = outline(valid)
         if level.is_ensemble:
             rows, header, fmt = (np.column_stack([ai - n, aj - n, nodes, p_valid[ai, aj]]), "i,j,x_mm,y_mm,p_valid",
-                                 ["%d", "%d", "%.12g", "%.12g", "%.6g"])
+                                 ["%d", "%d", "%.17g", "%.17g", "%.17g"])
         else:
-            rows, header, fmt = np.column_stack([ai - n, aj - n, nodes]), "i,j,x_mm,y_mm", ["%d", "%d", "%.12g", "%.12g"]
+            rows, header, fmt = np.column_stack([ai - n, aj - n, nodes]), "i,j,x_mm,y_mm", ["%d", "%d", "%.17g", "%.17g"]
         lines = [np.column_stack([np.full(len(loop), k), loop - n, flat[loop[:, 0], loop[:, 1]]])
                  for k, loop in enumerate(loops)]
         writers[stem.with_name(f"{base}-flat-nodes.csv")] = partial(_csv, header=header, rows=rows, fmt=fmt)
         writers[stem.with_name(f"{base}-flat-outline.csv")] = partial(
             _csv, header="loop,i,j,x_mm,y_mm", rows=np.concatenate(lines) if lines else np.zeros((0, 5)),
-            fmt=["%d", "%d", "%d", "%.12g", "%.12g"])
+            fmt=["%d", "%d", "%d", "%.17g", "%.17g"])
         writers[stem.with_name(f"{base}-flat.dxf")] = partial(_dxf, nodes=nodes, loops=[flat[lp[:, 0], lp[:, 1]]
                                                                                        for lp in loops])
-    return write_all(writers)
+    return writers
+
+
+def export_flat(levels: list[Level], stem) -> list[Path]:
+    """Write the files of :func:`flat_files`; returns their paths."""
+    return write_all(flat_files(levels, stem))

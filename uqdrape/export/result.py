@@ -58,9 +58,9 @@ def open_result(path) -> tuple[xr.Dataset, bool]:
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such file or run folder")
     try:
-        ds = xr.load_dataset(path)
+        ds = xr.load_dataset(path, engine="netcdf4")
     except (OSError, ValueError) as err:
-        raise ValueError(f"{path}: not a netCDF file ({err})") from None
+        raise ValueError(f"{path}: not a netCDF file ({str(err).splitlines()[0]})") from None
     missing = {"x", "y", "z", "shear", "status"} - set(ds.variables)
     if missing:
         raise ValueError(f"{path}: not a uqdrape drape result (no {', '.join(sorted(missing))})")

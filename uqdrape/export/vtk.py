@@ -75,9 +75,9 @@ def _write(mesh: meshio.Mesh, tmp: Path) -> None:
     meshio.write(tmp, mesh, file_format="vtu")
 
 
-def export_vtk(levels: list[Level], ds, stem) -> list[Path]:
-    """Write ``STEM[-LEVEL].vtu`` (the net of each level) and ``STEM-mould.vtu``; returns
-    the paths. ``ds`` is the result the levels come from (it names the mould)."""
+def vtk_files(levels: list[Level], ds, stem) -> dict:
+    """Writers (for ``write_all``) of ``STEM[-LEVEL].vtu`` (the net of each level) and
+    ``STEM-mould.vtu``; ``ds`` is the result the levels come from (it names the mould)."""
     stem = Path(stem)
     surface = surface_of(ds)
     writers = {}
@@ -85,4 +85,9 @@ def export_vtk(levels: list[Level], ds, stem) -> list[Path]:
         name = f"{stem.name}-{level.label}.vtu" if level.label else f"{stem.name}.vtu"
         writers[stem.with_name(name)] = partial(_write, net_mesh(level, surface))
     writers[stem.with_name(f"{stem.name}-mould.vtu")] = partial(_write, mould_mesh(surface, levels[0].positions))
-    return write_all(writers)
+    return writers
+
+
+def export_vtk(levels: list[Level], ds, stem) -> list[Path]:
+    """Write the files of :func:`vtk_files`; returns their paths."""
+    return write_all(vtk_files(levels, ds, stem))
