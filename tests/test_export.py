@@ -267,6 +267,16 @@ def drape_file(tmp_path_factory):
     return out.with_suffix(".nc")
 
 
+def test_cli_drape_file_is_cf_encoded_and_records_its_command(drape_file):
+    import netCDF4
+
+    with netCDF4.Dataset(drape_file) as nc:
+        assert nc.getncattr("history").endswith(f"uqdrape drape --geometry hemisphere --param radius=50 "
+                                                f"--spacing 5 --rings 10 --out {drape_file.with_suffix('')}")
+        assert nc.getncattr("title").startswith("uqdrape geodesic drape of hemisphere(")
+        assert nc["shear"].getncattr("coordinates") == "x y z"
+
+
 def test_cli_export_writes_every_format(drape_file, tmp_path, capsys):
     surface = build("hemisphere", radius=R)
     mesh = hemisphere_mesh(surface, tmp_path / "part.inp", fmt="abaqus")

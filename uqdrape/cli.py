@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import inspect
+import shlex
 import sys
 from pathlib import Path
 
@@ -41,6 +42,7 @@ def _parse_params(pairs):
 def cmd_drape(args) -> int:
     import numpy as np
 
+    from .conventions import cf_encode
     from .drape import drape
     from .geometry import build
     from .material import load_material
@@ -56,7 +58,9 @@ def cmd_drape(args) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     nc = out.with_suffix(".nc")
     tmp = nc.with_name(nc.name + ".tmp")
-    ds.to_netcdf(tmp)
+    encoded, encoding = cf_encode(ds, title=f"uqdrape {args.mode} drape of {surface.describe()}",
+                                  history="uqdrape " + shlex.join(args.argv))
+    encoded.to_netcdf(tmp, encoding=encoding)
     tmp.replace(nc)
     net_png = plot_net(ds, out.with_name(out.name + "-net.png"),
                        title=f"{surface.describe()}, {args.mode} drape, s = {args.spacing} mm")
@@ -233,7 +237,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
     args = build_parser().parse_args(argv)
+    args.argv = argv  # the command line, for the history of the files it writes
     try:
         return args.func(args)
     except (ValueError, FileNotFoundError) as err:

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from ..conventions import cf_encode
 from ..drape import drape
 from ..material import load_material
 
@@ -69,12 +70,14 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
     return ds
 
 
-def write_atomic(ds: xr.Dataset, path: Path) -> Path:
-    """Write ``ds`` to netCDF ``path`` via ``<path>.part`` in the same directory and a
-    rename, so ``path`` exists only complete. A leftover ``.part`` (a killed writer) is
-    overwritten, never read."""
+def write_atomic(ds: xr.Dataset, path: Path, *, title: str, history: str, float32: bool = False) -> Path:
+    """Write ``ds`` CF-encoded (``uqdrape.conventions.cf_encode``: ``title``, ``history``,
+    optionally ``float32`` + zlib) to netCDF ``path`` via ``<path>.part`` in the same
+    directory and a rename, so ``path`` exists only complete. A leftover ``.part`` (a
+    killed writer) is overwritten, never read."""
     path = Path(path)
     part = path.with_name(path.name + ".part")
-    ds.to_netcdf(part, engine="netcdf4")
+    ds, encoding = cf_encode(ds, title=title, history=history, float32=float32)
+    ds.to_netcdf(part, engine="netcdf4", encoding=encoding)
     os.replace(part, path)
     return path

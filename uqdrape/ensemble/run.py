@@ -73,7 +73,11 @@ def _run_chunk(study: Study, chunk: Chunk, folder: str, attrs: dict, design_rows
     inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows)
     ds = drape_inputs(study, r, inputs, force=chunk.force)
     ds.attrs.update(attrs)
-    return str(write_atomic(ds, Path(folder) / chunk.name))
+    level = "" if chunk.force is None else f" at {chunk.force:g} N"
+    return str(write_atomic(ds, Path(folder) / chunk.name, float32=study.float32,
+                            title=f"uqdrape ensemble chunk: study {study.name}, realisations "
+                                  f"{chunk.start}-{chunk.stop - 1}{level}",
+                            history=f"uqdrape run {Path(study.path).name}"))
 
 
 def _positive_int(name: str, value) -> int:

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from ..conventions import cf_decode
 from ..geometry import Surface, build
 
 #: Quantiles of the node shear exported for an ensemble.
@@ -58,7 +59,7 @@ def open_result(path) -> tuple[xr.Dataset, bool]:
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such file or run folder")
     try:
-        ds = xr.load_dataset(path, engine="netcdf4")
+        ds = cf_decode(xr.load_dataset(path, engine="netcdf4"))
     except (OSError, ValueError) as err:
         raise ValueError(f"{path}: not a netCDF file ({str(err).splitlines()[0]})") from None
     missing = {"x", "y", "z", "shear", "status"} - set(ds.variables)
