@@ -97,13 +97,22 @@ def cmd_validate(args) -> int:
 
 
 def cmd_run(args) -> int:
+    import dataclasses
+
     from .ensemble import run_study
     from .report import write_run_report
+    from .study import load_study
 
-    out = run_study(args.study, scheduler=args.scheduler, workers=args.workers, chunk_size=args.chunk_size,
-                    resume=not args.no_resume, progress=not args.quiet, method=args.method)
+    study = load_study(args.study)
+    if args.out:
+        study = dataclasses.replace(study, output_dir=Path(args.out))
+    out = run_study(study, scheduler=args.scheduler, workers=args.workers, chunk_size=args.chunk_size,
+                    resume=not args.no_resume, progress=args.verbosity > 0, verbose=args.verbosity > 1,
+                    method=args.method)
     print(f"ensemble written to {out}")
     if not args.no_report:
+        if args.verbosity > 0:
+            print(f"{study.name}: writing the report (statistics, figures, HTML)", file=sys.stderr, flush=True)
         print(f"report: {write_run_report(out)}")
     return 0
 
@@ -193,9 +202,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override the study's [sensitivity] method: 'morris' for a cheap screening run "
                         "(20 trajectories unless the study is a Morris study), 'none' for the Monte Carlo "
                         "sample; output goes to <output directory>-<method>")
+    r.add_argument("--out", metavar="DIR", help="output folder (default: the study's [output] directory)")
     r.add_argument("--no-resume", action="store_true", help="recompute chunks that already exist")
     r.add_argument("--no-report", action="store_true", help="skip the report")
-    r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.set_defaults(func=cmd_run)
 
     rep = sub.add_parser("report", help="write the report of a finished run")
@@ -233,7 +242,29 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("name", nargs="?", help="a card name or path")
     m.add_argument("--plot", metavar="PNG", help="write the card's N_s and W curves to this PNG")
     m.set_defaults(func=cmd_materials)
+
+    p.add_argument("--version", action=_Version)
+    p.set_defaults(verbosity=1)
+    for parser in (p, *sub.choices.values()):  # -q / -v before or after the sub-command
+        loud = parser.add_mutually_exclusive_group()
+        loud.add_argument("-q", "--quiet", dest="verbosity", action="store_const", const=0, default=argparse.SUPPRESS,
+                          help="no progress or information on stderr (errors still are)")
+        loud.add_argument("-v", "--verbose", dest="verbosity", action="store_const", const=2,
+                          default=argparse.SUPPRESS, help="more information (run: a line per finished chunk)")
     return p
+
+
+class _Version(argparse.Action):
+    """``--version``: the package version and, from a checkout, its git description."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, help="print the version and exit")
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from .conventions import version_text
+
+        print(version_text())
+        parser.exit()
 
 
 def main(argv=None) -> int:

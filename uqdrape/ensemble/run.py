@@ -19,7 +19,6 @@ Monte Carlo sample, through the same chunks, and is analysed once all chunks exi
 
 from __future__ import annotations
 
-import contextlib
 import json
 import sys
 from dataclasses import dataclass
@@ -27,13 +26,13 @@ from pathlib import Path
 
 import dask
 import numpy as np
-from dask.diagnostics import ProgressBar
-from tqdm import tqdm
+from dask.callbacks import Callback
 
 from .. import __version__
 from ..study import SENSITIVITY_METHODS, Study, load_study
 from .chunk import drape_inputs, write_atomic
 from .inputs import inputs_from_design, sampled_inputs
+from .progress import Progress
 from .store import CHUNKS, read_manifest, write_manifest
 
 #: dask schedulers in this process: a pool of local processes (default) or no
@@ -122,10 +121,12 @@ def _prepare(out: Path, manifest: dict, resume: bool) -> None:
     write_manifest(out, manifest)
 
 
-def _compute(tasks: list, scheduler: str | None, workers: int | None, progress: bool) -> None:
-    """Run the chunk tasks locally or on a dask.distributed cluster; re-raise a failure."""
+def _compute(tasks: list, sizes: list, scheduler: str | None, workers: int | None, progress: Progress) -> None:
+    """Run the chunk tasks locally or on a dask.distributed cluster, counting each finished
+    chunk's realisations (``sizes``) in ``progress``; re-raise a failure."""
     if not tasks:
         return
+    count = {task.key: size for task, size in zip(tasks, sizes)}
     if scheduler is None or scheduler in LOCAL_SCHEDULERS:
         options = {"scheduler": scheduler or "processes"}
         if options["scheduler"] == "processes":
@@ -134,22 +135,25 @@ def _compute(tasks: list, scheduler: str | None, workers: int | None, progress: 
             options["chunksize"] = 1
         if workers is not None:
             options["num_workers"] = workers
-        bar = ProgressBar(minimum=1.0, dt=1.0, out=sys.stderr) if progress else contextlib.nullcontext()
-        with bar:
+
+        def finished(key, result, dsk, state, worker_id):
+            if key in count:
+                progress.update(count[key], Path(result).name)
+
+        with Callback(posttask=finished):
             dask.compute(*tasks, **options)
         return
     from distributed import Client, as_completed
 
     with Client(scheduler) as client:
         futures = client.compute(tasks)
-        for future in tqdm(as_completed(futures), total=len(futures), desc="chunks",
-                           file=sys.stderr, disable=not progress):
-            future.result()
+        for future in as_completed(futures):
+            progress.update(count[future.key], Path(future.result()).name)
 
 
 def run_study(study, *, scheduler: str | None = None, workers: int | None = None,
               chunk_size: int | None = None, resume: bool = True, progress: bool = True,
-              method: str | None = None) -> Path:
+              method: str | None = None, verbose: bool = False) -> Path:
     """Run a study's ensemble; return its output folder (open it with ``open_ensemble``).
 
     study       a ``Study`` or the path of a study TOML file
@@ -159,7 +163,8 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
     chunk_size  realisations per chunk (one batched drape call); default: the study's
     resume      skip chunks already written by an earlier run of the same study; False
                 deletes the folder's chunk files first
-    progress    show a progress bar (stderr)
+    progress    show progress on stderr: realisations done, rate and ETA (a bar on a
+                terminal, a plain line every 30 s elsewhere); ``verbose`` adds a line per chunk
     method      None: the study's [sensitivity] method; "sobol" / "morris": drape that SALib
                 design and write sensitivity.nc; "none": the Monte Carlo sample. Another
                 method than the study's writes to ``<output_dir>-<method>``.
@@ -211,8 +216,14 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
         attrs.update(design_method=design.method, design_base_samples=design.meta["base_samples"],
                      design_evaluations=design.n_evaluations)
     run = dask.delayed(_run_chunk, pure=False)
-    _compute([run(study, c, str(folder), attrs, None if design is None else design.standard[c.start:c.stop])
-              for c in todo], scheduler, workers, progress)
+    sizes = [c.stop - c.start for c in chunks]
+    bar = Progress(sum(sizes), sum(sizes) - sum(c.stop - c.start for c in todo), enabled=progress, verbose=verbose,
+                   desc=study.name)
+    try:
+        _compute([run(study, c, str(folder), attrs, None if design is None else design.standard[c.start:c.stop])
+                  for c in todo], [c.stop - c.start for c in todo], scheduler, workers, bar)
+    finally:
+        bar.close()
     if design is not None:
         from ..sensitivity import write_sensitivity
 
