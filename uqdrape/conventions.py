@@ -12,8 +12,8 @@ and its numbers are unchanged unless ``float32`` is asked for.
   written as its position 0, 1, ... with the labels in ``<name>_label`` (a char
   auxiliary coordinate)
 - global ``title``, ``history``, ``source`` (package and git version), ``date_created``
-- optional: float variables stored as float32 with zlib (about half the size; numbers
-  rounded to float32, relative 6e-8)
+- optional: float variables stored as float32 with zlib (the 127-drape nose-cone
+  ensemble: 9.8 MB instead of 27.6 MB; numbers rounded to float32, relative 6e-8)
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ Sections and keys (units: mm, N, degrees)::
     [sensitivity]  method = "none", base_samples, qoi = all of QOIS
     [report]       lines = "max_shear", histogram_nodes = [], experimental_csv
     [output]       directory = "results/<study name>", float32 = false (true: chunks store floats as
-                   float32 with zlib, about half the size, rounded to 7 significant digits)
+                   float32 with zlib, about a third of the size, rounded to 7 significant digits)
 
 Factor distributions (values in the units of the setting they override): normal
 (mean, sd), truncnormal (mean, sd, bounds = [lo, hi]; mean/sd of the parent normal),

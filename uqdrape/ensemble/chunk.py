@@ -17,7 +17,6 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from ..conventions import cf_encode
 from ..drape import drape
 from ..material import load_material
 
@@ -70,14 +69,12 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
     return ds
 
 
-def write_atomic(ds: xr.Dataset, path: Path, *, title: str, history: str, float32: bool = False) -> Path:
-    """Write ``ds`` CF-encoded (``uqdrape.conventions.cf_encode``: ``title``, ``history``,
-    optionally ``float32`` + zlib) to netCDF ``path`` via ``<path>.part`` in the same
+def write_atomic(ds: xr.Dataset, path: Path, encoding: dict | None = None) -> Path:
+    """Write ``ds`` (with netCDF ``encoding``) to ``path`` via ``<path>.part`` in the same
     directory and a rename, so ``path`` exists only complete. A leftover ``.part`` (a
     killed writer) is overwritten, never read."""
     path = Path(path)
     part = path.with_name(path.name + ".part")
-    ds, encoding = cf_encode(ds, title=title, history=history, float32=float32)
     ds.to_netcdf(part, engine="netcdf4", encoding=encoding)
     os.replace(part, path)
     return path

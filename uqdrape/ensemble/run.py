@@ -29,6 +29,7 @@ import numpy as np
 from dask.callbacks import Callback
 
 from .. import __version__
+from ..conventions import cf_encode
 from ..study import SENSITIVITY_METHODS, Study, load_study
 from .chunk import drape_inputs, write_atomic
 from .inputs import inputs_from_design, sampled_inputs
@@ -73,10 +74,10 @@ def _run_chunk(study: Study, chunk: Chunk, folder: str, attrs: dict, design_rows
     ds = drape_inputs(study, r, inputs, force=chunk.force)
     ds.attrs.update(attrs)
     level = "" if chunk.force is None else f" at {chunk.force:g} N"
-    return str(write_atomic(ds, Path(folder) / chunk.name, float32=study.float32,
-                            title=f"uqdrape ensemble chunk: study {study.name}, realisations "
-                                  f"{chunk.start}-{chunk.stop - 1}{level}",
-                            history=f"uqdrape run {Path(study.path).name}"))
+    ds, encoding = cf_encode(ds, title=f"uqdrape ensemble chunk: study {study.name}, realisations "
+                                       f"{chunk.start}-{chunk.stop - 1}{level}",
+                             history=f"uqdrape run {Path(study.path).name}", float32=study.float32)
+    return str(write_atomic(ds, Path(folder) / chunk.name, encoding))
 
 
 def _positive_int(name: str, value) -> int:
