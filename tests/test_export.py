@@ -356,3 +356,12 @@ def test_ensemble_export_per_force_level(tmp_path):
     assert (data["shear_sd"] > 0).any() and ((data["p_locked"] >= 0) & (data["p_locked"] <= 1)).all()
     flat = export_flat(levels(ds, True), tmp_path / "ens")
     assert [p.name for p in flat][:3] == ["ens-0N-flat-nodes.csv", "ens-0N-flat-outline.csv", "ens-0N-flat.dxf"]
+
+
+def test_cli_unwritable_output_is_an_io_error(drape_file, tmp_path, capsys):
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    assert main(["export", str(drape_file), "--to", "vtk", "--out", str(blocker / "net")]) == 3
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(blocker) in err[0]
+    assert not list(tmp_path.glob("**/*.part*"))

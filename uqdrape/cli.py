@@ -2,7 +2,8 @@
 
 Heavy imports (xarray, dask, matplotlib, SALib) happen inside the sub-commands so that
 ``uqdrape --help`` answers at once. Every user error is printed as one line on stderr
-with exit code 2, never as a traceback.
+with exit code 2 (an I/O failure: 3), never as a traceback. ``-q`` / ``-v`` work before
+or after the sub-command.
 """
 
 from __future__ import annotations

@@ -8,6 +8,7 @@ import meshio
 import numpy as np
 from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.cm import ScalarMappable
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
@@ -51,15 +52,10 @@ def render_vtu(net_vtu, png, field: str, *, mould_vtu=None, label: str | None = 
     ax.set_box_aspect((xlim[1] - xlim[0], ylim[1] - ylim[0], max(hi[2] - lo[2], 1e-6)))
     ax.view_init(*view)
     ax.set_title(title, fontsize=11)
-    bar = fig.colorbar(cmap_mappable(cmap, norm), ax=ax, shrink=0.6, pad=0.08)
+    bar = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.6, pad=0.08)
     bar.set_label(label or field)
     png = Path(png)
     png.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(png, dpi=110)
     return png
 
-
-def cmap_mappable(cmap, norm):
-    from matplotlib.cm import ScalarMappable
-
-    return ScalarMappable(norm=norm, cmap=cmap)

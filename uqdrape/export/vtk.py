@@ -27,13 +27,12 @@ MOULD_MARGIN = 0.15
 def net_quads(valid: np.ndarray):
     """Points and quads of the nodes ``valid`` (N, N) bool: (flat node indices of the kept
     points, quads (M, 4) into those points, counter-clockwise in (i, j))."""
-    N = valid.shape[0]
     index = np.full(valid.shape, -1)
     kept = np.flatnonzero(valid.ravel())
     index.ravel()[kept] = np.arange(kept.size)
     corners = np.stack([index[:-1, :-1], index[1:, :-1], index[1:, 1:], index[:-1, 1:]], axis=-1)
     quads = corners[(corners >= 0).all(-1)]
-    return kept, quads.reshape(-1, 4) if N > 1 else np.zeros((0, 4), int)
+    return kept, quads.reshape(-1, 4)
 
 
 def net_mesh(level: Level, surface) -> meshio.Mesh:
