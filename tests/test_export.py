@@ -358,6 +358,25 @@ def test_ensemble_export_per_force_level(tmp_path):
     assert [p.name for p in flat][:3] == ["ens-0N-flat-nodes.csv", "ens-0N-flat-outline.csv", "ens-0N-flat.dxf"]
 
 
+def test_abaqus_table_uses_the_input_meshs_own_element_labels(hemi, tmp_path):
+    surface, ds = hemi
+    path = hemisphere_mesh(surface, tmp_path / "plain.inp", rings=8, fmt="abaqus")
+    lines, elements, k = [], False, 0
+    for line in path.read_text().splitlines():  # renumber the elements 1001, 1004, 1007, ...
+        if line.startswith("*"):
+            elements = line.upper().startswith("*ELEMENT")
+        elif elements and line.strip():
+            line = ",".join([str(1001 + 3 * k)] + line.split(",")[1:])
+            k += 1
+        lines.append(line)
+    renumbered = tmp_path / "renumbered.inp"
+    renumbered.write_text("\n".join(lines) + "\n")
+    (_, inp), (status,) = export_fe(levels(ds, False), ds, renumbered, tmp_path / "part")
+    expected = 1001 + 3 * np.arange(len(status))
+    _, rows, unmapped = _read_abaqus(inp)
+    assert sorted(rows) == list(expected[status == ON_NET]) and unmapped == list(expected[status != ON_NET])
+
+
 def test_cli_unwritable_output_is_an_io_error(drape_file, tmp_path, capsys):
     blocker = tmp_path / "a-file"
     blocker.write_text("")

@@ -62,6 +62,29 @@ def read_surface_mesh(path) -> tuple[meshio.Mesh, list]:
     return mesh, blocks
 
 
+def element_labels(path, mesh: meshio.Mesh, blocks) -> np.ndarray:
+    """Labels (M,) of the elements of the surface ``blocks``: an Abaqus input's own element
+    numbers (its ``*ELEMENT`` data lines, which meshio reads in order, one cell block per
+    keyword, but does not keep), else 1-based positions in the mesh file's order."""
+    path = Path(path)
+    if path.suffix.lower() != ".inp":
+        return np.arange(1, sum(len(b.data) for b in blocks) + 1)
+    numbers, current = [], None
+    for line in path.read_text(errors="replace").splitlines():
+        if line.startswith("*"):
+            keyword = line.partition(",")[0].strip().lstrip("*").upper()
+            current = [] if keyword == "ELEMENT" else None
+            if current is not None:
+                numbers.append(current)
+        elif current is not None and line.strip():
+            current += [int(k) for k in line.split(",") if k.strip()]
+    if len(numbers) != len(mesh.cells):
+        raise ValueError(f"{path}: {len(numbers)} *ELEMENT blocks but meshio read {len(mesh.cells)} cell blocks; "
+                         "cannot tell the element labels")
+    return np.concatenate([np.reshape(ints, (-1, b.data.shape[1] + 1))[:, 0]
+                           for ints, b in zip(numbers, mesh.cells) if b.type in SURFACE_CELLS])
+
+
 def centroids(mesh: meshio.Mesh, blocks) -> np.ndarray:
     """Centroids (M, 3) mm of the corner nodes of every cell of ``blocks``, in order."""
     return np.concatenate([mesh.points[b.data[:, :SURFACE_CELLS[b.type]]].mean(1) for b in blocks])
@@ -144,23 +167,23 @@ def _number(v: float) -> str:
     return repr(float(v))
 
 
-def _abaqus(tmp: Path, values: dict, source: str) -> None:
+def _abaqus(tmp: Path, values: dict, labels: np.ndarray, source: str) -> None:
     """An Abaqus include: per-element local directions 1 and 2 as a *DISTRIBUTION used by
     a coordinate *ORIENTATION; unmapped elements keep the default (global x, y) and are
     listed in *ELSET UQDRAPE_UNMAPPED."""
     d1, d2, status = values["fibre1"], values["fibre2"], values["map_status"]
     lines = [f"** fibre orientations of {source}, written by uqdrape {__version__}",
-             "** element labels: 1-based positions of the surface elements in the mesh file's order",
+             "** element labels: those of an Abaqus input mesh, else 1-based positions in the mesh file",
              "** direction 1 = fibre 1 (+i), direction 2 = fibre 2 (+j), unit vectors in global axes",
              "*DISTRIBUTION TABLE, NAME=UQDRAPE_FIBRE_TABLE",
              "COORD3D, COORD3D",
              "*DISTRIBUTION, NAME=UQDRAPE_FIBRE, LOCATION=ELEMENT, TABLE=UQDRAPE_FIBRE_TABLE",
              ", 1.0, 0.0, 0.0, 0.0, 1.0, 0.0"]
     for k in np.flatnonzero(status == ON_NET):
-        lines.append(", ".join([str(k + 1)] + [_number(v) for v in (*d1[k], *d2[k])]))
+        lines.append(", ".join([str(labels[k])] + [_number(v) for v in (*d1[k], *d2[k])]))
     lines += ["*ORIENTATION, NAME=UQDRAPE_FIBRE_ORIENTATION, DEFINITION=COORDINATES, SYSTEM=RECTANGULAR",
               "UQDRAPE_FIBRE"]
-    unmapped = np.flatnonzero(status != ON_NET) + 1
+    unmapped = labels[status != ON_NET]
     if unmapped.size:
         lines.append(f"** {unmapped.size} elements not on the draped net ({MAP_STATUS}): default orientation")
         lines.append("*ELSET, ELSET=UQDRAPE_UNMAPPED")
@@ -181,6 +204,7 @@ def fe_files(levels: list[Level], ds, mesh_path, stem, tolerance_mm: float | Non
     if not (np.isfinite(tol) and tol > 0):
         raise ValueError(f"tolerance must be a distance > 0 mm, got {tolerance_mm!r}")
     mesh, blocks = read_surface_mesh(mesh_path)
+    labels = element_labels(mesh_path, mesh, blocks)
     c = centroids(mesh, blocks)
     writers, statuses = {}, []
     for level in levels:
@@ -193,7 +217,7 @@ def fe_files(levels: list[Level], ds, mesh_path, stem, tolerance_mm: float | Non
         base = f"{stem.name}-{level.label}" if level.label else stem.name
         writers[stem.with_name(f"{base}-fe.vtu")] = partial(_vtu, mesh=mesh, blocks=blocks, values=values)
         source = f"{ds.attrs.get('geometry', 'a drape')}{' at ' + level.label if level.label else ''}"
-        writers[stem.with_name(f"{base}-orientations.inp")] = partial(_abaqus, values=values, source=source)
+        writers[stem.with_name(f"{base}-orientations.inp")] = partial(_abaqus, values=values, labels=labels, source=source)
         statuses.append(values["map_status"])
     return writers, statuses
 
