@@ -6,6 +6,7 @@ triangulated hemisphere mesh; every file is read back with its own reader.
 """
 
 import textwrap
+from pathlib import Path
 
 import ezdxf
 import meshio
@@ -354,8 +355,42 @@ def test_ensemble_export_per_force_level(tmp_path):
     data = meshio.read(paths[0]).point_data
     assert {"shear_mean", "shear_sd", "shear_q05", "shear_q50", "shear_q95", "p_locked", "p_valid"} <= set(data)
     assert (data["shear_sd"] > 0).any() and ((data["p_locked"] >= 0) & (data["p_locked"] <= 1)).all()
+    mesh = hemisphere_mesh(build("hemisphere", radius=R), tmp_path / "part.msh", rings=8)
+    (vtu, _, _, _), statuses = export_fe(levels(ds, True), ds, mesh, tmp_path / "ens")
+    cells = meshio.read(vtu).cell_data
+    on = statuses[0] == ON_NET
+    assert on.any() and np.isfinite(cells["shear_sd"][0][on]).all() and np.isfinite(cells["p_locked"][0][on]).all()
     flat = export_flat(levels(ds, True), tmp_path / "ens")
     assert [p.name for p in flat][:3] == ["ens-0N-flat-nodes.csv", "ens-0N-flat-outline.csv", "ens-0N-flat.dxf"]
+
+
+@pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")  # meshio's STL format sniffing
+def test_fe_mapping_reads_every_mesh_format_alike(hemi, tmp_path):
+    surface, ds = hemi
+    level = levels(ds, False)[0]
+    results = {}
+    for suffix, fmt in ((".msh", "gmsh22"), (".inp", "abaqus"), (".vtu", "vtu"), (".stl", "stl")):
+        path = hemisphere_mesh(surface, tmp_path / f"part{suffix}", rings=8, fmt=fmt)
+        (vtu, _), (status,) = export_fe([level], ds, path, tmp_path / f"out{suffix}")
+        results[suffix] = status, meshio.read(vtu).cell_data["fibre1"][0]
+    status, fibre = results[".msh"]
+    assert (status == ON_NET).any() and (status == OFF_NET).any()
+    for suffix, (other_status, other_fibre) in results.items():
+        np.testing.assert_array_equal(other_status, status, err_msg=suffix)
+        atol = 1e-5 if suffix == ".stl" else 0.0  # STL stores float32 coordinates
+        np.testing.assert_allclose(other_fibre, fibre, rtol=0, atol=atol, err_msg=suffix)
+
+
+def test_gallery_nose_cone_ships_its_export():
+    folder = Path(__file__).resolve().parents[1] / "results" / "gallery" / "nosecone-zero-angle" / "export"
+    net = meshio.read(folder / "nosecone-zero-angle.vtu")
+    assert {"shear_mean", "shear_sd", "p_locked", "fibre1", "fibre2", "fibre_deviation"} <= set(net.point_data)
+    assert len(meshio.read(folder / "nosecone-zero-angle-mould.vtu").cells_dict["quad"]) > 1000
+    nodes = np.loadtxt(folder / "nosecone-zero-angle-flat-nodes.csv", delimiter=",", skiprows=1)
+    assert len(nodes) == len(net.points)
+    doc = ezdxf.readfile(folder / "nosecone-zero-angle-flat.dxf")
+    assert len(doc.modelspace().query("POINT")) == len(nodes) and doc.modelspace().query("LWPOLYLINE")
+    assert (folder / "export.png").is_file()
 
 
 def test_abaqus_table_uses_the_input_meshs_own_element_labels(hemi, tmp_path):
