@@ -287,6 +287,10 @@ def test_cli_export_writes_every_format(drape_file, tmp_path, capsys):
     names = ["hemi.vtu", "hemi-mould.vtu", "hemi-fe.vtu", "hemi-orientations.inp", "hemi-flat-nodes.csv",
              "hemi-flat-outline.csv", "hemi-flat.dxf"]
     assert all((tmp_path / n).is_file() for n in names) and "on the net" in out
+    deviation = meshio.read(tmp_path / "hemi.vtu").point_data["fibre_deviation"]
+    assert main(["export", str(drape_file), "--to", "vtk", "--reference", "30", "--out", str(tmp_path / "r30")]) == 0
+    np.testing.assert_allclose(meshio.read(tmp_path / "r30.vtu").point_data["fibre_deviation"], deviation - 30,
+                               atol=1e-9)
     assert not list(tmp_path.glob("*.part*"))
 
 

@@ -136,6 +136,8 @@ def cmd_export(args) -> int:
     ds, is_ensemble = open_result(result)
     stem = Path(args.out) if args.out else (result / "export" / result.name if is_ensemble else result.with_suffix(""))
     levels_ = levels(ds, is_ensemble)
+    for level in levels_ if args.reference is not None else ():
+        level.orientation = args.reference
     writers = {}  # every file is computed first and written together: all or nothing
     if "vtk" in args.to:
         writers.update(vtk_files(levels_, ds, stem))
@@ -235,6 +237,9 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--mesh", help="surface mesh for --to fe (any format meshio reads), in mm")
     e.add_argument("--tolerance", type=float, metavar="MM",
                    help="how far an element may lie from the mould for --to fe (default: the fibre spacing)")
+    e.add_argument("--reference", type=float, metavar="DEG",
+                   help="plan angle of the direction fibre_deviation is measured from (default: the fabric's "
+                        "orientation)")
     e.add_argument("--out", metavar="STEM",
                    help="output path stem (default: the drape file without .nc, or RUN/export/RUN)")
     e.set_defaults(func=cmd_export)
