@@ -222,8 +222,9 @@ def build_parser() -> argparse.ArgumentParser:
     e = sub.add_parser(
         "export", formatter_class=argparse.RawDescriptionHelpFormatter,
         help="write a drape or an ensemble as VTK, FE-mesh orientations or a flat pattern",
-        description="Export a result: a drape file (uqdrape drape --out) or a run folder (uqdrape run; "
-                    "its per-node statistics). One file set per force level of a sweep.\n\n"
+        description="Export a result: a drape file (uqdrape drape --out) or a run folder\n"
+                    "(uqdrape run; its per-node statistics). One file set per force level of a sweep;\n"
+                    "every file of a call is written, or none.\n\n"
                     "  vtk   STEM.vtu (net: shear, status, locked or ensemble statistics, fibre directions,\n"
                     "        fibre deviation) and STEM-mould.vtu\n"
                     "  fe    STEM-fe.vtu (the mesh with per-element fibre directions and shear) and\n"
