@@ -1,14 +1,16 @@
-"""The ``uqdrape`` command: drape | run | report | validate | materials.
+"""The ``uqdrape`` command: drape | run | report | validate | materials | export.
 
 Heavy imports (xarray, dask, matplotlib, SALib) happen inside the sub-commands so that
 ``uqdrape --help`` answers at once. Every user error is printed as one line on stderr
-with exit code 2, never as a traceback.
+with exit code 2 (an I/O failure: 3), never as a traceback. ``-q`` / ``-v`` work before
+or after the sub-command.
 """
 
 from __future__ import annotations
 
 import argparse
 import inspect
+import shlex
 import sys
 from pathlib import Path
 
@@ -46,6 +48,7 @@ def _parse_params(pairs):
 def cmd_drape(args) -> int:
     import numpy as np
 
+    from .conventions import cf_encode
     from .drape import drape
     from .geometry import build
     from .material import load_material
@@ -62,7 +65,9 @@ def cmd_drape(args) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     nc = out.with_suffix(".nc")
     tmp = nc.with_name(nc.name + ".tmp")
-    ds.to_netcdf(tmp)
+    encoded, encoding = cf_encode(ds, title=f"uqdrape {args.mode} drape of {surface.describe()}",
+                                  history="uqdrape " + shlex.join(args.argv))
+    encoded.to_netcdf(tmp, encoding=encoding)
     tmp.replace(nc)
     net_png = plot_net(ds, out.with_name(out.name + "-net.png"),
                        title=f"{surface.describe()}, {args.mode} drape, s = {args.spacing} mm")
@@ -165,12 +170,21 @@ def cmd_validate(args) -> int:
 
 
 def cmd_run(args) -> int:
+    import dataclasses
+
+    from .study import load_study
     from .workflow import run_report, run_study
 
-    out = run_study(args.study, scheduler=args.scheduler, workers=args.workers, chunk_size=args.chunk_size,
-                    resume=not args.no_resume, progress=not args.quiet, method=args.method)
+    study = load_study(args.study)
+    if args.out:
+        study = dataclasses.replace(study, output_dir=Path(args.out))
+    out = run_study(study, scheduler=args.scheduler, workers=args.workers, chunk_size=args.chunk_size,
+                    resume=not args.no_resume, progress=args.verbosity > 0, verbose=args.verbosity > 1,
+                    method=args.method)
     print(f"ensemble written to {out}")
     if not args.no_report:
+        if args.verbosity > 0:
+            print(f"{study.name}: writing the report (statistics, figures, HTML)", file=sys.stderr, flush=True)
         print(f"report: {run_report(out)}")
     return 0
 
@@ -179,6 +193,35 @@ def cmd_report(args) -> int:
     from .workflow import run_report
 
     print(f"report: {run_report(args.results, args.out)}")
+    return 0
+
+
+def cmd_export(args) -> int:
+    import numpy as np
+
+    from .export import fe_files, flat_files, levels, open_result, vtk_files, write_all
+
+    if "fe" in args.to and not args.mesh:
+        raise ValueError("--to fe needs --mesh FILE (a surface mesh meshio reads: .inp, .msh, .vtu, .stl, ...)")
+    result = Path(args.result)
+    ds, is_ensemble = open_result(result)
+    stem = Path(args.out) if args.out else (result / "export" / result.name if is_ensemble else result.with_suffix(""))
+    levels_ = levels(ds, is_ensemble)
+    for level in levels_ if args.reference is not None else ():
+        level.orientation = args.reference
+    writers = {}  # every file is computed first and written together: all or nothing
+    if "vtk" in args.to:
+        writers.update(vtk_files(levels_, ds, stem))
+    if "fe" in args.to:
+        fe, statuses = fe_files(levels_, ds, args.mesh, stem, args.tolerance)
+        writers.update(fe)
+        counts = [int(n) for n in np.bincount(statuses[0], minlength=3)]
+        print(f"{args.mesh}: {sum(counts)} elements, {counts[0]} on the net, {counts[1]} outside it, "
+              f"{counts[2]} off the mould (flagged in map_status and *ELSET UQDRAPE_UNMAPPED)")
+    if "flat" in args.to:
+        writers.update(flat_files(levels_, stem))
+    written = write_all(writers)
+    print("wrote " + ", ".join(map(str, written)))
     return 0
 
 
@@ -236,9 +279,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override the study's [sensitivity] method: 'morris' for a cheap screening run "
                         "(20 trajectories unless the study is a Morris study), 'none' for the Monte Carlo "
                         "sample; output goes to <output directory>-<method>")
+    r.add_argument("--out", metavar="DIR", help="output folder (default: the study's [output] directory)")
     r.add_argument("--no-resume", action="store_true", help="recompute chunks that already exist")
     r.add_argument("--no-report", action="store_true", help="skip the report")
-    r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.set_defaults(func=cmd_run)
 
     rep = sub.add_parser("report", help="write the report of a finished run")
@@ -249,6 +292,32 @@ def build_parser() -> argparse.ArgumentParser:
     v = sub.add_parser("validate", help="check study files without running them")
     v.add_argument("files", nargs="+", help="study files (TOML)")
     v.set_defaults(func=cmd_validate)
+
+    e = sub.add_parser(
+        "export", formatter_class=argparse.RawDescriptionHelpFormatter,
+        help="write a drape or an ensemble as VTK, FE-mesh orientations or a flat pattern",
+        description="Export a result: a drape file (uqdrape drape --out) or a run folder\n"
+                    "(uqdrape run; its per-node statistics). One file set per force level of a sweep;\n"
+                    "every file of a call is written, or none.\n\n"
+                    "  vtk   STEM.vtu (net: shear, status, locked or ensemble statistics, fibre directions,\n"
+                    "        fibre deviation) and STEM-mould.vtu\n"
+                    "  fe    STEM-fe.vtu (the mesh with per-element fibre directions and shear) and\n"
+                    "        STEM-orientations.inp (Abaqus *DISTRIBUTION + *ORIENTATION); needs --mesh\n"
+                    "  flat  STEM-flat-nodes.csv, STEM-flat-outline.csv, STEM-flat.dxf (flat blank, mm)\n\n"
+                    "Examples:\n"
+                    "  uqdrape export results/drape/nosecone.nc --to vtk flat\n"
+                    "  uqdrape export results/nosecone-zero-angle --to fe --mesh part.inp")
+    e.add_argument("result", help="a drape netCDF file or a run folder")
+    e.add_argument("--to", nargs="+", required=True, choices=("vtk", "fe", "flat"), help="what to write")
+    e.add_argument("--mesh", help="surface mesh for --to fe (any format meshio reads), in mm")
+    e.add_argument("--tolerance", type=float, metavar="MM",
+                   help="how far an element may lie from the mould for --to fe (default: the fibre spacing)")
+    e.add_argument("--reference", type=float, metavar="DEG",
+                   help="plan angle of the direction fibre_deviation is measured from (default: the fabric's "
+                        "orientation)")
+    e.add_argument("--out", metavar="STEM",
+                   help="output path stem (default: the drape file without .nc, or RUN/export/RUN)")
+    e.set_defaults(func=cmd_export)
 
     m = sub.add_parser(
         "materials", formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -268,11 +337,35 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write the card's N_s and W curves to this PNG; with derive, the contributions "
                         "of each term (thesis Fig 4.18), by default next to the card")
     m.set_defaults(func=cmd_materials)
+
+    p.add_argument("--version", action=_Version)
+    p.set_defaults(verbosity=1)
+    for parser in (p, *sub.choices.values()):  # -q / -v before or after the sub-command
+        loud = parser.add_mutually_exclusive_group()
+        loud.add_argument("-q", "--quiet", dest="verbosity", action="store_const", const=0, default=argparse.SUPPRESS,
+                          help="no progress or information on stderr (errors still are)")
+        loud.add_argument("-v", "--verbose", dest="verbosity", action="store_const", const=2,
+                          default=argparse.SUPPRESS, help="more information (run: a line per finished chunk)")
     return p
 
 
+class _Version(argparse.Action):
+    """``--version``: the package version and, from a checkout, its git description."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, help="print the version and exit")
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from .conventions import version_text
+
+        print(version_text())
+        parser.exit()
+
+
 def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
     args = build_parser().parse_args(argv)
+    args.argv = argv  # the command line, for the history of the files it writes
     try:
         return args.func(args)
     except (ValueError, FileNotFoundError) as err:
@@ -281,6 +374,9 @@ def main(argv=None) -> int:
     except BrokenPipeError:  # output piped into e.g. `head`, which closed early
         sys.stderr.close()
         return 0
+    except OSError as err:  # reading or writing files (a missing input is a user error above; a closed pipe before)
+        print(f"uqdrape {args.command}: error: {err}", file=sys.stderr)
+        return 3
     except KeyboardInterrupt:
         print(f"uqdrape {args.command}: interrupted; finished chunks are kept, run again to resume",
               file=sys.stderr)

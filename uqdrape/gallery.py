@@ -4,7 +4,8 @@
 :data:`GALLERY` from the checkout's ``studies/`` (ensemble under ``results/<name>/``, as
 ``uqdrape run`` would), writes its report and copies the report -- PNGs, ``index.html``,
 ``summary.json``, not the netCDF chunks -- into ``results/gallery/<name>/``, plus the
-entry's headline numbers in ``headline.json``. ``results/gallery/README.md`` is then
+entry's headline numbers in ``headline.json`` and, for entries with ``exports``, its
+VTK and flat-pattern export in ``export/``. ``results/gallery/README.md`` is then
 rebuilt from the headline files of all entries present, so ``--only`` refreshes one entry.
 
 The gallery is committed, so its PNGs are stored as 256-colour palette PNGs (about a
@@ -189,6 +190,8 @@ class Entry:
     thesis: str
     #: the headline also reads the run folder (e.g. its sensitivity.nc), not only the ensemble
     reads_folder: bool = False
+    #: ship the ensemble's export too: VTK net statistics and mould, flat pattern, a render
+    exports: bool = False
 
     @property
     def study(self) -> Path:
@@ -214,7 +217,7 @@ GALLERY = (
           "126 N, spacing sd 0.1 %: scatter like the measured one (the other levels: its future-work item 6)"),
     Entry("nosecone-zero-angle", "Figs 5.19/5.20", "line_statistics.png", _node6_headline,
           "bounded sd along the lines; node 6 at 96.6 mm (+, inter-fibre angle 33.5 deg) and 108 mm "
-          "(-, 59.8 deg): its node spacing was evidently larger than 5 mm"),
+          "(-, 59.8 deg): its node spacing was evidently larger than 5 mm", exports=True),
     Entry("plate-correlated-spacing", "beyond the thesis (its §5.3.3 open problem)", "sd_shear.png",
           _plate_headline, "a smooth spacing field correlated over 20 cells (100 mm) shrinks the growth of the scatter; compare plate-spacing"),
     Entry("doubledome-wrinkle-risk", "beyond the thesis (wrinkle risk)", "wrinkle_risk.png", _wrinkle_headline,
@@ -255,6 +258,8 @@ def build_entry(entry: Entry, *, workers: int | None = None, resume: bool = Fals
             shutil.copy2(path, target / path.name)
             if path.suffix == ".png":
                 palette_png(target / path.name)
+    if entry.exports:
+        export_entry(entry, out, target)
     record = {"study": entry.study.as_posix(), "thesis_figure": entry.figure, "thesis": entry.thesis,
               "headline": headline}
     (target / "headline.json").write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
@@ -333,6 +338,25 @@ def _comparison_section() -> list[str]:
     return lines
 
 
+def export_entry(entry: Entry, run_folder: Path, target: Path) -> list[Path]:
+    """Export the entry's ensemble into ``target/export/``: ``<name>.vtu`` (per-node shear
+    statistics, P(locked), fibre directions), ``<name>-mould.vtu``, the flat pattern
+    (``-flat-nodes.csv``, ``-flat-outline.csv``, ``-flat.dxf``), and ``export.png``, a
+    render of the exported VTK file; returns the paths."""
+    from .export import export_flat, export_vtk, levels, open_result
+    from .export.render import render_vtu
+
+    ds, _ = open_result(run_folder)
+    per_level = levels(ds, True)
+    stem = target / "export" / entry.name
+    vtk = export_vtk(per_level, ds, stem)
+    png = render_vtu(vtk[0], target / "export" / "export.png", "shear_mean", mould_vtu=vtk[-1],
+                     label="ensemble mean shear (deg)",
+                     title=f"{entry.name}.vtu: mean shear over {ds.sizes['realization']} drapes, fibre 1 arrows")
+    palette_png(png)
+    return vtk + export_flat(per_level, stem) + [png]
+
+
 def _cell(text: str) -> str:
     """Text for a markdown table cell (a bare | would end the cell)."""
     return text.replace("|", "\\|")
@@ -347,6 +371,9 @@ def write_readme() -> Path:
         "Each folder holds the report of `uqdrape run studies/<name>.toml` (open its `index.html`),",
         "its `summary.json` and the headline numbers below (`headline.json`). The ensembles",
         "themselves (netCDF chunks) are not kept; the PNGs are stored as 256-colour palette images.",
+        "",
+        "Entries with an `export/` folder also ship their ensemble as `uqdrape export` writes it: the net's",
+        "per-node statistics and the mould as VTK (`.vtu`, open in ParaView), and the flat pattern (CSV, DXF).",
         "",
         "Regenerate all of it (a few minutes on 2 cores), or one entry, from the checkout root:",
         "",

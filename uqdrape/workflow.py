@@ -63,7 +63,7 @@ MORRIS_SCREENING_TRAJECTORIES = 20
 
 def run_study(study, *, scheduler: str | None = None, workers: int | None = None,
               chunk_size: int | None = None, resume: bool = True, progress: bool = True,
-              method: str | None = None) -> Path:
+              method: str | None = None, verbose: bool = False) -> Path:
     """Run a study (a ``Study`` or a study file's path); return its output folder.
 
     ``method`` None: the study's [sensitivity] method; "sobol" / "morris": drape that
@@ -89,7 +89,7 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
                      design_evaluations=design.n_evaluations)
     out = run_ensemble(study, design_rows=None if design is None else design.standard, output_dir=out,
                        provenance=provenance, attrs=attrs, scheduler=scheduler, workers=workers,
-                       chunk_size=chunk_size, resume=resume, progress=progress)
+                       chunk_size=chunk_size, resume=resume, progress=progress, verbose=verbose)
     if design is not None:
         if progress:
             print(f"{study.name}: analysing {design.method} indices of {design.n_evaluations} evaluations"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import numbers
 
 import numpy as np
@@ -225,6 +226,8 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
                "material": getattr(material, "name", "none"),
                "locking_angle_deg": float(getattr(material, "locking_angle_deg", np.nan) or np.nan),
                "blankholder_model": prob.blankholder.model,
+               "locking_angle_neg_deg": float(getattr(material, "locking_angle_neg_deg", np.nan) or np.nan),
+               "geometry_json": json.dumps({"kind": prob.surface.name, **prob.surface.params()}),
                "status_codes": Status.describe(), "uqdrape_version": __version__,
                "Conventions": "CF-1.8"},
     )

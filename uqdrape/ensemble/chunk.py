@@ -67,12 +67,12 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
     return ds
 
 
-def write_atomic(ds: xr.Dataset, path: Path) -> Path:
-    """Write ``ds`` to netCDF ``path`` via ``<path>.part`` in the same directory and a
-    rename, so ``path`` exists only complete. A leftover ``.part`` (a killed writer) is
-    overwritten, never read."""
+def write_atomic(ds: xr.Dataset, path: Path, encoding: dict | None = None) -> Path:
+    """Write ``ds`` (with netCDF ``encoding``) to ``path`` via ``<path>.part`` in the same
+    directory and a rename, so ``path`` exists only complete. A leftover ``.part`` (a
+    killed writer) is overwritten, never read."""
     path = Path(path)
     part = path.with_name(path.name + ".part")
-    ds.to_netcdf(part, engine="netcdf4")
+    ds.to_netcdf(part, engine="netcdf4", encoding=encoding)
     os.replace(part, path)
     return path

@@ -18,7 +18,6 @@ the same chunks; what the outputs mean is not this package's business.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import sys
 from dataclasses import dataclass
@@ -26,13 +25,14 @@ from pathlib import Path
 
 import dask
 import numpy as np
-from dask.diagnostics import ProgressBar
-from tqdm import tqdm
+from dask.callbacks import Callback
 
 from .. import __version__
+from ..conventions import cf_encode
 from ..study import Study
 from .chunk import drape_inputs, write_atomic
 from .inputs import inputs_from_design, sampled_inputs
+from .progress import Progress
 from .store import CHUNKS, read_manifest, write_manifest
 
 #: dask schedulers in this process: a pool of local processes (default) or no
@@ -72,7 +72,11 @@ def _run_chunk(study: Study, chunk: Chunk, folder: str, attrs: dict, design_rows
     inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows)
     ds = drape_inputs(study, r, inputs, force=chunk.force)
     ds.attrs.update(attrs)
-    return str(write_atomic(ds, Path(folder) / chunk.name))
+    level = "" if chunk.force is None else f" at {chunk.force:g} N"
+    ds, encoding = cf_encode(ds, title=f"uqdrape ensemble chunk: study {study.name}, realisations "
+                                       f"{chunk.start}-{chunk.stop - 1}{level}",
+                             history=f"uqdrape run {Path(study.path).name}", float32=study.float32)
+    return str(write_atomic(ds, Path(folder) / chunk.name, encoding))
 
 
 def _positive_int(name: str, value) -> int:
@@ -117,10 +121,12 @@ def _prepare(out: Path, manifest: dict, resume: bool) -> None:
     write_manifest(out, manifest)
 
 
-def _compute(tasks: list, scheduler: str | None, workers: int | None, progress: bool) -> None:
-    """Run the chunk tasks locally or on a dask.distributed cluster; re-raise a failure."""
+def _compute(tasks: list, sizes: list, scheduler: str | None, workers: int | None, progress: Progress) -> None:
+    """Run the chunk tasks locally or on a dask.distributed cluster, counting each finished
+    chunk's realisations (``sizes``) in ``progress``; re-raise a failure."""
     if not tasks:
         return
+    count = {task.key: size for task, size in zip(tasks, sizes)}
     if scheduler is None or scheduler in LOCAL_SCHEDULERS:
         options = {"scheduler": scheduler or "processes"}
         if options["scheduler"] == "processes":
@@ -129,22 +135,26 @@ def _compute(tasks: list, scheduler: str | None, workers: int | None, progress: 
             options["chunksize"] = 1
         if workers is not None:
             options["num_workers"] = workers
-        bar = ProgressBar(minimum=1.0, dt=1.0, out=sys.stderr) if progress else contextlib.nullcontext()
-        with bar:
+
+        def finished(key, result, dsk, state, worker_id):
+            if key in count:
+                progress.update(count[key], Path(result).name)
+
+        with Callback(posttask=finished):
             dask.compute(*tasks, **options)
         return
     from distributed import Client, as_completed
 
     with Client(scheduler) as client:
         futures = client.compute(tasks)
-        for future in tqdm(as_completed(futures), total=len(futures), desc="chunks",
-                           file=sys.stderr, disable=not progress):
-            future.result()
+        for future in as_completed(futures):
+            progress.update(count[future.key], Path(future.result()).name)
 
 
 def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance: dict | None = None,
                  attrs: dict | None = None, scheduler: str | None = None, workers: int | None = None,
-                 chunk_size: int | None = None, resume: bool = True, progress: bool = True) -> Path:
+                 chunk_size: int | None = None, resume: bool = True, progress: bool = True,
+                 verbose: bool = False) -> Path:
     """Drape a study's realisations into chunk files; return the output folder (open it
     with ``open_ensemble``).
 
@@ -159,7 +169,8 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
     chunk_size   realisations per chunk (one batched drape call); default: the study's
     resume       skip chunks already written by an earlier run of the same study; False
                  deletes the folder's chunk files first
-    progress     show a progress bar (stderr)
+    progress     show progress on stderr: realisations done, rate and ETA (a bar on a
+                 terminal, a plain line every 30 s elsewhere); ``verbose`` adds a line per chunk
 
     Local worker processes are spawned and import the calling script, so a script needs
     the usual ``if __name__ == "__main__":`` guard. Cluster workers need uqdrape installed
@@ -188,6 +199,12 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
              "sampling_plan": study.sampling.plan, "study_toml": Path(study.path).read_text(encoding="utf-8"),
              "study_json": json.dumps(provenance), **(attrs or {})}
     run = dask.delayed(_run_chunk, pure=False)
-    _compute([run(study, c, str(folder), attrs, None if design_rows is None else design_rows[c.start:c.stop])
-              for c in todo], scheduler, workers, progress)
+    sizes = [c.stop - c.start for c in chunks]
+    bar = Progress(sum(sizes), sum(sizes) - sum(c.stop - c.start for c in todo), enabled=progress, verbose=verbose,
+                   desc=study.name)
+    try:
+        _compute([run(study, c, str(folder), attrs, None if design_rows is None else design_rows[c.start:c.stop])
+                  for c in todo], [c.stop - c.start for c in todo], scheduler, workers, bar)
+    finally:
+        bar.close()
     return out

@@ -19,6 +19,8 @@ from pathlib import Path
 
 import xarray as xr
 
+from ..conventions import cf_decode
+
 MANIFEST = "run.json"
 CHUNKS = "chunks"
 
@@ -66,7 +68,10 @@ def open_ensemble(output_dir) -> xr.Dataset:
         raise FileNotFoundError(
             f"{output_dir} is an incomplete run: {len(missing)} of {len(paths)} chunk files missing "
             f"in {CHUNKS}/ ({shown}); resume it (uqdrape run STUDY) to compute them")
-    return xr.open_mfdataset(
+    files = xr.open_mfdataset(
         paths, engine="netcdf4", combine="by_coords", data_vars="minimal", coords="minimal",
         compat="override", join="exact", combine_attrs="override",
     )
+    ds = cf_decode(files)
+    ds.set_close(files.close)  # closing the result closes the chunk files
+    return ds

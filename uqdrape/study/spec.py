@@ -163,6 +163,8 @@ class Study:
     sensitivity: Sensitivity
     report: Report
     output_dir: Path
+    #: chunks store floats as float32 with zlib (``uqdrape.conventions.cf_encode``)
+    float32: bool = False
 
     @property
     def force_levels(self) -> tuple[float, ...]:
@@ -201,7 +203,7 @@ class Study:
             if "lower" in p:
                 p["bounds"] = [p.pop("lower"), p.pop("upper")]
             doc["uncertainty"][name] = {"dist": factor.dist, **p}
-        doc["output"] = {"directory": str(self.output_dir)}
+        doc["output"] = {"directory": str(self.output_dir), **({"float32": True} if self.float32 else {})}
         return doc
 
 
@@ -260,4 +262,5 @@ def from_dict(doc: dict, path) -> Study:
         report=section(Report, report, histogram_nodes=tuple(tuple(n) for n in report["histogram_nodes"]),
                        experimental_csv=Path(report["experimental_csv"]) if report.get("experimental_csv") else None),
         output_dir=Path(doc["output"]["directory"]),
+        float32=doc["output"].get("float32", False),
     )

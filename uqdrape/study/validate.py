@@ -21,7 +21,8 @@ Sections and keys (units: mm, N, degrees)::
     [sampling]     plan = "monte_carlo"
     [sensitivity]  method = "none", base_samples, qoi = all of QOIS
     [report]       histogram_nodes = [], experimental_csv
-    [output]       directory = "results/<study name>"
+    [output]       directory = "results/<study name>", float32 = false (true: chunks store floats as
+                   float32 with zlib, about a third of the size, rounded to 7 significant digits)
 
 Factor distributions (values in the units of the setting they override): normal
 (mean, sd), truncnormal (mean, sd, bounds = [lo, hi]; mean/sd of the parent normal),
@@ -511,12 +512,15 @@ def _report(src: _Source, doc: dict, rings: int) -> Report:
     return Report(tuple((int(i), int(j)) for i, j in nodes), csv)
 
 
-def _output(src: _Source, doc: dict, name: str) -> Path:
-    t = _Table(src, "output", doc.get("output", {}), ("directory",))
+def _output(src: _Source, doc: dict, name: str) -> tuple[Path, bool]:
+    t = _Table(src, "output", doc.get("output", {}), ("directory", "float32"))
     directory = t.string("directory", f"results/{name}", hint="directory must be a non-empty path")
     if not directory:
         t.invalid("directory", "directory must be a non-empty path")
-    return Path(directory)
+    float32 = t.raw("float32", False, "float32 must be true or false")
+    if not isinstance(float32, bool):
+        t.invalid("float32", "float32 must be true or false")
+    return Path(directory), float32
 
 
 # ----------------------------------------------------------------------------- public API
@@ -540,6 +544,10 @@ def load_study(path) -> Study:
     process = _process(src, doc)
     solver = _solver(src, doc)
     uncertainty = _uncertainty(src, doc, fabric, process, solver, mould)
+    sampling = _sampling(src, doc, head["realizations"], head["seed"])
+    sensitivity = _sensitivity(src, doc, uncertainty)
+    report = _report(src, doc, solver.rings)
+    output_dir, float32 = _output(src, doc, head["name"])  # checked last, as the sections are ordered
     return Study(
         path=path,
         **head,
@@ -548,10 +556,11 @@ def load_study(path) -> Study:
         process=process,
         solver=solver,
         uncertainty=uncertainty,
-        sampling=_sampling(src, doc, head["realizations"], head["seed"]),
-        sensitivity=_sensitivity(src, doc, uncertainty),
-        report=_report(src, doc, solver.rings),
-        output_dir=_output(src, doc, head["name"]),
+        sampling=sampling,
+        sensitivity=sensitivity,
+        report=report,
+        output_dir=output_dir,
+        float32=float32,
     )
 
 

@@ -1,0 +1,93 @@
+"""The CLI around a run: --version, run --out, progress counted in realisations (no
+carriage returns off a terminal), the report-phase line, -q / -v."""
+
+import io
+import textwrap
+
+import pytest
+
+from uqdrape import __version__
+from uqdrape.cli import main
+from uqdrape.ensemble.progress import Progress
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(["--version"])
+    assert stop.value.code == 0 and capsys.readouterr().out.startswith(f"uqdrape {__version__}")
+
+
+class Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def test_progress_is_a_bar_on_a_terminal_and_plain_lines_elsewhere():
+    log = io.StringIO()
+    bar = Progress(10, 2, file=log, desc="study")
+    bar.update(4)
+    bar.update(4, "r0.nc")
+    bar.close()
+    text = log.getvalue()
+    assert "\r" not in text and text.splitlines()[-1].startswith("study: 100%") and "10/10" in text
+    tty = Terminal()
+    bar = Progress(10, file=tty, desc="study")
+    bar.update(10)
+    bar.close()
+    assert "\r" in tty.getvalue() and "10/10" in tty.getvalue()
+    quiet = io.StringIO()
+    Progress(10, file=quiet, enabled=False).update(10)
+    assert quiet.getvalue() == ""
+
+
+@pytest.fixture()
+def study(tmp_path):
+    path = tmp_path / "tiny.toml"
+    path.write_text(textwrap.dedent("""
+        [study]
+        name = "tiny"
+        seed = 1
+        realizations = 6
+        chunk_size = 3
+        [geometry]
+        kind = "plate"
+        [fabric]
+        material = "generic_woven"
+        spacing_mm = 5.0
+        [process]
+        blankholder_force_N = 0.0
+        [solver]
+        mode = "geodesic"
+        rings = 3
+        [uncertainty.spacing]
+        cv = 0.01
+        [output]
+        directory = "never-used"
+    """))
+    return path
+
+
+@pytest.mark.parametrize("flags", [[], ["-q"], ["-v"]])
+def test_run_out_progress_and_verbosity(study, tmp_path, capsys, flags):
+    out = tmp_path / "elsewhere"
+    assert main(["run", str(study), "--out", str(out), "--scheduler", "synchronous", "--no-report", *flags]) == 0
+    std = capsys.readouterr()
+    assert (out / "chunks" / "r0000000-0000002.nc").is_file() and not (tmp_path / "never-used").exists()
+    assert f"ensemble written to {out.absolute()}" in std.out
+    if flags == ["-q"]:
+        assert std.err == ""
+    else:
+        assert "\r" not in std.err and "tiny: 100%" in std.err and "6/6" in std.err
+        assert ("finished r0000003-0000005.nc" in std.err) == (flags == ["-v"])
+
+
+def test_report_phase_has_its_line(study, tmp_path, capsys, monkeypatch):
+    import uqdrape.workflow
+
+    monkeypatch.setattr(uqdrape.workflow, "run_report", lambda out: out / "report" / "index.html")
+    assert main(["-q", "run", str(study), "--out", str(tmp_path / "a"), "--scheduler", "synchronous",
+                 "--no-report"]) == 0
+    assert capsys.readouterr().err == ""  # -q before the sub-command too
+    assert main(["run", str(study), "--out", str(tmp_path / "a"), "--scheduler", "synchronous"]) == 0
+    err = capsys.readouterr().err
+    assert "tiny: 2 of 2 chunks already done" in err and "tiny: writing the report" in err

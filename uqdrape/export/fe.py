@@ -1,0 +1,228 @@
+"""Fibre directions and shear of a drape on the elements of an FE surface mesh.
+
+Each element's centroid (mean of its corner nodes) is moved along the mould normal onto
+the mould, located in a cell of the draped net in plan (each quad split into two
+triangles along its (i, j)-(i+1, j+1) diagonal) and given the net's node values by
+linear barycentric interpolation: exact for fields linear in plan position, error
+O(s^2) for smooth fields at spacing s. The fibre directions are interpolated, laid on
+the mould's tangent plane and opened to 90 deg - the interpolated shear
+(``fibre_frame``). Elements are never dropped: ``map_status`` says why one has no values.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+from functools import partial
+from pathlib import Path
+
+import meshio
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .. import __version__
+from ..drape.kernels import dot
+from .directions import fibre_directions, fibre_frame
+from .files import write_all
+from .result import Level, surface_of
+from .vtk import net_quads
+
+SURFACE_CELLS = {"triangle": 3, "triangle6": 3, "triangle7": 3, "quad": 4, "quad8": 4, "quad9": 4}
+VOLUME_CELLS = ("tetra", "hexahedron", "wedge", "pyramid")
+#: map_status codes of an element
+ON_NET, OFF_NET, OFF_MOULD = 0, 1, 2
+MAP_STATUS = "0=on_net, 1=off_net (outside the draped net), 2=off_mould (farther than the tolerance from the mould)"
+#: Net cells tried per element (nearest by plan centroid) when locating it.
+CANDIDATES = 16
+#: Element labels per line of the Abaqus *ELSET of unmapped elements.
+PER_LINE = 16
+
+
+def read_surface_mesh(path) -> tuple[meshio.Mesh, list]:
+    """The mesh at ``path`` (any format meshio reads) and its surface cell blocks; raises
+    FileNotFoundError / ValueError naming the path for a missing, unreadable or volume mesh."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such mesh file")
+    said = io.StringIO()
+    try:  # meshio prints what each reader said and exits when none could read the file
+        with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said):
+            mesh = meshio.read(path)
+    except (Exception, SystemExit) as err:  # its readers raise anything from ReadError to IndexError
+        cause = " ".join(said.getvalue().split()) or f"{type(err).__name__}: {err}"
+        raise ValueError(f"{path}: cannot read it as a mesh ({cause[:300]})") from None
+    volume = sorted({b.type for b in mesh.cells if b.type.startswith(VOLUME_CELLS)})
+    if volume:
+        raise ValueError(f"{path}: a volume mesh ({', '.join(volume)} cells); fibre directions map onto "
+                         "a surface (shell) mesh of triangles or quads")
+    blocks = [b for b in mesh.cells if b.type in SURFACE_CELLS]
+    if not blocks:
+        raise ValueError(f"{path}: no triangle or quad cells (found: "
+                         f"{', '.join(sorted({b.type for b in mesh.cells})) or 'none'})")
+    return mesh, blocks
+
+
+def element_labels(path, mesh: meshio.Mesh, blocks) -> np.ndarray:
+    """Labels (M,) of the elements of the surface ``blocks``: an Abaqus input's own element
+    numbers (its ``*ELEMENT`` data lines, which meshio reads in order, one cell block per
+    keyword, but does not keep), else 1-based positions in the mesh file's order."""
+    path = Path(path)
+    if path.suffix.lower() != ".inp":
+        return np.arange(1, sum(len(b.data) for b in blocks) + 1)
+    numbers, current = [], None
+    for line in path.read_text(errors="replace").splitlines():
+        if line.startswith("*"):
+            keyword = line.partition(",")[0].strip().lstrip("*").upper()
+            current = [] if keyword == "ELEMENT" else None
+            if current is not None:
+                numbers.append(current)
+        elif current is not None and line.strip():
+            current += [int(k) for k in line.split(",") if k.strip()]
+    if len(numbers) != len(mesh.cells):
+        raise ValueError(f"{path}: {len(numbers)} *ELEMENT blocks but meshio read {len(mesh.cells)} cell blocks; "
+                         "cannot tell the element labels")
+    return np.concatenate([np.reshape(ints, (-1, b.data.shape[1] + 1))[:, 0]
+                           for ints, b in zip(numbers, mesh.cells) if b.type in SURFACE_CELLS])
+
+
+def centroids(mesh: meshio.Mesh, blocks) -> np.ndarray:
+    """Centroids (M, 3) mm of the corner nodes of every cell of ``blocks``, in order."""
+    return np.concatenate([mesh.points[b.data[:, :SURFACE_CELLS[b.type]]].mean(1) for b in blocks])
+
+
+def onto_mould(surface, c: np.ndarray, iterations: int = 30):
+    """Foot points on the mould of the points ``c`` (M, 3) moved along the mould normal:
+    (plan positions (M, 2) mm, signed distance along the normal (M,) mm, inside domain)."""
+    xy = c[:, :2].copy()
+    for _ in range(iterations):
+        n = surface.normal(xy[:, 0], xy[:, 1])
+        h = surface.height(xy[:, 0], xy[:, 1])
+        d = dot(c - np.column_stack([xy, h]), n)
+        xy = c[:, :2] - d[:, None] * n[:, :2]
+    return xy, d, surface.inside(xy[:, 0], xy[:, 1])
+
+
+def locate(points: np.ndarray, tri_xy: np.ndarray):
+    """Triangle index (M,) (-1: none) and barycentric weights (M, 3) of plan ``points``
+    (M, 2) in the triangles ``tri_xy`` (T, 3, 2)."""
+    tree = cKDTree(tri_xy.mean(1))
+    k = min(CANDIDATES, len(tri_xy))
+    _, cand = tree.query(points, k=k)
+    cand = cand.reshape(len(points), k)
+    a, b, c = (tri_xy[cand, m] for m in range(3))
+    v0, v1, v2 = b - a, c - a, points[:, None, :] - a
+    det = v0[..., 0] * v1[..., 1] - v0[..., 1] * v1[..., 0]
+    l1 = (v2[..., 0] * v1[..., 1] - v2[..., 1] * v1[..., 0]) / det
+    l2 = (v0[..., 0] * v2[..., 1] - v0[..., 1] * v2[..., 0]) / det
+    lam = np.stack([1 - l1 - l2, l1, l2], axis=-1)
+    inside = lam.min(-1) >= -1e-9
+    first = np.argmax(inside, axis=1)
+    found = inside[np.arange(len(points)), first]
+    rows = np.arange(len(points))
+    return np.where(found, cand[rows, first], -1), lam[rows, first]
+
+
+def map_level(level: Level, surface, mesh_centroids: np.ndarray, tolerance_mm: float) -> dict:
+    """Element values of one level: fibre1, fibre2 (M, 3), shear (deg), the ensemble's
+    shear_sd and p_locked, map_status and distance_mm (to the mould along its normal)."""
+    P = level.positions
+    d1, d2, _ = fibre_directions(P, level.shear, surface)
+    valid = np.isfinite(P).all(-1) & np.isfinite(level.shear)
+    kept, quads = net_quads(valid)
+    tris = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    pts = P.reshape(-1, 3)[kept]
+    xy, dist, on_mould = onto_mould(surface, mesh_centroids)
+    near = on_mould & (np.abs(dist) <= tolerance_mm)
+    tri, lam = locate(xy, pts[tris, :2]) if len(tris) else (np.full(len(xy), -1), np.zeros((len(xy), 3)))
+    hit = near & (tri >= 0)
+    status = np.where(~near, OFF_MOULD, np.where(hit, ON_NET, OFF_NET)).astype(np.int8)
+    corner = tris[np.where(hit, tri, 0)]
+
+    def interp(values):
+        v = values.reshape(len(P) ** 2, *values.shape[2:])[kept][corner]
+        w = lam.reshape(lam.shape + (1,) * (v.ndim - 2))
+        out = (w * v).sum(1)
+        out[~hit] = np.nan
+        return out
+
+    normal = surface.normal(xy[:, 0], xy[:, 1])
+    shear = interp(level.shear)
+    with np.errstate(invalid="ignore"):
+        e1, e2 = fibre_frame(interp(d1), interp(d2), normal, shear)
+    out = {"fibre1": e1, "fibre2": e2, "shear": shear}
+    for name in ("shear_sd", "p_locked"):
+        if name in level.fields:
+            out[name] = interp(level.fields[name])
+    out.update(map_status=status, distance_mm=dist)
+    return out
+
+
+def _vtu(tmp: Path, mesh: meshio.Mesh, blocks, values: dict) -> None:
+    sizes = np.cumsum([0] + [len(b.data) for b in blocks])
+    cell_data = {name: [v[a:b] for a, b in zip(sizes[:-1], sizes[1:])] for name, v in values.items()}
+    meshio.write(tmp, meshio.Mesh(mesh.points, blocks, cell_data=cell_data), file_format="vtu")
+
+
+def _number(v: float) -> str:
+    return repr(float(v))
+
+
+def _abaqus(tmp: Path, values: dict, labels: np.ndarray, source: str) -> None:
+    """An Abaqus include: per-element local directions 1 and 2 as a *DISTRIBUTION used by
+    a coordinate *ORIENTATION; unmapped elements keep the default (global x, y) and are
+    listed in *ELSET UQDRAPE_UNMAPPED."""
+    d1, d2, status = values["fibre1"], values["fibre2"], values["map_status"]
+    lines = [f"** fibre orientations of {source}, written by uqdrape {__version__}",
+             "** element labels: those of an Abaqus input mesh, else 1-based positions in the mesh file",
+             "** direction 1 = fibre 1 (+i), direction 2 = fibre 2 (+j), unit vectors in global axes",
+             "*DISTRIBUTION TABLE, NAME=UQDRAPE_FIBRE_TABLE",
+             "COORD3D, COORD3D",
+             "*DISTRIBUTION, NAME=UQDRAPE_FIBRE, LOCATION=ELEMENT, TABLE=UQDRAPE_FIBRE_TABLE",
+             ", 1.0, 0.0, 0.0, 0.0, 1.0, 0.0"]
+    for k in np.flatnonzero(status == ON_NET):
+        lines.append(", ".join([str(labels[k])] + [_number(v) for v in (*d1[k], *d2[k])]))
+    lines += ["*ORIENTATION, NAME=UQDRAPE_FIBRE_ORIENTATION, DEFINITION=COORDINATES, SYSTEM=RECTANGULAR",
+              "UQDRAPE_FIBRE"]
+    unmapped = labels[status != ON_NET]
+    if unmapped.size:
+        lines.append(f"** {unmapped.size} elements not on the draped net ({MAP_STATUS}): default orientation")
+        lines.append("*ELSET, ELSET=UQDRAPE_UNMAPPED")
+        lines += [", ".join(map(str, unmapped[a:a + PER_LINE])) for a in range(0, unmapped.size, PER_LINE)]
+    tmp.write_text("\n".join(lines) + "\n", encoding="ascii")
+
+
+def fe_files(levels: list[Level], ds, mesh_path, stem, tolerance_mm: float | None = None):
+    """Map each level onto the surface mesh at ``mesh_path``: writers (for ``write_all``)
+    of ``STEM[-LEVEL]-fe.vtu``
+    (cell data: fibre1, fibre2, shear, [shear_sd, p_locked], map_status, distance_mm) and
+    ``STEM[-LEVEL]-orientations.inp``. ``tolerance_mm`` (default: the fibre spacing) is how
+    far from the mould an element may lie; a mesh whose median element lies farther
+    (wrong units or placement) is an error. Returns (writers, map_status of each level)."""
+    stem = Path(stem)
+    surface = surface_of(ds)
+    tol = float(ds.attrs["spacing_mm"]) if tolerance_mm is None else float(tolerance_mm)
+    if not (np.isfinite(tol) and tol > 0):
+        raise ValueError(f"tolerance must be a distance > 0 mm, got {tolerance_mm!r}")
+    mesh, blocks = read_surface_mesh(mesh_path)
+    labels = element_labels(mesh_path, mesh, blocks)
+    c = centroids(mesh, blocks)
+    writers, statuses = {}, []
+    for level in levels:
+        values = map_level(level, surface, c, tol)
+        far = np.median(np.abs(values["distance_mm"]))
+        if not far <= tol:
+            raise ValueError(f"{mesh_path}: its elements lie {far:.4g} mm (median) from the mould along its "
+                             f"normal, more than the tolerance {tol:g} mm: is the mesh in mm and in the mould's "
+                             "coordinates?")
+        base = f"{stem.name}-{level.label}" if level.label else stem.name
+        writers[stem.with_name(f"{base}-fe.vtu")] = partial(_vtu, mesh=mesh, blocks=blocks, values=values)
+        source = f"{ds.attrs.get('geometry', 'a drape')}{' at ' + level.label if level.label else ''}"
+        writers[stem.with_name(f"{base}-orientations.inp")] = partial(_abaqus, values=values, labels=labels, source=source)
+        statuses.append(values["map_status"])
+    return writers, statuses
+
+
+def export_fe(levels: list[Level], ds, mesh_path, stem, tolerance_mm: float | None = None):
+    """Write the files of :func:`fe_files`; returns (paths, map_status of each level)."""
+    writers, statuses = fe_files(levels, ds, mesh_path, stem, tolerance_mm)
+    return write_all(writers), statuses

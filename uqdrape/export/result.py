@@ -1,0 +1,119 @@
+"""Opening a result (a drape file or a run folder) and cutting it into force levels.
+
+A :class:`Level` is what every exporter draws: node positions (mm) and point fields on
+the (i, j) grid of one drape, or of one force level of an ensemble summarised per node.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from ..conventions import cf_decode
+from ..geometry import Surface, build
+
+#: Quantiles of the node shear exported for an ensemble.
+QUANTILES = (0.05, 0.5, 0.95)
+
+
+@dataclass
+class Level:
+    """One drape, or one force level of an ensemble, ready to export.
+
+    label        "" for a single level, else e.g. "126N" (a suffix of file names)
+    positions    node positions (N, N, 3) mm; NaN where no realisation placed the node
+                 (an ensemble: the mean position over the realisations that placed it)
+    shear        node shear (N, N) deg (an ensemble: its mean), opening the fibre angle
+    fields       point fields by name, each (N, N): the drape's shear, status, locked, or
+                 an ensemble's shear_mean, shear_sd, shear_qXX, p_locked, p_valid
+    orientation  nominal plan angle of fibre 1 (deg), the reference of the deviation
+    data         the drape Dataset of this level (realisations along ``realization``)
+    """
+
+    label: str
+    positions: np.ndarray
+    shear: np.ndarray
+    fields: dict
+    orientation: float
+    data: xr.Dataset
+
+    @property
+    def is_ensemble(self) -> bool:
+        return "p_valid" in self.fields
+
+
+def open_result(path) -> tuple[xr.Dataset, bool]:
+    """(Dataset, is_ensemble) of a ``uqdrape drape`` netCDF file or a ``uqdrape run`` folder.
+
+    Raises FileNotFoundError for a missing path and ValueError for a file that is not a
+    drape result, naming the path."""
+    from ..ensemble import open_ensemble
+
+    path = Path(path)
+    if path.is_dir():
+        return open_ensemble(path), True
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such file or run folder")
+    try:
+        ds = cf_decode(xr.load_dataset(path, engine="netcdf4"))
+    except (OSError, ValueError) as err:
+        raise ValueError(f"{path}: not a netCDF file ({str(err).splitlines()[0]})") from None
+    missing = {"x", "y", "z", "shear", "status"} - set(ds.variables)
+    if missing:
+        raise ValueError(f"{path}: not a uqdrape drape result (no {', '.join(sorted(missing))})")
+    return ds, False
+
+
+def surface_of(ds: xr.Dataset) -> Surface:
+    """The mould a result was draped on, rebuilt from its ``geometry_json`` record."""
+    record = ds.attrs.get("geometry_json")
+    if record is None:
+        raise ValueError(f"the result ({ds.attrs.get('geometry', 'unknown mould')}) has no geometry_json "
+                         "record of its mould; drape or run it again with this uqdrape version")
+    params = json.loads(record)
+    return build(params.pop("kind"), **params)
+
+
+def _drape_level(ds: xr.Dataset, label: str) -> Level:
+    one = ds.isel(realization=0)
+    P = np.stack([one.x.values, one.y.values, one.z.values], axis=-1)
+    fields = {"shear": one.shear.values, "status": one.status.values.astype(np.int8)}
+    if "locked" in one:
+        fields["locked"] = one.locked.values.astype(float)
+    return Level(label, P, fields["shear"], fields, float(one.orientation), ds)
+
+
+def _ensemble_level(ds: xr.Dataset, label: str) -> Level:
+    from ..stats import node_statistics
+
+    st = node_statistics(ds, "shear", quantiles=QUANTILES)
+    placed = (ds.status == 0)
+    mean = {c: ds[c].where(placed).mean("realization").values for c in ("x", "y", "z")}
+    P = np.stack([mean["x"], mean["y"], mean["z"]], axis=-1)
+    fields = {"shear_mean": st["mean"].values, "shear_sd": st["sd"].values}
+    for q in QUANTILES:
+        fields[f"shear_q{round(100 * q):02d}"] = st["quantile_value"].sel(quantile=q).values
+    if "locked" in ds:
+        fields["p_locked"] = ds.locked.mean("realization", skipna=True).values
+    fields["p_valid"] = placed.mean("realization").values.astype(float)
+    return Level(label, P, fields["shear_mean"], fields, float(ds.orientation.mean()), ds)
+
+
+def levels(ds: xr.Dataset, is_ensemble: bool) -> list[Level]:
+    """The levels to export: each force level of an ensemble sweep, each realisation of a
+    drape file (a ``drape --blankholder-force`` list gives several), else one."""
+    if is_ensemble:
+        if "blankholder_force" in ds.dims:
+            return [_ensemble_level(ds.sel(blankholder_force=f), f"{float(f):g}N")
+                    for f in ds.blankholder_force.values]
+        return [_ensemble_level(ds, "")]
+    R = ds.sizes["realization"]
+    if R == 1:
+        return [_drape_level(ds, "")]
+    forces = ds.blankholder_force.values
+    named = len(set(forces.tolist())) == R
+    return [_drape_level(ds.isel(realization=[r]), f"{forces[r]:g}N" if named else f"r{r}") for r in range(R)]
