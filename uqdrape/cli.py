@@ -9,9 +9,12 @@ or after the sub-command.
 from __future__ import annotations
 
 import argparse
+import errno
 import inspect
 import shlex
+import signal
 import sys
+import threading
 from pathlib import Path
 
 
@@ -362,20 +365,37 @@ class _Version(argparse.Action):
         parser.exit()
 
 
+def _os_error(err: OSError) -> str:
+    """An OS error as "PATH: cause" (the cause in words, the disk-full case said plainly)."""
+    cause = "the disk is full" if err.errno == errno.ENOSPC else (err.strerror or str(err))
+    where = err.filename if err.filename is not None else ""
+    return f"{where}: {cause}" if where else cause
+
+
+def _terminated(signum, frame):
+    raise KeyboardInterrupt
+
+
 def main(argv=None) -> int:
+    """Exit codes: 0 done, 2 a user error (bad study, arguments or input file), 3 an I/O or
+    environment error (disk full, permissions, unreachable scheduler, a busy output folder,
+    a corrupt chunk), 130 interrupted (Ctrl-C or SIGTERM). Every error is one line on stderr."""
     argv = sys.argv[1:] if argv is None else list(argv)
     args = build_parser().parse_args(argv)
     args.argv = argv  # the command line, for the history of the files it writes
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _terminated)  # docker stop, batch schedulers: as Ctrl-C
     try:
         return args.func(args)
     except (ValueError, FileNotFoundError) as err:
-        print(f"uqdrape {args.command}: error: {err}", file=sys.stderr)
+        text = _os_error(err) if isinstance(err, OSError) and err.errno else str(err)
+        print(f"uqdrape {args.command}: error: {text}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into e.g. `head`, which closed early
         sys.stderr.close()
         return 0
     except OSError as err:  # reading or writing files (a missing input is a user error above; a closed pipe before)
-        print(f"uqdrape {args.command}: error: {err}", file=sys.stderr)
+        print(f"uqdrape {args.command}: error: {_os_error(err)}", file=sys.stderr)
         return 3
     except KeyboardInterrupt:
         print(f"uqdrape {args.command}: interrupted; finished chunks are kept, run again to resume",

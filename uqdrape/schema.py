@@ -64,8 +64,9 @@ class SolverInput:
 
 #: The scalar solver inputs, in the order studies list them as factors.
 SOLVER_INPUTS = {i.name: i for i in (
-    SolverInput("blankholder_force", "process", "blankholder_force_N", "N", "total blank-holder force", lower=0.0),
-    SolverInput("friction", "process", "friction", "1", "fabric/blank-holder friction coefficient", lower=0.0),
+    # upper ends: far beyond any press (1 MN) and any fabric on steel (mu 2): a typo, not a process
+    SolverInput("blankholder_force", "process", "blankholder_force_N", "N", "total blank-holder force", 0.0, 1e6),
+    SolverInput("friction", "process", "friction", "1", "fabric/blank-holder friction coefficient", 0.0, 2.0),
     SolverInput("orientation", "fabric", "orientation_deg", "degree", "fibre-1 plan angle from the x axis"),
     SolverInput("crossover_x", "fabric", "crossover", "mm", "crossover x", index=0),
     SolverInput("crossover_y", "fabric", "crossover", "mm", "crossover y", index=1),

@@ -108,7 +108,7 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
             raise ValueError(f"{name}: every segment length must be finite and > 0 mm")
     for name, a, lo in (("blankholder_force", force, 0.0), ("friction", mu, 0.0)):
         if not (np.isfinite(a).all() and (a >= lo).all()):
-            raise ValueError(f"{name} must be finite and >= {lo}, got {a[~((a >= lo) & np.isfinite(a))][0]!r}")
+            raise ValueError(f"{name} must be finite and >= {lo:g}, got {float(a[~((a >= lo) & np.isfinite(a))][0]):g}")
     for name, a in (("orientation", orientation), ("pre_shear", pre_shear), ("skew", skew), ("gamma0", gamma0)):
         if not np.isfinite(a).all():
             raise ValueError(f"{name} must be finite (deg)")

@@ -11,7 +11,9 @@ variable of that name.
 
 from __future__ import annotations
 
+import errno
 import os
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -67,12 +69,26 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
     return ds
 
 
-def write_atomic(ds: xr.Dataset, path: Path, encoding: dict | None = None) -> Path:
+def write_atomic(ds: xr.Dataset, path: Path, encoding: dict | None = None, *, keep=None) -> Path | None:
     """Write ``ds`` (with netCDF ``encoding``) to ``path`` via ``<path>.part`` in the same
     directory and a rename, so ``path`` exists only complete. A leftover ``.part`` (a
-    killed writer) is overwritten, never read."""
+    killed writer) is overwritten, never read; a failed write removes its ``.part`` and
+    raises OSError naming the path and the cause (a full disk is said so: netCDF itself
+    only reports "HDF error"). ``keep()``, if given, is asked before the rename: False
+    drops the finished file (a worker whose run has died) and returns None."""
     path = Path(path)
     part = path.with_name(path.name + ".part")
-    ds.to_netcdf(part, engine="netcdf4", encoding=encoding)
+    try:
+        ds.to_netcdf(part, engine="netcdf4", encoding=encoding)
+    except BaseException as err:
+        part.unlink(missing_ok=True)
+        if isinstance(err, OSError) and err.errno is not None or not isinstance(err, Exception):
+            raise
+        if shutil.disk_usage(path.parent).free < ds.nbytes:
+            raise OSError(errno.ENOSPC, "the disk is full", str(path)) from err
+        raise OSError(errno.EIO, f"netCDF could not write it ({err})", str(path)) from err
+    if keep is not None and not keep():
+        part.unlink(missing_ok=True)
+        return None
     os.replace(part, path)
     return path

@@ -24,20 +24,25 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import dask
+import errno
 import numpy as np
 from dask.callbacks import Callback
 
 from .. import __version__
 from ..conventions import cf_encode
 from ..study import Study
+from ..drape import Status
 from .chunk import drape_inputs, write_atomic
 from .inputs import inputs_from_design, sampled_inputs
+from .hygiene import local_pool, orphaned, run_lock
 from .progress import Progress
 from .store import CHUNKS, read_manifest, write_manifest
 
 #: dask schedulers in this process: a pool of local processes (default) or no
 #: parallelism at all (for debugging). Anything with "://" is a dask.distributed address.
 LOCAL_SCHEDULERS = ("processes", "synchronous")
+#: How long to try to reach a dask.distributed scheduler (s).
+SCHEDULER_TIMEOUT = 10
 
 
 @dataclass(frozen=True)
@@ -76,7 +81,7 @@ def _run_chunk(study: Study, chunk: Chunk, folder: str, attrs: dict, design_rows
     ds, encoding = cf_encode(ds, title=f"uqdrape ensemble chunk: study {study.name}, realisations "
                                        f"{chunk.start}-{chunk.stop - 1}{level}",
                              history=f"uqdrape run {Path(study.path).name}", float32=study.float32)
-    return str(write_atomic(ds, Path(folder) / chunk.name, encoding))
+    return str(write_atomic(ds, Path(folder) / chunk.name, encoding, keep=lambda: not orphaned()))
 
 
 def _positive_int(name: str, value) -> int:
@@ -93,13 +98,15 @@ def _identity(manifest: dict) -> dict:
 
 
 def _prepare(out: Path, manifest: dict, resume: bool) -> None:
-    """Check a previous run in ``out`` can be resumed, or clear it; then record this run."""
+    """Check a previous run in ``out`` can be resumed, or clear it; then record this run.
+    Called under the folder's run lock, so a ``.part`` file here is a killed run's."""
     folder = out / CHUNKS
     old = read_manifest(out)
+    for path in folder.glob("*.nc.part"):
+        path.unlink()
     if not resume:
-        for pattern in ("*.nc", "*.nc.part"):
-            for path in folder.glob(pattern):
-                path.unlink()
+        for path in folder.glob("*.nc"):
+            path.unlink()
     elif old is None:
         if any(folder.glob("*.nc")):
             raise ValueError(f"{folder} holds chunk files but {out} has no run manifest; "
@@ -128,24 +135,27 @@ def _compute(tasks: list, sizes: list, scheduler: str | None, workers: int | Non
         return
     count = {task.key: size for task, size in zip(tasks, sizes)}
     if scheduler is None or scheduler in LOCAL_SCHEDULERS:
-        options = {"scheduler": scheduler or "processes"}
-        if options["scheduler"] == "processes":
-            # dask batches local tasks (6 per dispatch by default); a chunk is already a
-            # big batch, so dispatch one at a time or two chunks share one process
-            options["chunksize"] = 1
-        if workers is not None:
-            options["num_workers"] = workers
-
         def finished(key, result, dsk, state, worker_id):
             if key in count:
                 progress.update(count[key], Path(result).name)
 
         with Callback(posttask=finished):
-            dask.compute(*tasks, **options)
+            if scheduler == "synchronous":
+                dask.compute(*tasks, scheduler="synchronous")
+                return
+            with local_pool(workers) as pool:
+                # dask batches local tasks (6 per dispatch by default); a chunk is already a
+                # big batch, so dispatch one at a time or two chunks share one process
+                dask.compute(*tasks, scheduler="processes", pool=pool, chunksize=1)
         return
     from distributed import Client, as_completed
 
-    with Client(scheduler) as client:
+    try:
+        client = Client(scheduler, timeout=SCHEDULER_TIMEOUT)
+    except (OSError, TimeoutError) as err:
+        raise OSError(errno.EHOSTUNREACH, f"cannot reach the dask scheduler within {SCHEDULER_TIMEOUT} s "
+                      f"({type(err).__name__})", scheduler) from None
+    with client:
         futures = client.compute(tasks)
         for future in as_completed(futures):
             progress.update(count[future.key], Path(future.result()).name)
@@ -187,11 +197,44 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
     out = Path(study.output_dir if output_dir is None else output_dir).absolute()
     provenance = study.to_dict() if provenance is None else provenance
     chunks = plan_chunks(study, chunk_size, None if design_rows is None else len(design_rows))
-    _prepare(out, {"study": provenance, "chunk_size": chunk_size, "chunks": [c.name for c in chunks],
-                   "uqdrape_version": __version__}, resume)
+    with run_lock(out):
+        _prepare(out, {"study": provenance, "chunk_size": chunk_size, "chunks": [c.name for c in chunks],
+                       "uqdrape_version": __version__}, resume)
+        folder = out / CHUNKS
+        todo = [c for c in chunks if not (folder / c.name).is_file()]
+        if todo:
+            _preflight(study, todo[0], design_rows)
+        try:
+            _drape_chunks(study, chunks, todo, folder, provenance, attrs, design_rows, scheduler, workers,
+                          progress, verbose)
+        finally:  # an interrupted or failed run's workers are gone: their unfinished files too
+            for part in folder.glob("*.nc.part"):
+                part.unlink(missing_ok=True)
+    return out
 
-    folder = out / CHUNKS
-    todo = [c for c in chunks if not (folder / c.name).is_file()]
+
+def _preflight(study: Study, chunk: Chunk, design_rows) -> None:
+    """Drape the first realisation of ``chunk`` here, before any worker starts, and stop
+    if more than the study's failure budget of its nodes cannot be placed: such a run
+    would only write NaNs (the crossover off the mould, a net larger than the mould)."""
+    r = np.arange(chunk.start, chunk.start + 1)
+    inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows[r])
+    status = drape_inputs(study, r, inputs, force=chunk.force)["status"].values
+    failed = float((status != Status.OK).mean())
+    if failed > study.solver.failure_budget:
+        counts = ", ".join(f"{s.name.lower()} {int((status == s).sum())}" for s in Status if (status == s).any())
+        cause = ("the crossover is off the mould" if status.flat[status.size // 2] != Status.OK
+                 else "the net (2 x rings x spacing) reaches past the mould's edge" if (status == Status.OFF_MOULD).any()
+                 else "the fabric cannot follow the mould (no intersection or folded cells)")
+        raise ValueError(f"study {study.name!r} ({study.path}): {failed:.0%} of the nodes of realisation {chunk.start} "
+                         f"cannot be placed (node status: {counts}), more than solver.failure_budget = "
+                         f"{study.solver.failure_budget:g}; likely {cause}: use fewer rings, a smaller spacing or "
+                         "move the crossover")
+
+
+def _drape_chunks(study, chunks, todo, folder, provenance, attrs, design_rows, scheduler, workers, progress,
+                  verbose) -> None:
+    """Drape the chunks ``todo`` of ``chunks`` into ``folder``, with a progress count."""
     if progress and len(todo) < len(chunks):
         print(f"{study.name}: {len(chunks) - len(todo)} of {len(chunks)} chunks already done in {folder}",
               file=sys.stderr)
@@ -207,4 +250,3 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
                   for c in todo], [c.stop - c.start for c in todo], scheduler, workers, bar)
     finally:
         bar.close()
-    return out

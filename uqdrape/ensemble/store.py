@@ -13,6 +13,7 @@ single file: the chunk files already are the store (each a plain netCDF file), a
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 from pathlib import Path
@@ -68,10 +69,19 @@ def open_ensemble(output_dir) -> xr.Dataset:
         raise FileNotFoundError(
             f"{output_dir} is an incomplete run: {len(missing)} of {len(paths)} chunk files missing "
             f"in {CHUNKS}/ ({shown}); resume it (uqdrape run STUDY) to compute them")
-    files = xr.open_mfdataset(
-        paths, engine="netcdf4", combine="by_coords", data_vars="minimal", coords="minimal",
-        compat="override", join="exact", combine_attrs="override",
-    )
+    try:
+        files = xr.open_mfdataset(
+            paths, engine="netcdf4", combine="by_coords", data_vars="minimal", coords="minimal",
+            compat="override", join="exact", combine_attrs="override",
+        )
+    except (OSError, RuntimeError) as err:
+        for path in paths:  # which one: a truncated or overwritten chunk
+            try:
+                xr.open_dataset(path, engine="netcdf4").close()
+            except (OSError, RuntimeError):
+                raise OSError(errno.EIO, f"a corrupt chunk file ({err}); delete it and run the study again "
+                              "to resume", str(path)) from None
+        raise
     ds = cf_decode(files)
     ds.set_close(files.close)  # closing the result closes the chunk files
     return ds

@@ -28,6 +28,9 @@ from .base import Surface
 # Largest number of (triangle, grid node) candidate pairs tested at once (memory bound).
 _PAIRS_PER_CHUNK = 2_000_000
 
+#: Largest height grid an STL mould is sampled on (points): 4,000 x 4,000, 128 MB per array.
+MAX_GRID_POINTS = 16_000_000
+
 
 def _grid(lo: float, hi: float, step: float) -> np.ndarray:
     """Nodes from lo to hi inclusive, evenly spaced at most ``step`` apart (at least 4)."""
@@ -110,12 +113,19 @@ class StlSurface(Surface):
         try:
             mesh = trimesh.load_mesh(self.path, file_type="stl")
         except Exception as err:  # trimesh raises assorted types on unreadable files
-            raise ValueError(f"path: cannot read {str(self.path)!r} as STL: {err}") from err
+            # (on a file that is neither binary nor ASCII STL, even a missing optional module)
+            why = "not a binary or ASCII STL file" if isinstance(err, ImportError) else str(err)
+            raise ValueError(f"path: cannot read {str(self.path)!r} as STL: {why}") from err
         if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
             raise ValueError(f"path: {str(self.path)!r} holds no triangles")
         (xmin, ymin, _), (xmax, ymax, _) = mesh.bounds
         if not (xmax - xmin > 0 and ymax - ymin > 0):
             raise ValueError(f"path: mesh {str(self.path)!r} has no extent in plan")
+        points = math.ceil((xmax - xmin) / res + 1) * math.ceil((ymax - ymin) / res + 1)
+        if points > MAX_GRID_POINTS:
+            raise ValueError(f"resolution_mm = {res:g} mm makes a height grid of {points:,} points over the "
+                             f"mesh's {xmax - xmin:.4g} x {ymax - ymin:.4g} mm plan, more than {MAX_GRID_POINTS:,}; "
+                             "use a coarser resolution")
         self._x = _grid(xmin, xmax, res)
         self._y = _grid(ymin, ymax, res)
         top = _top_heights(np.asarray(mesh.triangles, dtype=float), self._x, self._y)

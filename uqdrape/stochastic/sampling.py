@@ -42,15 +42,15 @@ def sample_uniforms(plan: str, n: int, d: int, seed: int) -> np.ndarray:
     if n < 1:
         raise ValueError(f"n (number of realisations) must be >= 1, got {n}")
     rng = np.random.default_rng(np.random.SeedSequence(_non_negative_int("seed", seed)))
+    m = n.bit_length() - 1
+    if plan == "sobol" and n != 1 << m:
+        raise ValueError(f"plan 'sobol' needs a power-of-two n for balance, got n={n} (nearest: {1 << m}, {2 << m})")
     if d == 0:
         return np.empty((n, 0))
     if plan == "monte_carlo":
         return rng.random((n, d))
     if plan == "latin_hypercube":
         return qmc.LatinHypercube(d, rng=rng).random(n)
-    m = n.bit_length() - 1
-    if n != 1 << m:
-        raise ValueError(f"plan 'sobol' needs a power-of-two n for balance, got n={n} (nearest: {1 << m}, {2 << m})")
     return qmc.Sobol(d, scramble=True, rng=rng).random_base2(m)
 
 

@@ -76,6 +76,8 @@ class Solver:
     rings: int
     tolerance_deg: float
     max_iterations: int
+    #: largest fraction of a realisation's nodes that may fail to be placed before a run stops
+    failure_budget: float = 0.5
 
 
 @dataclass(frozen=True)

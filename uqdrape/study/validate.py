@@ -10,7 +10,9 @@ Sections and keys (units: mm, N, degrees)::
     [fabric]       material, spacing_mm, orientation_deg = 0, pre_shear_deg = 0, skew_deg = 0, crossover = [0, 0]
     [process]      blankholder_force_N (a number, or a list: a sweep), friction = 0.2, sectors,
                    blankholder_model = "slip" ("radial": thesis Eq 5.1-5.5)
-    [solver]       mode = "energy", rings, tolerance_deg = 1e-3, max_iterations = 30
+    [solver]       mode = "energy", rings, tolerance_deg = 1e-3, max_iterations = 30,
+                   failure_budget = 0.5 (a run stops before draping if more of the first
+                   realisation's nodes cannot be placed)
     [uncertainty.spacing]     cv, correlation = "iid", length_mm, kl_retained = 0.95
     [uncertainty.zero_angle]  mean_deg = 0, sd_deg, correlation = "iid", length_mm, kl_retained = 0.95
     [uncertainty.stitch_prestrain]  mean, sd (fractions), correlation = "iid", length_mm, kl_retained = 0.95:
@@ -51,6 +53,8 @@ error too, because it usually means another key was forgotten.
 from __future__ import annotations
 
 import inspect
+import os
+import shutil
 import json
 import math
 import re
@@ -233,13 +237,24 @@ class _Table:
 
 
 def _read_toml(path: Path, src: _Source) -> dict:
+    """The study document. UTF-8 (a byte-order mark is allowed) or UTF-16 with its mark;
+    anything else is refused naming the first byte that is not text."""
     try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
-    except tomllib.TOMLDecodeError as err:
-        src.fail(f"not valid TOML: {err}")
+        data = path.read_bytes()
     except OSError as err:
         src.fail(f"cannot read the study file: {err.strerror or err}")
+    try:
+        if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+            text = data.decode("utf-16")
+        else:
+            text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        src.fail(f"not UTF-8 text: byte 0x{data[err.start]:02x} at offset {err.start} ({err.reason}); "
+                 "save the study file as UTF-8")
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        src.fail(f"not valid TOML: {err}")
 
 
 def _study(src: _Source, doc: dict) -> dict:
@@ -249,7 +264,7 @@ def _study(src: _Source, doc: dict) -> dict:
         t.invalid("name", "name must be a non-empty string of letters, digits, '-' and '_'")
     return {
         "name": name,
-        "seed": t.number("seed", integer=True, ge=0),
+        "seed": t.number("seed", integer=True, ge=0, lt=2**63),
         "realizations": t.number("realizations", integer=True, ge=1),
         "chunk_size": t.number("chunk_size", 64, integer=True, ge=1),
         "description": t.string("description", ""),
@@ -318,7 +333,12 @@ def _process(src: _Source, doc: dict) -> Process:
         levels = t.numbers("blankholder_force_N", hint=hint)
     if not all(math.isfinite(f) and f >= 0 for f in levels) or len(set(levels)) != len(levels):
         t.invalid("blankholder_force_N", hint)
+    force = SOLVER_INPUTS["blankholder_force"]
+    if not all(force.admits(f) for f in levels):
+        t.invalid("blankholder_force_N", f"blankholder_force_N {force.describe_range()}")
     friction = t.number("friction", 0.2, ge=0)
+    if not SOLVER_INPUTS["friction"].admits(friction):
+        t.invalid("friction", f"friction {SOLVER_INPUTS['friction'].describe_range()}")
     sectors = None
     if t.has("sectors"):
         hint = "sectors must be a non-empty list of relative weights >= 0, not all zero"
@@ -330,13 +350,22 @@ def _process(src: _Source, doc: dict) -> Process:
 
 
 def _solver(src: _Source, doc: dict) -> Solver:
-    t = _Table(src, "solver", doc.get("solver", {}), ("mode", "rings", "tolerance_deg", "max_iterations"))
-    return Solver(
+    t = _Table(src, "solver", doc.get("solver", {}), ("mode", "rings", "tolerance_deg", "max_iterations",
+                                                        "failure_budget"))
+    solver = Solver(
         mode=t.string("mode", "energy", choices=MODES),
         rings=t.number("rings", integer=True, ge=1),
         tolerance_deg=t.number("tolerance_deg", 1e-3, gt=0),
         max_iterations=t.number("max_iterations", 30, integer=True, ge=1),
+        failure_budget=t.number("failure_budget", 0.5, ge=0),
     )
+    if solver.failure_budget > 1:
+        t.invalid("failure_budget", "failure_budget is a fraction of the nodes, in [0, 1]")
+    nodes = (2 * solver.rings + 1) ** 2
+    if nodes * WORKING_BYTES_PER_NODE > _memory() / 2:
+        t.invalid("rings", f"one drape of {nodes:,} nodes needs about {nodes * WORKING_BYTES_PER_NODE / 2**30:.3g} "
+                  f"GiB, more than half of this machine's {_memory() / 2**30:.3g} GiB")
+    return solver
 
 
 def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, material: str) -> RandomField:
@@ -462,7 +491,7 @@ def _sampling(src: _Source, doc: dict, realizations: int, seed: int) -> Sampling
     t = _Table(src, "sampling", doc.get("sampling", {}), ("plan",))
     plan = t.string("plan", "monte_carlo", choices=_stochastic.PLANS)
     try:
-        _stochastic.sample_uniforms(plan, realizations, 1, seed)
+        _stochastic.sample_uniforms(plan, realizations, 0, seed)  # checks the plan, draws nothing
     except ValueError as err:
         src.wrap(err, "sampling", {"plan": ("sampling.plan", plan), "n": ("study.realizations", realizations)})
     return Sampling(plan)
@@ -520,7 +549,47 @@ def _output(src: _Source, doc: dict, name: str) -> tuple[Path, bool]:
     float32 = t.raw("float32", False, "float32 must be true or false")
     if not isinstance(float32, bool):
         t.invalid("float32", "float32 must be true or false")
+    existing = Path(directory).absolute()
+    while not existing.exists():
+        existing = existing.parent
+    if not existing.is_dir():
+        src.invalid("output.directory", directory, f"{existing} is a file, not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        src.invalid("output.directory", directory, f"{existing} is not writable")
     return Path(directory), float32
+
+
+#: Bytes a node costs in a chunk file (x, y, z, shear, locked, status and the cells' values)
+#: and, about, in the solver's working arrays of an energy drape (candidate rings per step).
+STORED_BYTES_PER_NODE = 64
+WORKING_BYTES_PER_NODE = 600
+
+
+def _memory() -> int:
+    """This machine's physical memory (bytes)."""
+    return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+
+
+def _resources(src: _Source, realizations: int, chunk_size: int, rings: int, levels: int, output_dir: Path):
+    """Refuse a study whose chunk would not fit in memory or whose ensemble would not fit on
+    the disk of its output folder (estimates, stated in the message; one drape's own size
+    is checked with [solver] rings)."""
+    nodes = (2 * rings + 1) ** 2
+    batch = min(chunk_size, realizations)
+    need = batch * nodes * WORKING_BYTES_PER_NODE
+    if need > _memory() / 2:
+        src.invalid("study.chunk_size", chunk_size,
+                    f"a chunk of {batch} drapes of {nodes:,} nodes needs about {need / 2**30:.3g} GiB, more than "
+                    f"half of this machine's {_memory() / 2**30:.3g} GiB; use a smaller chunk_size")
+    existing = output_dir.absolute()
+    while not existing.exists():
+        existing = existing.parent
+    disk = realizations * levels * nodes * STORED_BYTES_PER_NODE
+    free = shutil.disk_usage(existing).free
+    if disk > free:
+        src.invalid("study.realizations", realizations,
+                    f"{realizations * levels:,} drapes of {nodes:,} nodes take about {disk / 2**30:.3g} GiB, "
+                    f"more than the {free / 2**30:.3g} GiB free under {existing}")
 
 
 # ----------------------------------------------------------------------------- public API
@@ -548,6 +617,8 @@ def load_study(path) -> Study:
     sensitivity = _sensitivity(src, doc, uncertainty)
     report = _report(src, doc, solver.rings)
     output_dir, float32 = _output(src, doc, head["name"])  # checked last, as the sections are ordered
+    _resources(src, head["realizations"], head["chunk_size"], solver.rings, len(process.blankholder_force_N),
+               output_dir)
     return Study(
         path=path,
         **head,
