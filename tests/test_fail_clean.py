@@ -4,6 +4,7 @@ kill, and validation that refuses what a run would only find out after draping."
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 import os
@@ -19,11 +20,14 @@ from types import SimpleNamespace
 import psutil
 import pytest
 import xarray as xr
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from uqdrape.cli import main as cli
 from uqdrape.ensemble import open_ensemble
 from uqdrape.ensemble import run as run_module
 from uqdrape.ensemble.hygiene import LOCK, RunLocked
+from uqdrape.study import load_study
 from uqdrape.workflow import run_study
 
 BASE = """
@@ -157,20 +161,28 @@ def test_an_output_folder_that_cannot_be_a_folder_is_refused_at_validation(tmp_p
     assert "output.directory" in err and "is a file, not a folder" in err
 
 
-def test_a_run_whose_net_leaves_the_mould_stops_before_draping(tmp_path, capsys):
+def test_a_study_whose_net_leaves_the_mould_is_refused_before_draping(tmp_path, capsys):
     path = study_file(tmp_path, rings=40)  # 2 x 40 x 5 mm = 400 mm of net on a 50 mm dome
     assert cli(["run", str(path), "--scheduler", "synchronous"]) == 2
     err = capsys.readouterr().err
     one_line_error(err)
-    assert "cannot be placed" in err and "off_mould" in err and "failure_budget = 0.5" in err
-    assert list((tmp_path / "tiny" / "chunks").glob("*")) == []
+    assert "solver.rings = 40" in err and "cannot be placed" in err and "off_mould" in err
+    assert "failure_budget = 0.5" in err and not (tmp_path / "tiny").exists()
+    # the run checks again with its own first realisation (an energy drape may fail where the
+    # nominal geodesic one did not): a study changed after validation stops there
+    study = load_study(study_file(tmp_path, "ok"))
+    study = dataclasses.replace(study, solver=dataclasses.replace(study.solver, rings=40))
+    with pytest.raises(ValueError, match=r"of the nodes of realisation 0 cannot be placed, more than "
+                                         r"solver.failure_budget = 0.5 \(node status: ok \d+, .*off_mould"):
+        run_study(study, scheduler="synchronous", progress=False)
+    assert list((tmp_path / "ok" / "chunks").glob("*")) == []
 
 
 # ----------------------------------------------------------------------------- hostile inputs
 
 #: (section, key, value as TOML) replacements or additions to the base study.
 HOSTILE_VALUES = {
-    ("study", "seed"): ["-1", "9223372036854775808", "1.5", '"x"', "true", "[]"],
+    ("study", "seed"): ["-1", "9223372036854775808", "9223372036854775807", "0", "1.5", '"x"', "true", "[]"],
     ("study", "realizations"): ["0", "-3", "1000000000", "2.5", '"10"', "{}"],
     ("study", "chunk_size"): ["0", "100000000", "nan", '"big"'],
     ("study", "name"): ['""', '"a b"', '"../x"', "7"],
@@ -180,7 +192,7 @@ HOSTILE_VALUES = {
     ("fabric", "material"): ['"nope"', '"../../etc/passwd"', '"card.csv"', "1"],
     ("fabric", "crossover"): ["[0]", "[1e9, 0]", '["a", 0]', "[nan, 0]", "0"],
     ("fabric", "pre_shear_deg"): ["90", "-90", "1e9", '"x"'],
-    ("process", "blankholder_force_N"): ["-1", "1e12", "[]", "[1, 1]", '"100"', "nan"],
+    ("process", "blankholder_force_N"): ["-1", "1e12", "[]", "[1, 1]", '"100"', "nan", "[0, 1e5]"],
     ("process", "friction"): ["-0.1", "1e6", "inf", '"0.2"'],
     ("process", "sectors"): ["[]", "[0, 0]", "[-1, 2]", '"8"'],
     ("process", "blankholder_model"): ['"circular"', "1"],
@@ -193,13 +205,14 @@ HOSTILE_VALUES = {
     ("uncertainty.zero_angle", "correlation"): ['"pink"', "1"],
     ("uncertainty.friction", "dist"): ['"cauchy"', '"normal"', "3"],
     ("uncertainty.orientation", "bounds"): ["[5, -5]", "[0]", '["a", "b"]'],
-    ("sampling", "plan"): ['"sobol"', '"grid"', "0"],
+    ("sampling", "plan"): ['"sobol"', '"grid"', "0", '"latin_hypercube"'],
     ("sensitivity", "method"): ['"sobol"', '"fast"'],
     ("sensitivity", "base_samples"): ["64", "-1"],
     ("report", "histogram_nodes"): ["[[99, 99]]", "[[1]]", '"all"'],
     ("report", "experimental_csv"): ['"missing.csv"', "1"],
     ("output", "directory"): ['""', "5"],
-    ("output", "float32"): ['"yes"', "1"],
+    ("output", "float32"): ['"yes"', "1", "true"],
+    ("fabric", "orientation_deg"): ["720", "-1e9", '"north"'],
 }
 #: Whole files that are not study files.
 HOSTILE_FILES = {
@@ -254,14 +267,7 @@ def test_a_hostile_input_ends_in_success_or_one_line(tmp_path, capsys, case):
     if kind == "drape":
         argv = ["drape", "--rings", "3", "--out", str(tmp_path / "d"), *what[0]]
     else:
-        path = tmp_path / "hostile.toml"
-        if kind == "file":
-            path.write_bytes(what[0])
-        else:
-            section, key, value = what
-            base = study_file(tmp_path, "base").read_text(encoding="utf-8")
-            path.write_text(_set(base, section, key, value), encoding="utf-8")
-        argv = ["validate", str(path)]
+        argv = ["validate", str(_hostile_study(tmp_path, case))]
     try:
         code = cli(argv)
     except SystemExit as stop:  # argparse's own usage errors
@@ -272,6 +278,36 @@ def test_a_hostile_input_ends_in_success_or_one_line(tmp_path, capsys, case):
     if code:
         assert err.count("\n") == 1 or err.startswith("usage:"), err
     assert "np.float64" not in err
+
+
+def _hostile_study(tmp_path: Path, case: str) -> Path:
+    """The study file of a hostile study case, written under ``tmp_path``."""
+    kind, *what = CASES[case]
+    path = tmp_path / "hostile.toml"
+    if kind == "file":
+        path.write_bytes(what[0])
+    else:
+        section, key, value = what
+        base = study_file(tmp_path, "base").read_text(encoding="utf-8")
+        path.write_text(_set(base, section, key, value), encoding="utf-8")
+    return path
+
+
+@pytest.mark.slow
+def test_every_hostile_study_that_validates_also_runs(tmp_path, capsys):
+    """What validate accepts, run does not refuse after draping (tiny geodesic ensembles)."""
+    accepted = []
+    for k, (case, (kind, *_)) in enumerate(CASES.items()):
+        if kind == "drape":
+            continue
+        folder = tmp_path / str(k)
+        folder.mkdir()
+        path = _hostile_study(folder, case)
+        if cli(["validate", str(path)]) == 0:
+            accepted.append(case)
+            assert cli(["run", str(path), "--scheduler", "synchronous"]) == 0, (case, capsys.readouterr().err)
+    capsys.readouterr()
+    assert len(accepted) >= 5, accepted
 
 
 # ----------------------------------------------------------------------------- kills (slow)
@@ -316,3 +352,63 @@ def test_a_killed_run_leaves_no_process_and_resumes_to_the_same_ensemble(tmp_pat
                       workers=2, progress=False)
     with open_ensemble(resumed) as a, open_ensemble(whole) as b:
         xr.testing.assert_identical(a.drop_attrs(deep=False), b.drop_attrs(deep=False))
+
+
+# ----------------------------------------------------------------------------- fuzzing (slow)
+
+_SCALARS = st.one_of(st.none(), st.booleans(), st.integers(-10**20, 10**20), st.floats(allow_nan=True),
+                     st.text(max_size=12))
+_KEYS = st.sampled_from(["name", "seed", "realizations", "chunk_size", "kind", "radius", "material", "spacing_mm",
+                         "crossover", "blankholder_force_N", "friction", "sectors", "blankholder_model", "mode",
+                         "rings", "sd_deg", "cv", "dist", "bounds", "plan", "method", "directory", "x"])
+_SECTIONS = st.sampled_from(["study", "geometry", "fabric", "process", "solver", "uncertainty.zero_angle",
+                             "uncertainty.friction", "sampling", "sensitivity", "report", "output", "other"])
+
+
+def _toml_value(value) -> str:
+    if value is None:
+        return '""'
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return "nan" if value != value else ("inf" if value == float("inf") else "-inf"
+                                            if value == float("-inf") else repr(value))
+    if isinstance(value, str):
+        return json.dumps(value)
+    return str(value)
+
+
+@st.composite
+def _documents(draw):
+    """A study file: the tiny base study with some keys replaced or added, or noise."""
+    if draw(st.integers(0, 9)) == 0:
+        return draw(st.binary(max_size=200))
+    text = BASE.format(name="fuzz", realizations=4, chunk_size=2, mode="geodesic", rings=3, out="/tmp/fuzz-out")
+    for _ in range(draw(st.integers(1, 4))):
+        value = draw(st.one_of(_SCALARS, st.lists(_SCALARS, max_size=3)))
+        rendered = "[" + ", ".join(_toml_value(v) for v in value) + "]" if isinstance(value, list) else _toml_value(value)
+        text = _set(text, draw(_SECTIONS), draw(_KEYS), rendered)
+    return text.encode("utf-8")
+
+
+@pytest.mark.slow
+@settings(max_examples=1000, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
+                                                                     HealthCheck.too_slow])
+@given(document=_documents())
+def test_fuzzed_study_files_never_raise_a_traceback(tmp_path_factory, document):
+    path = tmp_path_factory.mktemp("fuzz") / "fuzz.toml"
+    path.write_bytes(document)
+    err = subprocess_free_validate(path)
+    assert "Traceback" not in err and err.count("\n") <= 1, err
+
+
+def subprocess_free_validate(path: Path) -> str:
+    """Run ``uqdrape validate PATH`` in this process; return its stderr."""
+    import contextlib
+    import io
+
+    buffer = io.StringIO()
+    with contextlib.redirect_stderr(buffer), contextlib.redirect_stdout(io.StringIO()):
+        code = cli(["validate", str(path)])
+    assert code in (0, 2), (code, buffer.getvalue())
+    return buffer.getvalue()

@@ -2,6 +2,8 @@
 
 from enum import IntEnum
 
+import numpy as np
+
 
 class Status(IntEnum):
     """Why a node is (in)valid. Stored as int8 in the ``status`` variable."""
@@ -19,3 +21,18 @@ class Status(IntEnum):
     @classmethod
     def describe(cls) -> str:
         return ", ".join(f"{s.value}={s.name.lower()}" for s in cls)
+
+
+def placement_failures(status) -> tuple[float, str]:
+    """The fraction of nodes of a net (status array, crossover at its centre) that could
+    not be placed, and a sentence with their status counts and the likely cause."""
+    status = np.asarray(status)
+    failed = float((status != Status.OK).mean())
+    counts = ", ".join(f"{s.name.lower()} {int((status == s).sum())}" for s in Status if (status == s).any())
+    if status.flat[status.size // 2] != Status.OK:
+        cause = "the crossover is off the mould"
+    elif (status == Status.OFF_MOULD).any():
+        cause = "the net (2 x rings x spacing) reaches past the mould's edge"
+    else:
+        cause = "the fabric cannot follow the mould (no intersection or folded cells)"
+    return failed, f"node status: {counts}; likely {cause}"

@@ -31,7 +31,7 @@ from dask.callbacks import Callback
 from .. import __version__
 from ..conventions import cf_encode
 from ..study import Study
-from ..drape import Status
+from ..drape import placement_failures
 from .chunk import drape_inputs, write_atomic
 from .inputs import inputs_from_design, sampled_inputs
 from .hygiene import local_pool, orphaned, run_lock
@@ -219,17 +219,11 @@ def _preflight(study: Study, chunk: Chunk, design_rows) -> None:
     would only write NaNs (the crossover off the mould, a net larger than the mould)."""
     r = np.arange(chunk.start, chunk.start + 1)
     inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows[r])
-    status = drape_inputs(study, r, inputs, force=chunk.force)["status"].values
-    failed = float((status != Status.OK).mean())
+    failed, why = placement_failures(drape_inputs(study, r, inputs, force=chunk.force)["status"].values[0])
     if failed > study.solver.failure_budget:
-        counts = ", ".join(f"{s.name.lower()} {int((status == s).sum())}" for s in Status if (status == s).any())
-        cause = ("the crossover is off the mould" if status.flat[status.size // 2] != Status.OK
-                 else "the net (2 x rings x spacing) reaches past the mould's edge" if (status == Status.OFF_MOULD).any()
-                 else "the fabric cannot follow the mould (no intersection or folded cells)")
         raise ValueError(f"study {study.name!r} ({study.path}): {failed:.0%} of the nodes of realisation {chunk.start} "
-                         f"cannot be placed (node status: {counts}), more than solver.failure_budget = "
-                         f"{study.solver.failure_budget:g}; likely {cause}: use fewer rings, a smaller spacing or "
-                         "move the crossover")
+                         f"cannot be placed, more than solver.failure_budget = {study.solver.failure_budget:g} "
+                         f"({why}): use fewer rings, a smaller spacing or move the crossover")
 
 
 def _drape_chunks(study, chunks, todo, folder, provenance, attrs, design_rows, scheduler, workers, progress,

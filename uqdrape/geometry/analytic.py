@@ -22,14 +22,19 @@ from .base import Surface
 _R_EPS = 1e-12
 
 
+#: Largest mould dimension accepted (mm): beyond any press, and far from float overflow.
+MAX_LENGTH_MM = 1e5
+
+
 def _length(name: str, value) -> float:
     """A strictly positive, finite length in mm, or a ValueError naming the argument."""
     try:
         v = float(value)
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be a positive length in mm, got {value!r}") from None
-    if not (math.isfinite(v) and v > 0):
-        raise ValueError(f"{name} must be a positive length in mm, got {value!r}")
+    if not (math.isfinite(v) and 0 < v <= MAX_LENGTH_MM):
+        raise ValueError(f"{name} must be a positive length in mm up to {MAX_LENGTH_MM:g} (a 100 m tool), "
+                         f"got {value!r}")
     return v
 
 

@@ -66,7 +66,7 @@ import numpy as np
 from .. import geometry as _geometry
 from .. import material as _material
 from .. import stochastic as _stochastic
-from ..drape import BLANKHOLDER_MODELS, MODES
+from ..drape import BLANKHOLDER_MODELS, MODES, drape, placement_failures
 from ..schema import SOLVER_INPUTS
 from ..stats import QOIS
 from .spec import (DIST_KEYS, FACTOR_SETTINGS, FIELD_KEYS, FIELDS, SECTIONS, SENSITIVITY_METHODS, Fabric,
@@ -565,6 +565,18 @@ STORED_BYTES_PER_NODE = 64
 WORKING_BYTES_PER_NODE = 600
 
 
+def _nominal_placement(src: _Source, mould, fabric: Fabric, solver: Solver) -> None:
+    """Refuse a study whose nominal net (a geodesic drape at the fixed settings) loses more
+    than ``failure_budget`` of its nodes: every realisation would be mostly NaN."""
+    ds = drape(mould, fabric.spacing_mm, solver.rings, orientation=fabric.orientation_deg,
+               pre_shear=fabric.pre_shear_deg, skew=fabric.skew_deg, crossover=fabric.crossover)
+    failed, why = placement_failures(ds["status"].values[0])
+    if failed > solver.failure_budget:
+        src.invalid("solver.rings", solver.rings, f"{failed:.0%} of the nominal net's nodes cannot be placed "
+                    f"(geodesic drape at the fixed settings), more than solver.failure_budget = "
+                    f"{solver.failure_budget:g} ({why}): use fewer rings, a smaller spacing or move the crossover")
+
+
 def _memory() -> int:
     """This machine's physical memory (bytes)."""
     return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
@@ -619,6 +631,7 @@ def load_study(path) -> Study:
     output_dir, float32 = _output(src, doc, head["name"])  # checked last, as the sections are ordered
     _resources(src, head["realizations"], head["chunk_size"], solver.rings, len(process.blankholder_force_N),
                output_dir)
+    _nominal_placement(src, mould, fabric, solver)
     return Study(
         path=path,
         **head,
