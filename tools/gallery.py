@@ -1,17 +1,17 @@
 """The reference gallery: every thesis-figure study run end to end, its small report kept.
 
-``python -m uqdrape.gallery [--only NAME ...] [--workers N]`` runs each study of
+``python tools/gallery.py [--only NAME ...] [--workers N]`` runs each study of
 :data:`GALLERY` from the checkout's ``studies/`` (ensemble under ``results/<name>/``, as
 ``uqdrape run`` would), writes its report and copies the report -- PNGs, ``index.html``,
 ``summary.json``, not the netCDF chunks -- into ``results/gallery/<name>/``, plus the
 entry's headline numbers in ``headline.json``. ``results/gallery/README.md`` is then
 rebuilt from the headline files of all entries present, so ``--only`` refreshes one entry.
 
-The gallery is committed, so its PNGs are stored as 256-colour palette PNGs (about a
-third of matplotlib's RGBA size; the plots are line art and colour maps, so the
-difference is not visible). Paths are relative to the checkout root (the folder holding
-``studies/``), whatever the current directory, so the stored study records carry the
-relative output folder and the gallery is reproducible on any machine.
+The PNGs are the report's own lossless ones. Paths are relative to the checkout root
+(the folder holding ``studies/``), whatever the current directory, so the stored study
+records carry the relative output folder and the gallery is reproducible on any machine.
+A script of the checkout, not of the installed package: it needs ``studies/`` and
+``results/gallery/`` beside it.
 """
 
 from __future__ import annotations
@@ -27,10 +27,9 @@ from pathlib import Path
 
 import numpy as np
 import xarray as xr
-from PIL import Image
 from scipy.stats import spearmanr
 
-from .stats import line_scalars, line_statistics, node_statistics
+from uqdrape.stats import inner_outer_sd, line_scalars, line_statistics, wrinkle_risk
 
 ROOT = Path(__file__).resolve().parent.parent
 #: Where the committed reference reports live, relative to the checkout root.
@@ -39,38 +38,6 @@ GALLERY_DIR = Path("results") / "gallery"
 KEPT = ("*.png", "index.html", "summary.json")
 #: Rings at each end of the net summarised by ``inner_outer_sd``.
 RING_BAND = 5
-
-
-# ----------------------------------------------------------------------------- ring statistics
-
-
-def ring_sd(ds: xr.Dataset, var: str = "shear") -> xr.DataArray:
-    """Per-node ensemble sd of ``var`` (deg) averaged over each ring k = max(|i|, |j|) = 1..n.
-
-    Rings are the net's distance from the crossover in segments; the result has dim
-    ``ring`` (plus a leading ``blankholder_force`` of a sweep). Nodes with fewer than
-    two valid realisations are left out of their ring's average.
-    """
-    sd = node_statistics(ds, var)["sd"]
-    ring = np.maximum(abs(sd["i"]), abs(sd["j"]))
-    n = int(ring.max())
-    per_ring = [sd.where(ring == k).mean(("i", "j")) for k in range(1, n + 1)]
-    out = xr.concat(per_ring, dim="ring").assign_coords(ring=np.arange(1, n + 1))
-    return out.assign_attrs(units=sd.attrs.get("units", "degree"),
-                            long_name=f"mean over the ring's nodes of the ensemble sd of {var}")
-
-
-def inner_outer_sd(ds: xr.Dataset, var: str = "shear", band: int = RING_BAND) -> tuple[float, float]:
-    """(inner, outer) ring-averaged sd of ``var`` (deg): rings 1..band and the ``band``
-    rings just inside the boundary ring (n-band..n-1). The boundary ring is left out:
-    its node shear averages fewer cells (one at a corner), which adds scatter of its own."""
-    per_ring = ring_sd(ds, var)
-    n = per_ring.sizes["ring"]
-    if n < 2 * band + 1:
-        raise ValueError(f"band={band} needs a net of at least {2 * band + 1} rings, got {n}")
-    inner = float(per_ring.sel(ring=slice(1, band)).mean())
-    outer = float(per_ring.sel(ring=slice(n - band, n - 1)).mean())
-    return inner, outer
 
 
 # ----------------------------------------------------------------------------- headline numbers
@@ -123,7 +90,7 @@ def _node6_headline(ds: xr.Dataset) -> dict:
 
 
 def _plate_headline(ds: xr.Dataset) -> dict:
-    inner, outer = inner_outer_sd(ds)
+    inner, outer = inner_outer_sd(ds, band=RING_BAND)
     n = int(ds.attrs["rings"])
     pooled = float(ds["shear"].std(skipna=True))
     return {f"shear sd, rings 1-{RING_BAND} (deg)": _round(inner),
@@ -133,8 +100,6 @@ def _plate_headline(ds: xr.Dataset) -> dict:
 
 
 def _wrinkle_headline(ds: xr.Dataset) -> dict:
-    from .report.summary import wrinkle_risk
-
     ex = wrinkle_risk(ds)
     p = ex["probability"]
     top = ex.isel(p.argmax(...))
@@ -145,7 +110,7 @@ def _wrinkle_headline(ds: xr.Dataset) -> dict:
 
 
 def _sensitivity_headline(ds: xr.Dataset, out: Path) -> dict:
-    from .sensitivity.study import open_sensitivity
+    from uqdrape.sensitivity import open_sensitivity
 
     indices = open_sensitivity(out)[0]
     out_ = {}
@@ -204,18 +169,11 @@ ENTRIES = {e.name: e for e in GALLERY}
 # ----------------------------------------------------------------------------- building
 
 
-def palette_png(path: Path) -> None:
-    """Rewrite a PNG in place as a 256-colour palette PNG (lossy in colour only)."""
-    with Image.open(path) as im:
-        rgb = im.convert("RGB")
-    rgb.quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE).save(path, optimize=True)
-
-
 def build_entry(entry: Entry, *, workers: int | None = None, resume: bool = False, progress: bool = True) -> Path:
     """Run ``entry``'s study, write its report and copy it into the gallery; returns the
     gallery folder. Call with the checkout root as the current directory (``main`` does)."""
-    from .ensemble import open_ensemble, run_study
-    from .report import write_run_report
+    from uqdrape.ensemble import open_ensemble, run_study
+    from uqdrape.report import write_run_report
 
     out = run_study(entry.study, workers=workers, resume=resume, progress=progress)
     report = write_run_report(out).parent
@@ -228,8 +186,6 @@ def build_entry(entry: Entry, *, workers: int | None = None, resume: bool = Fals
     for pattern in KEPT:
         for path in sorted(report.glob(pattern)):
             shutil.copy2(path, target / path.name)
-            if path.suffix == ".png":
-                palette_png(target / path.name)
     record = {"study": entry.study.as_posix(), "thesis_figure": entry.figure, "thesis": entry.thesis,
               "headline": headline}
     (target / "headline.json").write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
@@ -245,12 +201,8 @@ def write_level_comparison() -> Path | None:
     """Plot the nose-cone asymmetry against blank-holder force for every level study of
     :data:`LEVEL_ENTRIES` whose ensemble is under ``results/`` (one line per material card
     and blank-holder model) and keep the numbers; returns the PNG, or None if none ran."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from .ensemble import open_ensemble
+    from uqdrape.ensemble import open_ensemble
+    from uqdrape.report.figures import panels, save
 
     series = []
     for name in LEVEL_ENTRIES:
@@ -264,7 +216,7 @@ def write_level_comparison() -> Path | None:
                        "gap_deg": [_round(-float(v)) for v in asym.values]})
     if not series:
         return None
-    fig, ax = plt.subplots(figsize=(6.4, 4.0), layout="constrained")
+    fig, (ax,) = panels(1, size=(6.4, 4.0))
     for line in series:
         ax.plot(line["force_N"], line["gap_deg"], marker="o",
                 label=f"{line['material']}, {line['blankholder_model']} friction")
@@ -274,9 +226,7 @@ def write_level_comparison() -> Path | None:
     ax.set_ylim(bottom=0)
     ax.grid(alpha=0.3)
     ax.legend()
-    png = GALLERY_DIR / f"{COMPARISON}.png"
-    fig.savefig(png, dpi=110)
-    plt.close(fig)
+    png = save(fig, GALLERY_DIR / f"{COMPARISON}.png")
     (GALLERY_DIR / f"{COMPARISON}.json").write_text(json.dumps(series, indent=2) + "\n", encoding="utf-8")
     return png
 
@@ -320,13 +270,13 @@ def write_readme() -> Path:
         "Small reference reports of the thesis-figure studies (Wiggers 2007, ch. 5) and two beyond it.",
         "Each folder holds the report of `uqdrape run studies/<name>.toml` (open its `index.html`),",
         "its `summary.json` and the headline numbers below (`headline.json`). The ensembles",
-        "themselves (netCDF chunks) are not kept; the PNGs are stored as 256-colour palette images.",
+        "themselves (netCDF chunks) are not kept.",
         "",
         "Regenerate all of it (a few minutes on 2 cores), or one entry, from the checkout root:",
         "",
         "```",
-        "python -m uqdrape.gallery            # every entry",
-        "python -m uqdrape.gallery --only plate-spacing",
+        "python tools/gallery.py            # every entry",
+        "python tools/gallery.py --only plate-spacing",
         "```",
         "",
         "| entry | thesis figure and what it reports | headline numbers (this gallery) |",
@@ -349,7 +299,7 @@ def write_readme() -> Path:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
-        prog="python -m uqdrape.gallery",
+        prog="python tools/gallery.py",
         description="Run the gallery studies and refresh results/gallery/ (reports, headline numbers, README).")
     parser.add_argument("--only", action="append", metavar="NAME", choices=list(ENTRIES),
                         help=f"only this entry (repeatable): {', '.join(ENTRIES)}")
