@@ -23,6 +23,7 @@ import xarray as xr
 from uqdrape.ensemble import (
     design_variables, drape_inputs, inputs_from_design, open_ensemble, run_study, sampled_inputs,
 )
+from uqdrape.ensemble.store import read_manifest
 from uqdrape.study import FACTOR_SETTINGS, load_study
 
 N = 20
@@ -358,3 +359,11 @@ def test_bad_run_arguments(tmp_path, reference):
     with pytest.raises(ValueError, match="force=10.0: study .tiny. is not a blank-holder-force sweep"):
         drape_inputs(study, [0], sampled_inputs(study, [0]), force=10.0)
     assert not tmp_path.joinpath("run.json").exists()  # nothing written for bad arguments
+
+
+def test_a_finished_run_records_its_wall_time(tmp_path, reference):
+    study, _ = reference
+    start = time.perf_counter()
+    out = run_study(moved(study, tmp_path / "timed"), scheduler="synchronous", chunk_size=64, progress=False)
+    elapsed = time.perf_counter() - start
+    assert 0.0 <= read_manifest(out)["wall_time_s"] <= round(elapsed, 1) + 0.05  # s, rounded to 0.1 s

@@ -8,7 +8,8 @@ so memory stays bounded by a chunk per worker. Realisation r's inputs depend onl
 study (see ``inputs``), so results are identical for any chunk size, worker count and
 scheduler.
 
-Resume: the run folder's manifest records the study; a rerun of the same study skips
+Resume: the run folder's manifest records the study (and, once the run is done, its wall
+time in s); a rerun of the same study skips
 chunks whose final file exists (a ``.part`` file is an unfinished chunk and is redone).
 
 A sensitivity study (``[sensitivity] method`` sobol/morris) drapes the rows of its SALib
@@ -22,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import json
 import sys
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -164,6 +166,7 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
     the usual ``if __name__ == "__main__":`` guard. Cluster workers need uqdrape installed
     and must see the output folder (a shared file system).
     """
+    start = time.perf_counter()
     study = study if isinstance(study, Study) else load_study(study)
     chunk_size = study.chunk_size if chunk_size is None else _positive_int("chunk_size", chunk_size)
     if scheduler is not None and not (isinstance(scheduler, str) and (scheduler in LOCAL_SCHEDULERS or "://" in scheduler)):
@@ -192,8 +195,9 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
     if design is not None:
         provenance["sensitivity"]["base_samples"] = design.meta["base_samples"]
     chunks = plan_chunks(study, chunk_size, None if design is None else design.n_evaluations)
-    _prepare(out, {"study": provenance, "chunk_size": chunk_size, "chunks": [c.name for c in chunks],
-                   "uqdrape_version": __version__}, resume)
+    manifest = {"study": provenance, "chunk_size": chunk_size, "chunks": [c.name for c in chunks],
+                "uqdrape_version": __version__}
+    _prepare(out, manifest, resume)
 
     folder = out / CHUNKS
     todo = [c for c in chunks if not (folder / c.name).is_file()]
@@ -216,4 +220,6 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
             print(f"{study.name}: analysing {design.method} indices of {design.n_evaluations} evaluations"
                   + (f" at {len(study.force_levels)} force levels" if study.is_sweep else ""), file=sys.stderr)
         write_sensitivity(out, design, qoi=study.sensitivity.qoi, seed=study.seed)
+    # the wall time of this call (a resumed run: only its own part), for the report's provenance
+    write_manifest(out, {**manifest, "wall_time_s": round(time.perf_counter() - start, 1)})
     return out
