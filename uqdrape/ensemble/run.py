@@ -9,7 +9,7 @@ study (see ``inputs``), so results are identical for any chunk size, worker coun
 scheduler.
 
 Resume: the run folder's manifest records the study (and, once the run is done, its wall
-time in s); a rerun of the same study skips
+time in s, summed over resumed calls); a rerun of the same study skips
 chunks whose final file exists (a ``.part`` file is an unfinished chunk and is redone).
 
 A sensitivity study (``[sensitivity] method`` sobol/morris) drapes the rows of its SALib
@@ -197,6 +197,7 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
     chunks = plan_chunks(study, chunk_size, None if design is None else design.n_evaluations)
     manifest = {"study": provenance, "chunk_size": chunk_size, "chunks": [c.name for c in chunks],
                 "uqdrape_version": __version__}
+    earlier = (read_manifest(out) or {}).get("wall_time_s", 0.0) if resume else 0.0
     _prepare(out, manifest, resume)
 
     folder = out / CHUNKS
@@ -220,6 +221,7 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
             print(f"{study.name}: analysing {design.method} indices of {design.n_evaluations} evaluations"
                   + (f" at {len(study.force_levels)} force levels" if study.is_sweep else ""), file=sys.stderr)
         write_sensitivity(out, design, qoi=study.sensitivity.qoi, seed=study.seed)
-    # the wall time of this call (a resumed run: only its own part), for the report's provenance
-    write_manifest(out, {**manifest, "wall_time_s": round(time.perf_counter() - start, 1)})
+    # for the report's provenance: the time of the finished calls that made this run (an
+    # interrupted call records nothing)
+    write_manifest(out, {**manifest, "wall_time_s": round(earlier + time.perf_counter() - start, 1)})
     return out
