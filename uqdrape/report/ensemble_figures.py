@@ -320,6 +320,7 @@ def plot_sweep(ds: xr.Dataset, path, *, scalars: xr.Dataset | None = None) -> Pa
         raise ValueError(f"plot_sweep needs a {FORCE!r} dim (a blank-holder force sweep); dims: {dict(ds.sizes)}")
     sc = line_scalars(ds) if scalars is None else scalars
     force = ds[FORCE].values.astype(float)
+    n = ds.sizes[REALIZATION]
     fig, (ax_q, ax_a) = panels(2, size=(5.8, 4.4))
     for var, color, text in (("plus_mean_shear", PLUS_COLOR, "+ quadrants (i·j > 0)"),
                              ("minus_mean_shear", MINUS_COLOR, "− quadrants (i·j < 0)"),
@@ -327,7 +328,7 @@ def plot_sweep(ds: xr.Dataset, path, *, scalars: xr.Dataset | None = None) -> Pa
         st = mean_statistics(sc[var]).transpose(FORCE)
         ax = ax_a if var == "asymmetry" else ax_q
         ax.errorbar(force, st["mean"].values, yerr=st["sd"].values, color=color, marker="o", capsize=3,
-                    label=f"{text}, mean ± 1 sd")
+                    label=f"{text}, mean ± 1 sd" if n > 1 else text)
     for ax in (ax_q, ax_a):
         ax.axhline(0.0, color="0.6", linewidth=0.8)
         ax.set_xlabel("blank-holder force F_BH (N)")
@@ -336,7 +337,7 @@ def plot_sweep(ds: xr.Dataset, path, *, scalars: xr.Dataset | None = None) -> Pa
     k_max = sc.attrs.get("k_max")
     ax_q.set(ylabel="line-mean shear (deg)", title=f"mean shear over line nodes k = 1..{k_max}")
     ax_a.set(ylabel="asymmetry (deg)", title="± quadrant asymmetry")
-    fig.suptitle(f"blank-holder force sweep, N = {ds.sizes[REALIZATION]} per level: {describe(ds)}")
+    fig.suptitle(f"blank-holder force sweep, {f'N = {n}' if n > 1 else 'one drape'} per level: {describe(ds)}")
     return save(fig, path)
 
 

@@ -219,8 +219,9 @@ def _json_attr(value):
 
 
 def _figures_html(items) -> str:
-    """The figures two to a row (a figure more than 1.6 times as wide as high spans the
-    row), and the sentences standing in for figures left out, each across the row."""
+    """The figures two to a row (a figure of more than 900 px, i.e. of two panels or more
+    side by side, spans the row at its own size), and the sentences standing in for
+    figures left out, each across the row."""
     esc = html.escape
     out = []
     for item in items:
@@ -229,7 +230,7 @@ def _figures_html(items) -> str:
             continue
         path, caption = item
         with Image.open(path) as im:
-            wide = " class=\"wide\"" if im.width > 1.6 * im.height else ""
+            wide = " class=\"wide\"" if im.width > 900 else ""
         out.append(f"<figure{wide}><a href=\"{esc(path.name)}\">"
                    f"<img src=\"{esc(path.name)}\" alt=\"{esc(caption)}\"></a><figcaption>{esc(caption)}</figcaption>"
                    "</figure>")
