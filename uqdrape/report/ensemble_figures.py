@@ -50,6 +50,7 @@ from .figures import (
     save,
     shared_ylim,
     styled,
+    suptitle,
 )
 
 #: Probability level of the shaded band of the realisations along the max-shear lines.
@@ -101,7 +102,7 @@ def _map(ds: xr.Dataset, values: xr.DataArray, path, *, norm, cmap, cbar_label: 
                         ha="right" if right else "left", va="top" if top else "bottom", fontsize=9,
                         bbox=dict(boxstyle="round", fc="white", alpha=0.8))
     fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=axes, shrink=0.85, label=cbar_label)
-    fig.suptitle(f"{title}: {describe(ds)}")
+    suptitle(fig, title, describe(ds))
     return save(fig, path)
 
 
@@ -215,7 +216,7 @@ def plot_line_statistics(ds: xr.Dataset, path, *, line_stats: xr.Dataset | None 
             ax.set_title(force_title(force))
         ax.legend(loc="best", fontsize=8)
     shared_ylim(axes)
-    fig.suptitle(f"max-shear lines, N = {ds.sizes[REALIZATION]}: {describe(ds)}")
+    suptitle(fig, f"max-shear lines, N = {ds.sizes[REALIZATION]}", describe(ds))
     return save(fig, path)
 
 
@@ -250,7 +251,8 @@ def plot_histograms(ds: xr.Dataset, path, nodes: Sequence[Sequence[int]], *, bin
         ax.set(xlabel=SHEAR_LABEL, ylabel="density (1/deg)",
                title=f"node {node}, {_node_kind(node)}" + ("" if force is None else f", {force_title(force)}"))
         ax.grid(alpha=0.3)
-        ax.legend(loc="best", fontsize=8)
+        ax.set_ylim(0.0, 1.35 * ax.get_ylim()[1])  # headroom: the legend sits above the bars
+        ax.legend(loc="upper left", fontsize=8)
     fig.suptitle(f"node shear distributions, N = {ds.sizes[REALIZATION]}" + (" per level" if len(groups) > 1 else ""))
     return save(fig, path)
 
@@ -337,7 +339,7 @@ def plot_sweep(ds: xr.Dataset, path, *, scalars: xr.Dataset | None = None) -> Pa
     k_max = sc.attrs.get("k_max")
     ax_q.set(ylabel="line-mean shear (deg)", title=f"mean shear over line nodes k = 1..{k_max}")
     ax_a.set(ylabel="asymmetry (deg)", title="± quadrant asymmetry")
-    fig.suptitle(f"blank-holder force sweep, {f'N = {n}' if n > 1 else 'one drape'} per level: {describe(ds)}")
+    suptitle(fig, f"blank-holder force sweep, {f'N = {n}' if n > 1 else 'one drape'} per level", describe(ds))
     return save(fig, path)
 
 
@@ -388,5 +390,5 @@ def plot_scalar_vs_factor(ds: xr.Dataset, path, factor: str) -> Path:
     for ax in (ax_e, ax_s):
         ax.grid(alpha=0.3)
         ax.legend(loc="best", fontsize=8)
-    fig.suptitle(f"each drape against {factor}, N = {ds.sizes[REALIZATION]}: {describe(ds)}")
+    suptitle(fig, f"each drape against {factor}, N = {ds.sizes[REALIZATION]}", describe(ds))
     return save(fig, path)

@@ -131,6 +131,14 @@ def describe(ds: xr.Dataset) -> str:
     return ", ".join(str(p) for p in parts if p not in (None, "", "none"))
 
 
+def suptitle(fig: Figure, head: str, detail: str = "") -> None:
+    """Figure title "head: detail" on one line if it fits the figure's width (about 0.55
+    em a character), else with the detail on a second line; never wrapped further."""
+    size = mpl.font_manager.FontProperties(size=mpl.rcParams["figure.titlesize"]).get_size_in_points()
+    fits = len(head) + len(detail) + 2 <= fig.get_figwidth() * 72 / (0.55 * size)
+    fig.suptitle(f"{head}{': ' if fits else chr(10)}{detail}" if detail else head)
+
+
 def _site_dims(da: xr.DataArray) -> tuple[str, str]:
     for dims in (("i", "j"), ("cell_i", "cell_j")):
         if set(dims) <= set(da.dims):
@@ -204,7 +212,7 @@ def plot_net(ds: xr.Dataset, path, var: str = "shear", realization: int = 0, tit
         ax.set_title(", ".join(t for t in (force_title(force) if force is not None else "",
                                            f"{n_bad} cells not drawn" if n_bad else "") if t), fontsize=10)
     fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=axes, shrink=0.6, pad=0.06, label=label(ds[var]))
-    fig.suptitle(title or f"draped net, realisation {int(ds[REALIZATION][r])}: {describe(ds)}")
+    suptitle(fig, title or f"draped net, realisation {int(ds[REALIZATION][r])}", "" if title else describe(ds))
     return save(fig, path)
 
 
@@ -273,5 +281,5 @@ def plot_lines(ds: xr.Dataset, path, realization: int | None = 0, experimental=N
             ax.set_title(force_title(force))
         ax.legend(loc="best")
     shared_ylim(axes)
-    fig.suptitle(f"shear along the max-shear lines: {describe(ds)}")
+    suptitle(fig, "shear along the max-shear lines", describe(ds))
     return save(fig, path)

@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from .ensemble_figures import _triangulation, mean_positions
-from .figures import FORCE, describe, force_title, save, styled, unit_text
+from .figures import FORCE, describe, force_title, save, styled, suptitle, unit_text
 
 #: The indices drawn per method: (variable, its confidence half-width, label).
 INDICES = {
@@ -173,5 +173,5 @@ def plot_sensitivity_map(ds: xr.Dataset, maps: xr.Dataset, path, index: str = "S
             ax.set_title(factor + ("" if force is None else f", {force_title(force)}"), fontsize=9)
     label = f"{index} of node shear" + (" (-)" if method == "sobol" else " (deg per unit step)")
     fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=axes, shrink=0.8, label=label)
-    fig.suptitle(f"{index} of node shear on the mean net (x-y plan): {describe(ds)}\n{_design_text(maps)}")
+    suptitle(fig, f"{index} of node shear on the mean net (x-y plan), {describe(ds)}", _design_text(maps))
     return save(fig, path)
