@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
+from matplotlib.colors import to_hex
 from matplotlib.figure import Figure
 from matplotlib.image import imread
 from PIL import Image
@@ -30,6 +31,7 @@ from uqdrape.report import (
     plot_mean_map,
     plot_net,
     plot_sd_map,
+    plot_sensitivity_vs_force,
     plot_sweep,
     plot_wrinkle_map,
     read_experimental,
@@ -461,3 +463,40 @@ def test_every_page_states_its_provenance_and_the_study_once(ensemble, tmp_path)
     assert re.fullmatch(r"\d{4}-\d\d-\d\d \d\d:\d\d UTC", prov["date"])
     assert f"Report of {prov['date']}, uqdrape 0.1.0, git commit\n{commit}; wall time of the run: 12.3 s" in page
     assert page.count("name = &quot;plate&quot;") == 1
+
+
+def _indices(forces=None):
+    """Sobol' indices of two factors for two QoIs (and per force level): ST = S1 + 0.1."""
+    s1 = np.array([[0.6, 0.1], [0.2, 0.5]])  # factor x qoi
+    dims, shape, coords = ("factor", "qoi"), s1.shape, {"factor": ["friction", "zero_angle"],
+                                                         "qoi": ["asymmetry", "blankholder_energy"]}
+    if forces is not None:
+        s1 = s1[..., None] * np.linspace(1.0, 0.5, len(forces))
+        dims, coords = (*dims, "blankholder_force"), {**coords, "blankholder_force": forces}
+    conf = np.full(s1.shape, 0.05)
+    return xr.Dataset({"S1": (dims, s1), "S1_conf": (dims, conf), "ST": (dims, s1 + 0.1), "ST_conf": (dims, conf),
+                       "output_constant": (dims[1:], np.zeros(s1.shape[1:], bool))}, coords=coords,
+                      attrs={"method": "sobol", "base_samples": 8, "n_evaluations": 48, "conf_level": 0.95})
+
+
+def test_sensitivity_legend_tells_st_solid_from_s1_dashed(tmp_path, drawn):
+    png_shape(plot_sensitivity_vs_force(_indices([0.0, 300.0]), tmp_path / "vs.png"))
+    fig, = drawn
+    legend = {t.get_text(): h for t, h in zip(fig.legends[0].get_texts(), fig.legends[0].legend_handles)}
+    assert legend["total-order ST"].get_linestyle() == "-" and legend["first-order S1"].get_linestyle() == "--"
+    friction = legend["friction"].get_color()
+    assert to_hex(friction) == "#1f77b4" and to_hex(legend["zero_angle"].get_color()) == "#ff7f0e"
+    # the friction/asymmetry panel: ST solid at 0.7 -> 0.4, S1 dashed at 0.6 -> 0.3
+    lines = {line.get_linestyle(): line.get_ydata() for line in fig.axes[0].get_lines()
+             if to_hex(line.get_color()) == "#1f77b4"}
+    np.testing.assert_allclose(lines["-"], [0.7, 0.4], rtol=1e-12)
+    np.testing.assert_allclose(lines["--"], [0.6, 0.3], rtol=1e-12)
+
+
+def test_sensitivity_page_starts_with_the_indices_and_their_largest_st(ensemble, tmp_path):
+    record, page = _record(ensemble.assign_attrs(design_method="sobol"), tmp_path, sensitivity=_indices())
+    assert record["sensitivity"]["largest_ST"] == [{"blankholder_force_N": None, "factor": "friction",
+                                                    "qoi": "asymmetry", "ST": 0.7, "ST_conf": 0.05}]
+    assert "largest total-order Sobol&#x27; index ST</th><td class=\"num\">friction 0.70 ± 0.05</td>" in page
+    assert page.index("<h2>Sensitivity</h2>") < page.index("<h2>Figures</h2>")
+    assert record["figures"][0] == "sensitivity_bars.png"
