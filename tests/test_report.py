@@ -497,6 +497,7 @@ def test_sensitivity_page_starts_with_the_indices_and_their_largest_st(ensemble,
     record, page = _record(ensemble.assign_attrs(design_method="sobol"), tmp_path, sensitivity=_indices())
     assert record["sensitivity"]["largest_ST"] == [{"blankholder_force_N": None, "factor": "friction",
                                                     "qoi": "asymmetry", "ST": 0.7, "ST_conf": 0.05}]
-    assert "largest total-order Sobol&#x27; index ST</th><td class=\"num\">friction 0.70 ± 0.05</td>" in page
+    assert ("largest total-order Sobol&#x27; index ST</th><td class=\"num\">friction 0.70 ± 0.05</td>"
+            "<td>of asymmetry, the largest") in page
     assert page.index("<h2>Sensitivity</h2>") < page.index("<h2>Figures</h2>")
     assert record["figures"][0] == "sensitivity_bars.png"

@@ -207,6 +207,7 @@ def plot_net(ds: xr.Dataset, path, var: str = "shear", realization: int = 0, tit
         ax.set(xlim=(lo[0], lo[0] + span[0]), ylim=(lo[1], lo[1] + span[1]), zlim=(lo[2], lo[2] + span[2]),
                xlabel="x (mm)", ylabel="y (mm)", zlabel="z (mm)")
         ax.set_box_aspect(tuple(span))
+        ax.locator_params(nbins=4)  # more ticks run into each other on the slanted axes
         ax.view_init(elev=32, azim=-60)
         n_bad = int((~keep).sum())
         ax.set_title(", ".join(t for t in (force_title(force) if force is not None else "",

@@ -44,7 +44,7 @@ _CSS = """
 body { font-family: system-ui, sans-serif; max-width: 1500px; margin: 1.5em auto; padding: 0 1em; color: #222; }
 h1 { font-size: 1.6em; margin-bottom: 0.2em; } h2 { font-size: 1.25em; margin-top: 1.6em; border-bottom: 1px solid #ccc; }
 table { border-collapse: collapse; margin: 0.5em 0; } td, th { border: 1px solid #ccc; padding: 0.3em 0.7em; }
-th { background: #f2f2f2; text-align: left; } td.num { text-align: right; font-variant-numeric: tabular-nums; }
+th { background: #f2f2f2; text-align: left; white-space: nowrap; } td.num { text-align: right; font-variant-numeric: tabular-nums; }
 .figures { display: grid; grid-template-columns: repeat(2, minmax(0, 1fr)); gap: 1.2em; align-items: start; }
 .wide { grid-column: 1 / -1; }
 figure { margin: 0; } figure img { width: 100%; height: auto; border: 1px solid #ddd; }
@@ -128,12 +128,10 @@ def _rows(numbers: Mapping, extra: Mapping, dominant: list | None) -> list[tuple
         rows.append((f"N needed for ±{sn['half_width_deg']:g}° ({sn['confidence']:.0%}) at the most variable node",
                      str(sn["value"]), f"{_where(sn)}, sd = {sn['sd_deg']:.3g}° (Student t)") if sn else
                     ("N needed for ±1° at the most variable node", "n/a", "no spread in the ensemble"))
-    if dominant:
-        rows.append(("largest total-order Sobol' index ST",
-                     "; ".join(("" if d["blankholder_force_N"] is None else f"{d['blankholder_force_N']:g} N: ")
-                               + f"{d['factor']} {d['ST']:.2f} ± {d['ST_conf']:.2f}" for d in dominant),
-                     "per level, over all quantities of interest (which: " + ", ".join(
-                         dict.fromkeys(d["qoi"] for d in dominant)) + ")"))
+    for d in dominant or ():
+        at = "" if d["blankholder_force_N"] is None else f", F_BH = {d['blankholder_force_N']:g} N"
+        rows.append((f"largest total-order Sobol' index ST{at}", f"{d['factor']} {d['ST']:.2f} ± {d['ST_conf']:.2f}",
+                     f"of {d['qoi']}, the largest over all factors and quantities of interest"))
     rows.extend((str(k), _fmt(v), "supplied by the caller") for k, v in extra.items())
     return rows
 

@@ -154,7 +154,7 @@ def plot_sensitivity_map(ds: xr.Dataset, maps: xr.Dataset, path, index: str = "S
     pos = mean_positions(ds)
     groups = _levels(maps)
     factors = [str(f) for f in maps["factor"].values]
-    fig, axes = _grid(len(factors), len(groups), size=(3.6, 3.3))
+    fig, axes = _grid(len(factors), len(groups), size=(2.9, 2.7))
     values = maps[index].values
     top = float(np.nanmax(values)) if np.isfinite(values).any() else 1.0
     norm = mpl.colors.Normalize(0.0, 1.0 if method == "sobol" else (top or 1.0))
