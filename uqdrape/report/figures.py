@@ -74,8 +74,9 @@ def save(fig: Figure, path) -> Path:
     """Write ``fig`` as a lossless RGB PNG at ``path`` (parent folders created); return the Path.
 
     The figure is opaque, so dropping matplotlib's alpha channel loses nothing, and
-    Pillow's ``optimize`` recompresses it: about 2/3 of matplotlib's RGBA file, with none
-    of the banding a palette image gives colour bars.
+    Pillow's ``optimize`` recompresses it: about 85 % of matplotlib's RGBA file (measured
+    on a line plot and a shaded map), with none of the banding a palette image gives
+    colour bars.
     """
     path = Path(path)
     if path.suffix.lower() != ".png":
