@@ -292,6 +292,11 @@ def write_readme() -> Path:
                      f"[![{entry.name}]({entry.name}/{entry.picture})]({entry.name}/index.html) "
                      f"| {_cell(record['thesis_figure'])}: {_cell(record['thesis'])} | {numbers} |")
     lines += _comparison_section()
+    shots = sorted((GALLERY_DIR / "screenshots").glob("*.png"))
+    if shots:
+        lines += ["", "## What a report page looks like", "",
+                  "The top of report pages in headless Chromium at 1400 px (`tools/screenshot_reports.sh`):", ""]
+        lines += [f"![{path.stem} report page](screenshots/{path.name})" for path in shots]
     readme = GALLERY_DIR / "README.md"
     readme.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return readme
