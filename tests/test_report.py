@@ -501,3 +501,13 @@ def test_sensitivity_page_starts_with_the_indices_and_their_largest_st(ensemble,
             "<td>of asymmetry, the largest") in page
     assert page.index("<h2>Sensitivity</h2>") < page.index("<h2>Figures</h2>")
     assert record["figures"][0] == "sensitivity_bars.png"
+
+
+def test_a_level_where_nothing_exceeds_gets_no_marker(sweep, tmp_path, drawn):
+    top = abs(sweep["shear"]).max(["realization", "i", "j"])
+    threshold = float(top.sel(blankholder_force=300.0))  # P = 0 at 300 N: |shear| > its own maximum never holds
+    assert float(top.sel(blankholder_force=0.0)) > threshold
+    plot_wrinkle_map(sweep, tmp_path / "w.png", threshold_deg=threshold)
+    fig, = drawn
+    at_0, at_300 = [ax for ax in fig.axes if ax.get_title()]
+    assert [t.get_text()[:8] for t in at_0.texts] == ["max P = "] and len(at_300.texts) == 0

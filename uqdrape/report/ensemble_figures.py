@@ -107,14 +107,15 @@ def _map(ds: xr.Dataset, values: xr.DataArray, path, *, norm, cmap, cbar_label: 
 
 
 def _node_mark(da: xr.DataArray, fmt):
-    """A ``mark`` callback: ``fmt(site)`` at the largest entry of ``da`` in each level.
+    """A ``mark`` callback: ``fmt(site)`` at the largest entry of ``da`` in each level (none
+    where that entry is 0).
 
     ``site`` is {dim: value} of that entry, the level included.
     """
     def mark(force):
         sub = da.sel({FORCE: force}) if force is not None else da
         site = argmax_site(sub)
-        if site is None:
+        if site is None or float(sub.sel(site)) == 0.0:  # nothing to point at (e.g. no risk at this level)
             return None
         return site["i"], site["j"], fmt(site if force is None else {**site, FORCE: force})
     return mark
