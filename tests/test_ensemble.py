@@ -23,6 +23,7 @@ import xarray as xr
 from uqdrape.ensemble import (
     design_variables, drape_inputs, inputs_from_design, open_ensemble, sampled_inputs,
 )
+from uqdrape.ensemble.store import read_manifest
 from uqdrape.study import FACTOR_SETTINGS, load_study
 from uqdrape.workflow import run_study
 
@@ -360,3 +361,15 @@ def test_bad_run_arguments(tmp_path, reference):
     with pytest.raises(ValueError, match="force=10.0: study .tiny. is not a blank-holder-force sweep"):
         drape_inputs(study, [0], sampled_inputs(study, [0]), force=10.0)
     assert not tmp_path.joinpath("run.json").exists()  # nothing written for bad arguments
+
+
+def test_a_finished_run_records_its_wall_time(tmp_path, reference):
+    study, _ = reference
+    start = time.perf_counter()
+    out = run_study(moved(study, tmp_path / "timed"), scheduler="synchronous", chunk_size=64, progress=False)
+    elapsed = time.perf_counter() - start
+    wall = read_manifest(out)["wall_time_s"]
+    assert 0.0 <= wall <= round(elapsed, 1) + 0.05  # s, rounded to 0.1 s
+    # resuming the finished run adds its own (short) time to the recorded one
+    run_study(moved(study, tmp_path / "timed"), scheduler="synchronous", chunk_size=64, progress=False)
+    assert wall <= read_manifest(out)["wall_time_s"] <= wall + 0.5 * elapsed + 0.1

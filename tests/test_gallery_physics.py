@@ -4,7 +4,7 @@ Reduced runs: the shipped studies (energy drape, FGE 106hd-like NCF, 5 mm spacin
 30 rings, segment lengths with cv 1.5 %) with 40 instead of 200 realisations.
 "Fibre angle" in the thesis's Fig 5.16 is the inter-fibre angle 90 deg - shear, so its
 sd is the sd of node shear. Measured quantity: the per-node ensemble sd of node shear
-averaged over each ring k = max(|i|, |j|) (``uqdrape.gallery.ring_sd``); "inner" is
+averaged over each ring k = max(|i|, |j|) (``uqdrape.stats.ring_sd``); "inner" is
 rings 1-5, "outer" rings 25-29 (the boundary ring 30 is left out: its node shear
 averages fewer cells). Seeds are the studies' own, so every number is deterministic;
 with 40 realisations a ring average of node sds is good to a few per cent.
@@ -26,7 +26,7 @@ import pytest
 from scipy.stats import spearmanr
 
 from uqdrape.ensemble import drape_inputs, sampled_inputs
-from uqdrape.gallery import inner_outer_sd, ring_sd
+from uqdrape.stats import inner_outer_sd, ring_sd
 from uqdrape.study import load_study
 
 STUDIES = Path(__file__).resolve().parent.parent / "studies"

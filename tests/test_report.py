@@ -1,17 +1,25 @@
-"""Tests of uqdrape.report: figures are real PNGs with the expected panels, the HTML page
-links only files that exist, summary.json equals the statistics functions, and the
-experimental CSV is checked with clear errors."""
+"""Tests of uqdrape.report: figures are lossless PNGs whose drawn data are right (shared
+colour limits across levels, per-level histogram ranges, force levels in the titles),
+each study kind's plan leaves out what does not apply, the HTML page links only files
+that exist and states its provenance, summary.json equals the statistics functions, and
+the experimental CSV is checked with clear errors."""
 
 from __future__ import annotations
 
 import json
 import re
+import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
 import xarray as xr
+from matplotlib.colors import to_hex
+from matplotlib.figure import Figure
 from matplotlib.image import imread
+from PIL import Image
 
+import uqdrape
 from uqdrape.drape import drape
 from uqdrape.geometry import Hemisphere, NoseCone
 from uqdrape.material import load_material
@@ -23,14 +31,16 @@ from uqdrape.report import (
     plot_mean_map,
     plot_net,
     plot_sd_map,
+    plot_sensitivity_vs_force,
     plot_sweep,
     plot_wrinkle_map,
     read_experimental,
     write_report,
 )
-from uqdrape.report.figures import DPI, _line_panels
+from uqdrape.report.figures import DPI, _line_panels, panels, save
 from uqdrape.report.html import default_histogram_nodes
-from uqdrape.stats import exceedance_probability, node_statistics, samples_needed
+from uqdrape.report.plan import PLAN
+from uqdrape.stats import KINDS, convergence, exceedance_probability, node_statistics, samples_needed, study_kind
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 RINGS = 6
@@ -78,6 +88,24 @@ def exp_csv(tmp_path):
     return path
 
 
+@pytest.fixture()
+def drawn(monkeypatch):
+    """The matplotlib Figures saved during a test, in order (to check what they show)."""
+    figures = []
+    original = Figure.savefig
+
+    def record(self, *args, **kwargs):
+        figures.append(self)
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(Figure, "savefig", record)
+    return figures
+
+
+def titles(fig):
+    return [ax.get_title() for ax in fig.axes if ax.get_title()]
+
+
 def png_shape(path, min_bytes=5000):
     """Check a real, non-trivial PNG; return its (rows, cols) in pixels."""
     data = path.read_bytes()
@@ -94,7 +122,7 @@ def png_shape(path, min_bytes=5000):
 
 def test_plot_net_node_and_cell_variables(ensemble, tmp_path):
     rows, cols = png_shape(plot_net(ensemble, tmp_path / "net.png"))
-    assert (rows, cols) == (round(6.4 * DPI), round(7.6 * DPI))
+    assert (rows, cols) == (round(5.6 * DPI), round(7.0 * DPI))
     png_shape(plot_net(ensemble, tmp_path / "cells.png", var="cell_shear", realization=3, title="cells"))
 
 
@@ -103,16 +131,42 @@ def test_plot_net_skips_invalid_nodes(geodesic, tmp_path):
     png_shape(plot_net(geodesic, tmp_path / "net.png"))
 
 
-def test_plot_net_errors(ensemble, sweep, tmp_path):
+def test_plot_net_of_a_sweep_shares_one_colour_scale_and_names_each_level(sweep, tmp_path, drawn):
+    plot_net(sweep, tmp_path / "net.png", realization=2)
+    fig, = drawn
+    *nets, bar = fig.axes
+    assert [ax.get_title() for ax in nets] == ["F_BH = 0 N", "F_BH = 300 N"]
+    # cell shear = mean of its four corner nodes; the scale is +-max |cell shear| over both levels
+    node = sweep["shear"].isel(realization=2).transpose("blankholder_force", "i", "j").values
+    cells = (node[:, :-1, :-1] + node[:, 1:, :-1] + node[:, 1:, 1:] + node[:, :-1, 1:]) / 4
+    per_level = np.nanmax(abs(cells), axis=(1, 2))
+    assert per_level[0] != pytest.approx(per_level[1], rel=0.01)  # a scale per level would differ
+    np.testing.assert_allclose(bar.get_ylim(), (-per_level.max(), per_level.max()), rtol=1e-12)
+
+
+def test_plot_net_errors(ensemble, tmp_path):
     with pytest.raises(ValueError, match="var='nope'"):
         plot_net(ensemble, tmp_path / "a.png", var="nope")
     with pytest.raises(ValueError, match=r"realization must be a position 0..11"):
         plot_net(ensemble, tmp_path / "a.png", realization=12)
-    with pytest.raises(ValueError, match="blankholder_force"):
-        plot_net(sweep, tmp_path / "a.png")
+    with pytest.raises(ValueError, match="quadrant"):
+        plot_net(ensemble.expand_dims(quadrant=2), tmp_path / "a.png")
     with pytest.raises(ValueError, match=r"\.png"):
         plot_net(ensemble, tmp_path / "a.jpg")
     assert not list(tmp_path.iterdir())
+
+
+def test_save_writes_the_rendered_pixels_losslessly(tmp_path):
+    fig, (ax,) = panels(1, size=(3.0, 2.0))
+    ax.imshow(np.linspace(0, 1, 256)[None, :], aspect="auto", cmap="viridis")  # a smooth colour bar
+    fig.canvas.draw()
+    rendered = np.asarray(fig.canvas.buffer_rgba())
+    path = save(fig, tmp_path / "ramp.png")
+    with Image.open(path) as im:
+        assert im.mode == "RGB"
+        np.testing.assert_array_equal(np.asarray(im), rendered[..., :3])
+    assert (rendered[..., 3] == 255).all()  # nothing was lost with the alpha channel
+    assert len(np.unique(rendered[..., :3].reshape(-1, 3), axis=0)) > 256  # more colours than a palette holds
 
 
 def test_plot_lines_one_panel_per_force(material, tmp_path):
@@ -175,25 +229,59 @@ def test_missing_experimental_csv(tmp_path, ensemble):
 # ---------------------------------------------------------------- ensemble figures
 
 
-def test_ensemble_figures_write_pngs(ensemble, exp_csv, tmp_path):
-    for path in (
-        plot_mean_map(ensemble, tmp_path / "mean.png"),
-        plot_sd_map(ensemble, tmp_path / "sd.png"),
-        plot_wrinkle_map(ensemble, tmp_path / "risk.png", threshold_deg=8.0),
-        plot_line_statistics(ensemble, tmp_path / "ls.png", experimental=exp_csv),
-        plot_histograms(ensemble, tmp_path / "hist.png", [(3, 3), (-3, 3)]),
-        plot_convergence(ensemble, tmp_path / "conv.png", (2, 2)),
-    ):
-        png_shape(path)
+def test_ensemble_figures_draw_their_statistics(ensemble, exp_csv, tmp_path, drawn):
+    st = node_statistics(ensemble)
+    png_shape(plot_mean_map(ensemble, tmp_path / "mean.png"))
+    png_shape(plot_sd_map(ensemble, tmp_path / "sd.png"))
+    png_shape(plot_wrinkle_map(ensemble, tmp_path / "risk.png", threshold_deg=8.0))
+    png_shape(plot_line_statistics(ensemble, tmp_path / "ls.png", experimental=exp_csv))
+    png_shape(plot_histograms(ensemble, tmp_path / "hist.png", [(3, 3), (-3, 3)]))
+    png_shape(plot_convergence(ensemble, tmp_path / "conv.png", (2, 2)))
+    mean, sd, risk, lines, hist, conv = drawn
+    vmax = float(abs(st["mean"]).max())
+    assert mean.axes[0].collections[0].get_clim() == pytest.approx((-vmax, vmax), rel=1e-12)
+    assert sd.axes[0].collections[0].get_clim() == pytest.approx((0.0, float(st["sd"].max())), rel=1e-12)
+    ex = exceedance_probability(ensemble, 8.0)
+    top = ex.isel(ex["probability"].argmax(...))
+    assert risk.axes[0].collections[0].get_clim() == (0.0, 1.0)
+    assert risk.axes[0].texts[0].get_text() == (f"max P = {float(top['probability']):.2f} "
+                                                f"[{float(top['probability_lower']):.2f}, "
+                                                f"{float(top['probability_upper']):.2f}]")
+    assert any("experiment" in t.get_text() for t in lines.axes[0].get_legend().get_texts())
+    for ax, node in zip(hist.axes, [(3, 3), (-3, 3)]):
+        values = ensemble["shear"].sel(i=node[0], j=node[1]).values
+        np.testing.assert_allclose(ax.patches[0].get_data().edges, np.histogram_bin_edges(values, 20), rtol=1e-12)
+        assert ax.get_title() == f"node {node}, {'+' if node[0] * node[1] > 0 else '−'} quadrant"
+    ax_h = conv.axes[1]
+    final_sd = float(convergence(ensemble, (2, 2))["running_sd"][-1])
+    marks = [line.get_xdata()[0] for line in ax_h.get_lines() if line.get_linestyle() == ":"]
+    assert marks == [samples_needed(final_sd, 1.0, 0.95)]
 
 
-def test_sweep_figures_have_a_panel_per_level(sweep, tmp_path):
+def test_sweep_figures_share_scales_name_levels_and_bin_each_level(sweep, tmp_path, drawn):
     for path in (plot_mean_map(sweep, tmp_path / "mean.png"), plot_line_statistics(sweep, tmp_path / "ls.png")):
         rows, cols = png_shape(path)
         assert cols > 1.7 * rows
     png_shape(plot_sweep(sweep, tmp_path / "sweep.png"))
-    png_shape(plot_histograms(sweep, tmp_path / "hist.png", [(2, 2)]))
+    png_shape(plot_histograms(sweep, tmp_path / "hist.png", [(2, 2), (-2, 2)]))
     png_shape(plot_convergence(sweep, tmp_path / "conv.png"))
+    mean, lines, _, hist, _ = drawn
+    levels = ("F_BH = 0 N", "F_BH = 300 N")
+    mean_panels = [ax for ax in mean.axes if ax.get_title()]
+    assert [ax.get_title() for ax in mean_panels] == list(levels)
+    vmax = float(abs(node_statistics(sweep)["mean"]).max())
+    assert [ax.collections[0].get_clim() for ax in mean_panels] == [pytest.approx((-vmax, vmax))] * 2
+    assert titles(lines) == list(levels)
+    assert lines.axes[0].get_ylim() == lines.axes[1].get_ylim()
+    # one panel per node and level, each on bins over its own level's values
+    assert titles(hist) == [f"node {n}, {q} quadrant, {f}" for n, q in (((2, 2), "+"), ((-2, 2), "−")) for f in levels]
+    ranges = []
+    for ax, (node, force) in zip(hist.axes, [(n, f) for n in ((2, 2), (-2, 2)) for f in (0.0, 300.0)]):
+        values = sweep["shear"].sel(blankholder_force=force, i=node[0], j=node[1]).values
+        np.testing.assert_allclose(ax.patches[0].get_data().edges, np.histogram_bin_edges(values, 20), rtol=1e-12)
+        ranges.append((values.min(), values.max()))
+    assert ranges[0][1] < ranges[1][0] or ranges[1][1] < ranges[0][0]  # the levels do not overlap: a shared
+    # range would put each level's values into a few of the bins
 
 
 def test_ensemble_figure_errors(ensemble, geodesic, tmp_path):
@@ -268,7 +356,7 @@ def test_wrinkle_risk_comes_from_the_locked_flag_when_the_drape_has_it(ensemble,
 def test_write_report_sweep(sweep, tmp_path):
     index = write_report(sweep, tmp_path, title="sweep")
     summary = json.loads((tmp_path / "summary.json").read_text())
-    assert {"net_0N.png", "net_300N.png", "sweep.png"} <= set(summary["figures"])
+    assert {"net.png", "sweep.png", "histograms.png"} <= set(summary["figures"])
     assert all((tmp_path / name).is_file() for name in linked_files(index))
     assert summary["blankholder_force_levels_N"] == [0.0, 300.0] and summary["realizations"] == 8
     site = summary["max_sd_deg"]
@@ -303,3 +391,123 @@ def test_write_report_bad_input_writes_nothing(ensemble, tmp_path):
 
 def test_default_histogram_nodes_follow_the_thesis(ensemble):
     assert default_histogram_nodes(ensemble, node_statistics(ensemble)) == [(6, 6), (-6, 6)]
+
+
+# ---------------------------------------------------------------- the plan of each study kind
+
+
+def _record(ds, out, **kwargs):
+    index = write_report(ds, out, title="t", **kwargs)
+    return json.loads((out / "summary.json").read_text()), index.read_text()
+
+
+def _study_json(**uncertainty):
+    return json.dumps({"uncertainty": uncertainty})
+
+
+def test_study_kind_rules(ensemble, sweep):
+    skewed = ensemble.assign(skew=("realization", np.linspace(0.0, 55.0, 12)))
+    assert study_kind(ensemble) == "random sample"
+    assert study_kind(sweep.isel(realization=[0])) == "deterministic"
+    assert study_kind(ensemble.assign_attrs(design_method="sobol")) == "sensitivity design"
+    assert study_kind(skewed) == "swept factor"  # no study record: one varying scalar factor
+    uniform = _study_json(skew={"dist": "uniform", "bounds": [0, 55]})
+    assert study_kind(skewed.assign_attrs(study_json=uniform)) == "swept factor"
+    normal = _study_json(skew={"dist": "normal", "mean": 0, "sd": 3})
+    assert study_kind(skewed.assign_attrs(study_json=normal)) == "random sample"
+    field = _study_json(skew={"dist": "uniform", "bounds": [0, 55]}, zero_angle={"sd_deg": 5})
+    assert study_kind(skewed.assign_attrs(study_json=field)) == "random sample"
+
+
+def test_each_kind_s_report_leaves_out_what_does_not_apply(ensemble, sweep, tmp_path):
+    assert not bool(ensemble["locked"].any())  # nothing locks in the 12 hemisphere drapes
+    random, page = _record(ensemble, tmp_path / "random")
+    assert random["figures"] == ["net.png", "lines.png", "mean_shear.png", "sd_shear.png", "line_statistics.png",
+                                 "histograms.png", "convergence.png"]
+    # no all-zero wrinkle map: a sentence instead, on the page and in the JSON; Wilson upper limit
+    # of 0 in 12 at 95 %: z^2 / (12 + z^2) = 3.8415 / 15.8415 = 0.2425
+    assert random["notes"] == ["No wrinkle-risk map: no node sits next to a locked cell in any of the 12 "
+                               "realisations (the 95% upper limit of the risk is 0.242 or less at every node)."]
+    assert random["notes"][0] in page and random["samples_needed"] is not None
+
+    # one drape per level: no histogram, convergence, sd or risk (and no interval on a 1-drape "probability")
+    det, page = _record(sweep.isel(realization=[0]), tmp_path / "det")
+    assert det["kind"] == "deterministic" and det["notes"] == []
+    assert det["figures"] == ["net.png", "lines.png", "sweep.png", "mean_shear.png"]
+    assert det["max_sd_deg"] is None and det["max_wrinkle_probability"] is None and det["samples_needed"] is None
+    assert "N needed" not in page and "wrinkle risk" not in page and "max |shear| (deg)" in page
+
+    # a uniform sweep over one factor: shown against the factor, no Normal fit, no N needed
+    skewed = ensemble.assign(skew=("realization", np.linspace(0.0, 55.0, 12), {"units": "degree"}))
+    swept, page = _record(skewed.assign_attrs(study_json=_study_json(skew={"dist": "uniform", "bounds": [0, 55]})),
+                          tmp_path / "swept")
+    assert swept["figures"] == ["net.png", "lines.png", "vs_skew.png"]
+    assert swept["max_sd_deg"] is None and swept["samples_needed"] is None and "N needed" not in page
+
+    # the rows of a sensitivity design: descriptive maps, no interval, convergence or histogram
+    design, page = _record(ensemble.assign_attrs(design_method="sobol"), tmp_path / "design")
+    assert design["figures"] == ["net.png", "lines.png", "mean_shear.png", "sd_shear.png"]
+    assert design["max_sd_deg"]["value"] == random["max_sd_deg"]["value"] and design["samples_needed"] is None
+    for name in ("histograms.png", "convergence.png", "wrinkle_risk.png"):
+        assert not (tmp_path / "design" / name).exists()
+    assert {kind for spec in PLAN for kind in spec.kinds} == set(KINDS)
+
+
+def test_every_page_states_its_provenance_and_the_study_once(ensemble, tmp_path):
+    study = '[study]\nname = "plate"\n'
+    record, page = _record(ensemble.assign_attrs(study_toml=study), tmp_path, study_text=study, wall_time_s=12.34)
+    prov = record["provenance"]
+    commit = subprocess.run(["git", "describe", "--always", "--dirty"], cwd=Path(uqdrape.__file__).parent,
+                            capture_output=True, text=True, check=True).stdout.strip()
+    assert prov["git_commit"] == commit and prov["uqdrape_version"] == "0.1.0" and prov["wall_time_s"] == 12.34
+    assert re.fullmatch(r"\d{4}-\d\d-\d\d \d\d:\d\d UTC", prov["date"])
+    assert f"Report of {prov['date']}, uqdrape 0.1.0, git commit\n{commit}; wall time of the run: 12.3 s" in page
+    assert page.count("name = &quot;plate&quot;") == 1
+
+
+def _indices(forces=None):
+    """Sobol' indices of two factors for two QoIs (and per force level): ST = S1 + 0.1."""
+    s1 = np.array([[0.6, 0.1], [0.2, 0.5]])  # factor x qoi
+    dims, shape, coords = ("factor", "qoi"), s1.shape, {"factor": ["friction", "zero_angle"],
+                                                         "qoi": ["asymmetry", "blankholder_energy"]}
+    if forces is not None:
+        s1 = s1[..., None] * np.linspace(1.0, 0.5, len(forces))
+        dims, coords = (*dims, "blankholder_force"), {**coords, "blankholder_force": forces}
+    conf = np.full(s1.shape, 0.05)
+    return xr.Dataset({"S1": (dims, s1), "S1_conf": (dims, conf), "ST": (dims, s1 + 0.1), "ST_conf": (dims, conf),
+                       "output_constant": (dims[1:], np.zeros(s1.shape[1:], bool))}, coords=coords,
+                      attrs={"method": "sobol", "base_samples": 8, "n_evaluations": 48, "conf_level": 0.95})
+
+
+def test_sensitivity_legend_tells_st_solid_from_s1_dashed(tmp_path, drawn):
+    png_shape(plot_sensitivity_vs_force(_indices([0.0, 300.0]), tmp_path / "vs.png"))
+    fig, = drawn
+    legend = {t.get_text(): h for t, h in zip(fig.legends[0].get_texts(), fig.legends[0].legend_handles)}
+    assert legend["total-order ST"].get_linestyle() == "-" and legend["first-order S1"].get_linestyle() == "--"
+    friction = legend["friction"].get_color()
+    assert to_hex(friction) == "#1f77b4" and to_hex(legend["zero_angle"].get_color()) == "#ff7f0e"
+    # the friction/asymmetry panel: ST solid at 0.7 -> 0.4, S1 dashed at 0.6 -> 0.3
+    lines = {line.get_linestyle(): line.get_ydata() for line in fig.axes[0].get_lines()
+             if to_hex(line.get_color()) == "#1f77b4"}
+    np.testing.assert_allclose(lines["-"], [0.7, 0.4], rtol=1e-12)
+    np.testing.assert_allclose(lines["--"], [0.6, 0.3], rtol=1e-12)
+
+
+def test_sensitivity_page_starts_with_the_indices_and_their_largest_st(ensemble, tmp_path):
+    record, page = _record(ensemble.assign_attrs(design_method="sobol"), tmp_path, sensitivity=_indices())
+    assert record["sensitivity"]["largest_ST"] == [{"blankholder_force_N": None, "factor": "friction",
+                                                    "qoi": "asymmetry", "ST": 0.7, "ST_conf": 0.05}]
+    assert ("largest total-order Sobol&#x27; index ST</th><td class=\"num\">friction 0.70 ± 0.05</td>"
+            "<td>of asymmetry, the largest") in page
+    assert page.index("<h2>Sensitivity</h2>") < page.index("<h2>Figures</h2>")
+    assert record["figures"][0] == "sensitivity_bars.png"
+
+
+def test_a_level_where_nothing_exceeds_gets_no_marker(sweep, tmp_path, drawn):
+    top = abs(sweep["shear"]).max(["realization", "i", "j"])
+    threshold = float(top.sel(blankholder_force=300.0))  # P = 0 at 300 N: |shear| > its own maximum never holds
+    assert float(top.sel(blankholder_force=0.0)) > threshold
+    plot_wrinkle_map(sweep, tmp_path / "w.png", threshold_deg=threshold)
+    fig, = drawn
+    at_0, at_300 = [ax for ax in fig.axes if ax.get_title()]
+    assert [t.get_text()[:8] for t in at_0.texts] == ["max P = "] and len(at_300.texts) == 0

@@ -240,7 +240,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="one deterministic drape: netCDF + pictures",
         description="Drape one pin-jointed net over a mould from a crossover point and write "
                     "OUT.nc (xarray/netCDF), OUT-net.png (the net coloured by shear) and "
-                    "OUT-lines.png (shear along the max-shear lines vs distance from the tip).\n\n"
+                    "OUT-lines.png (shear along the max-shear lines vs distance from the crossover).\n\n"
                     "Examples:\n"
                     "  uqdrape drape --geometry hemisphere --param radius=100 --spacing 5 --rings 20\n"
                     "  uqdrape drape --mode energy --material ebxhd936_like --blankholder-force 126 \\\n"

@@ -45,7 +45,7 @@ import xarray as xr
 from scipy.special import ndtr
 from scipy.stats import qmc
 
-from .ensemble import design_variables, open_ensemble, run_ensemble, write_atomic
+from .ensemble import design_variables, open_ensemble, read_manifest, run_ensemble, write_atomic
 from .report import write_report
 from .sensitivity import Design, check_base_samples, map_indices, make_problem, qoi_indices, sample
 from .sensitivity.design import UNBOUNDED, check_method
@@ -175,16 +175,17 @@ def open_sensitivity(output_dir) -> tuple[xr.Dataset, xr.Dataset] | None:
 
 
 def run_report(output_dir, out_dir=None) -> Path:
-    """Report of a finished run: the ensemble under ``output_dir`` with the title, study
-    text, histogram nodes and experimental CSV of the study stored in its attributes, and
-    its sensitivity results if it has them. Writes into ``out_dir`` (default
+    """Report of a finished run: the ensemble under ``output_dir`` with the title
+    (the study's name), description, study text, histogram nodes and experimental CSV of
+    the study stored in its attributes, the wall time from its manifest, and its
+    sensitivity results if it has them. Writes into ``out_dir`` (default
     ``output_dir/report``); returns the index.html path."""
     ds = open_ensemble(output_dir)
     sensitivity = open_sensitivity(output_dir)
     study = from_dict(json.loads(ds.attrs["study_json"]), Path(output_dir))
-    title = study.name + (f": {study.description}" if study.description else "")
-    return write_report(ds, Path(out_dir) if out_dir else Path(output_dir) / "report", title=title,
-                        study_text=ds.attrs.get("study_toml"),
+    return write_report(ds, Path(out_dir) if out_dir else Path(output_dir) / "report", title=study.name,
+                        description=study.description or None, study_text=ds.attrs.get("study_toml"),
                         histogram_nodes=list(study.report.histogram_nodes) or None,
                         experimental_csv=study.report.experimental_csv,
+                        wall_time_s=read_manifest(output_dir).get("wall_time_s"),
                         **({} if sensitivity is None else dict(zip(("sensitivity", "sensitivity_maps"), sensitivity))))

@@ -10,7 +10,7 @@ drapes them (e.g. for a sensitivity design).
 from .chunk import drape_inputs, write_atomic
 from .inputs import design_variables, inputs_from_design, sampled_inputs
 from .run import run_ensemble
-from .store import open_ensemble
+from .store import open_ensemble, read_manifest
 
 __all__ = ["run_ensemble", "open_ensemble", "sampled_inputs", "inputs_from_design", "design_variables",
-           "drape_inputs", "write_atomic"]
+           "drape_inputs", "write_atomic", "read_manifest"]

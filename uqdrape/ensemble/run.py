@@ -8,7 +8,8 @@ so memory stays bounded by a chunk per worker. Realisation r's inputs depend onl
 study (see ``inputs``), so results are identical for any chunk size, worker count and
 scheduler.
 
-Resume: the run folder's manifest records the study; a rerun of the same study skips
+Resume: the run folder's manifest records the study (and, once the run is done, its wall
+time in s, summed over resumed calls); a rerun of the same study skips
 chunks whose final file exists (a ``.part`` file is an unfinished chunk and is redone).
 
 Given a design matrix (a sensitivity study's rows, ``uqdrape.workflow.study_design``),
@@ -20,6 +21,7 @@ from __future__ import annotations
 
 import json
 import sys
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -186,6 +188,7 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
     the usual ``if __name__ == "__main__":`` guard. Cluster workers need uqdrape installed
     and must see the output folder (a shared file system).
     """
+    start = time.perf_counter()
     chunk_size = study.chunk_size if chunk_size is None else _positive_int("chunk_size", chunk_size)
     if scheduler is not None and not (isinstance(scheduler, str) and (scheduler in LOCAL_SCHEDULERS or "://" in scheduler)):
         raise ValueError(f"scheduler must be None, one of {LOCAL_SCHEDULERS} or a dask.distributed "
@@ -197,9 +200,11 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
     out = Path(study.output_dir if output_dir is None else output_dir).absolute()
     provenance = study.to_dict() if provenance is None else provenance
     chunks = plan_chunks(study, chunk_size, None if design_rows is None else len(design_rows))
+    manifest = {"study": provenance, "chunk_size": chunk_size, "chunks": [c.name for c in chunks],
+                "uqdrape_version": __version__}
     with run_lock(out):
-        _prepare(out, {"study": provenance, "chunk_size": chunk_size, "chunks": [c.name for c in chunks],
-                       "uqdrape_version": __version__}, resume)
+        earlier = (read_manifest(out) or {}).get("wall_time_s", 0.0) if resume else 0.0
+        _prepare(out, manifest, resume)
         folder = out / CHUNKS
         todo = [c for c in chunks if not (folder / c.name).is_file()]
         if todo:
@@ -210,6 +215,9 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
         finally:  # an interrupted or failed run's workers are gone: their unfinished files too
             for part in folder.glob("*.nc.part"):
                 part.unlink(missing_ok=True)
+        # for the report's provenance: the time of the finished calls that made this run (an
+        # interrupted call records nothing)
+        write_manifest(out, {**manifest, "wall_time_s": round(earlier + time.perf_counter() - start, 1)})
     return out
 
 

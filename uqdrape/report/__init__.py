@@ -5,8 +5,9 @@ max-shear lines, thesis Fig 5.9). Ensembles: node maps of the mean, sd and wrink
 risk, line statistics (Figs 5.18/5.19), histograms (Fig 5.20), convergence, and
 blank-holder force sweeps, and per-realisation energies and line means against one
 sampled factor (Fig 5.6). Sensitivity runs: index bars, indices against blank-holder
-force and index maps of node shear. ``write_report`` writes them all with ``index.html``
-and ``summary.json``.
+force and index maps of node shear. ``write_report`` writes the figures of the study
+kind's plan (``plan.PLAN``) with ``index.html`` and ``summary.json``; the numbers come
+from ``uqdrape.stats``, this package only renders.
 """
 
 from .ensemble_figures import (
@@ -18,13 +19,11 @@ from .ensemble_figures import (
     plot_sd_map,
     plot_sweep,
     plot_wrinkle_map,
-    varying_factors,
 )
 from .experimental import ExperimentalPoints, read_experimental
 from .figures import plot_lines, plot_net
 from .html import write_report
 from .sensitivity_figures import plot_sensitivity_bars, plot_sensitivity_map, plot_sensitivity_vs_force
-from .summary import headline_numbers
 
 __all__ = [
     "plot_net",
@@ -37,12 +36,10 @@ __all__ = [
     "plot_convergence",
     "plot_sweep",
     "plot_scalar_vs_factor",
-    "varying_factors",
     "plot_sensitivity_bars",
     "plot_sensitivity_vs_force",
     "plot_sensitivity_map",
     "write_report",
-    "headline_numbers",
     "read_experimental",
     "ExperimentalPoints",
 ]

@@ -29,7 +29,9 @@ from uqdrape.stats import (
     node_histogram,
     node_statistics,
     samples_needed,
+    wrinkle_risk,
 )
+from uqdrape.stats.headline import argmax_site
 
 from .experimental import as_experimental
 from .figures import (
@@ -50,7 +52,6 @@ from .figures import (
     styled,
     suptitle,
 )
-from .summary import argmax_site
 
 #: Probability level of the shaded band of the realisations along the max-shear lines.
 BAND = 0.95
@@ -95,22 +96,26 @@ def _map(ds: xr.Dataset, values: xr.DataArray, path, *, norm, cmap, cbar_label: 
             i, j, text = m
             px, py = float(xy["x"].sel(i=i, j=j)), float(xy["y"].sel(i=i, j=j))
             ax.plot(px, py, marker="o", markersize=9, markerfacecolor="none", markeredgecolor="black", mew=1.5)
-            ax.annotate(text, (px, py), xytext=(6, 6), textcoords="offset points", fontsize=9,
+            # the label points into the net, so it stays inside the panel and off its title
+            right, top = px > np.nanmean(x), py > np.nanmean(y)
+            ax.annotate(text, (px, py), xytext=(-8 if right else 8, -8 if top else 8), textcoords="offset points",
+                        ha="right" if right else "left", va="top" if top else "bottom", fontsize=9,
                         bbox=dict(boxstyle="round", fc="white", alpha=0.8))
     fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=axes, shrink=0.85, label=cbar_label)
-    suptitle(fig, f"{title}\n{describe(ds)}")
+    suptitle(fig, title, describe(ds))
     return save(fig, path)
 
 
 def _node_mark(da: xr.DataArray, fmt):
-    """A ``mark`` callback: ``fmt(site)`` at the largest entry of ``da`` in each level.
+    """A ``mark`` callback: ``fmt(site)`` at the largest entry of ``da`` in each level (none
+    where that entry is 0).
 
     ``site`` is {dim: value} of that entry, the level included.
     """
     def mark(force):
         sub = da.sel({FORCE: force}) if force is not None else da
         site = argmax_site(sub)
-        if site is None:
+        if site is None or float(sub.sel(site)) == 0.0:  # nothing to point at (e.g. no risk at this level)
             return None
         return site["i"], site["j"], fmt(site if force is None else {**site, FORCE: force})
     return mark
@@ -118,14 +123,16 @@ def _node_mark(da: xr.DataArray, fmt):
 
 @styled
 def plot_mean_map(ds: xr.Dataset, path, *, node_stats: xr.Dataset | None = None) -> Path:
-    """Map of the ensemble-mean node shear (deg), diverging colours centred on 0. Returns the path."""
+    """Map of the ensemble-mean node shear (deg; the shear itself for one drape per level),
+    diverging colours centred on 0, one shared scale for all levels. Returns the path."""
     node_stats = node_statistics(ds) if node_stats is None else node_stats
     mean = node_stats["mean"]
     vmax = float(np.nanmax(np.abs(mean.values))) or 1.0
+    n = ds.sizes[REALIZATION]
+    what = "mean " if n > 1 else ""
     return _map(ds, mean, path, norm=mpl.colors.Normalize(-vmax, vmax), cmap=mpl.colormaps["RdBu_r"],
-                cbar_label="ensemble-mean shear angle (deg)",
-                title=f"mean node shear over N = {ds.sizes[REALIZATION]} realisations",
-                mark=_node_mark(abs(mean), lambda s: f"max |mean| {float(abs(mean).sel(s)):.1f}°"))
+                cbar_label=f"{what}shear angle (deg)", title=f"{what}node shear" + (f", N = {n}" if n > 1 else ""),
+                mark=_node_mark(abs(mean), lambda s: f"max |{what.strip() or 'shear'}| {float(abs(mean).sel(s)):.1f}°"))
 
 
 @styled
@@ -136,7 +143,7 @@ def plot_sd_map(ds: xr.Dataset, path, *, node_stats: xr.Dataset | None = None) -
     vmax = float(np.nanmax(sd.values)) if np.isfinite(sd.values).any() else 1.0
     return _map(ds, sd, path, norm=mpl.colors.Normalize(0.0, vmax or 1.0), cmap=mpl.colormaps["viridis"],
                 cbar_label="standard deviation of shear (deg)",
-                title=f"sd of node shear over N = {ds.sizes[REALIZATION]} realisations",
+                title=f"sd of node shear, N = {ds.sizes[REALIZATION]}",
                 mark=_node_mark(sd, lambda s: f"max sd {float(sd.sel(s)):.2f}°"))
 
 
@@ -144,12 +151,10 @@ def plot_sd_map(ds: xr.Dataset, path, *, node_stats: xr.Dataset | None = None) -
 def plot_wrinkle_map(ds: xr.Dataset, path, *, threshold_deg: float | None = None,
                      exceedance: xr.Dataset | None = None) -> Path:
     """Map of the wrinkle risk per node: ``exceedance`` if given, else P(|shear| >
-    ``threshold_deg``) if given, else ``summary.wrinkle_risk`` (locked-cell flag, or the
-    locking angle). The node of highest probability is marked with the probability and
-    its binomial confidence interval. Returns the path.
+    ``threshold_deg``) if given, else ``uqdrape.stats.wrinkle_risk`` (locked-cell flag, or
+    the locking angle). The node of highest probability is marked with the probability
+    and its binomial confidence interval. Returns the path.
     """
-    from .summary import wrinkle_risk
-
     if exceedance is not None:
         ex = exceedance
     elif threshold_deg is not None:
@@ -170,14 +175,13 @@ def plot_wrinkle_map(ds: xr.Dataset, path, *, threshold_deg: float | None = None
 
     return _map(ds, p, path, norm=mpl.colors.Normalize(0.0, 1.0), cmap=mpl.colormaps["Reds"],
                 cbar_label=f"{risk} (-)",
-                title=f"wrinkle risk {risk} "
-                      f"({ex.attrs.get('confidence', 0.95):.0%} {ex.attrs.get('interval', 'binomial interval')})",
+                title=f"wrinkle risk {risk}, N = {ds.sizes[REALIZATION]}",
                 mark=_node_mark(p, text))
 
 
 @styled
 def plot_line_statistics(ds: xr.Dataset, path, *, line_stats: xr.Dataset | None = None, experimental=None) -> Path:
-    """Ensemble shear against mean distance from the tip along the max-shear lines (thesis Figs 5.18/5.19).
+    """Ensemble shear against mean distance from the crossover along the max-shear lines (thesis Figs 5.18/5.19).
 
     Per quadrant (i*j > 0 red, others blue): the mean with ±1 sd bars in shear and
     distance, and a shaded band holding the central 95 % of the realisations (empirical
@@ -213,7 +217,7 @@ def plot_line_statistics(ds: xr.Dataset, path, *, line_stats: xr.Dataset | None 
             ax.set_title(force_title(force))
         ax.legend(loc="best", fontsize=8)
     shared_ylim(axes)
-    suptitle(fig, f"shear along the max-shear lines, N = {ds.sizes[REALIZATION]} realisations\n{describe(ds)}")
+    suptitle(fig, f"max-shear lines, N = {ds.sizes[REALIZATION]}", describe(ds))
     return save(fig, path)
 
 
@@ -226,34 +230,31 @@ def _node_kind(node) -> str:
 def plot_histograms(ds: xr.Dataset, path, nodes: Sequence[Sequence[int]], *, bins: int = 20) -> Path:
     """Histograms of node shear at ``nodes`` [(i, j), ...] with the fitted Normal (thesis Fig 5.20).
 
-    One panel per node; a blank-holder sweep shows one histogram (steps) and Normal per
-    level on common bins. Returns the path.
+    One row per node and one column per blank-holder level (one row of nodes without a
+    sweep); each panel has its own bins over its own range, titled with node and force,
+    because the levels' distributions lie far apart compared with their widths. Returns
+    the path.
     """
     nodes = [tuple(int(v) for v in node) for node in nodes]
     if not nodes:
         raise ValueError("nodes must list at least one (i, j) node")
-    fig, axes = panels(len(nodes), size=(5.0, 4.0))
-    cmap = mpl.colormaps["viridis"]
-    for ax, node in zip(axes, nodes):
-        h = node_histogram(ds, node, bins=bins)
+    groups = levels(ds)
+    fig, grid = panels(len(nodes) * len(groups), size=(4.6, 3.6), cols=len(groups) if len(groups) > 1 else None)
+    for ax, (node, (force, level)) in zip(grid, ((n, g) for n in nodes for g in groups)):
+        h = node_histogram(level, node, bins=bins)
         edges = h["bin_edges"].values
-        fine = np.linspace(edges[0], edges[-1], 200)
-        groups = levels(h)
-        for k, (force, hk) in enumerate(groups):
-            color = "tab:gray" if force is None else cmap(k / max(len(groups) - 1, 1))
-            mu, sd, n = float(hk["normal_mean"]), float(hk["normal_sd"]), int(hk["n_valid"])
-            name = "" if force is None else f"{force:g} N: "
-            ax.stairs(hk["density"].values, edges, fill=force is None, color=color, alpha=0.6 if force is None else 1,
-                      label=f"{name}histogram, n = {n}")
-            if sd > 0:
-                ax.plot(fine, stats.norm.pdf(fine, mu, sd), color="black" if force is None else color,
-                        linewidth=1.5, linestyle="-" if force is None else "--",
-                        label=f"{name}Normal μ = {mu:.1f}°, σ = {sd:.2f}°")
-        ax.set(xlabel=SHEAR_LABEL, ylabel="probability density (1/deg)",
-               title=f"node (i, j) = {node}, {_node_kind(node)}")
+        mu, sd, n = float(h["normal_mean"]), float(h["normal_sd"]), int(h["n_valid"])
+        ax.stairs(h["density"].values, edges, fill=True, color="tab:gray", alpha=0.6, label=f"histogram, n = {n}")
+        if sd > 0:
+            fine = np.linspace(edges[0], edges[-1], 200)
+            ax.plot(fine, stats.norm.pdf(fine, mu, sd), color="black", linewidth=1.5,
+                    label=f"Normal μ = {mu:.1f}°, σ = {sd:.2f}°")
+        ax.set(xlabel=SHEAR_LABEL, ylabel="density (1/deg)",
+               title=f"node {node}, {_node_kind(node)}" + ("" if force is None else f", {force_title(force)}"))
         ax.grid(alpha=0.3)
-        ax.legend(loc="best", fontsize=8)
-    suptitle(fig, f"node shear distributions, N = {ds.sizes[REALIZATION]} realisations")
+        ax.set_ylim(0.0, 1.35 * ax.get_ylim()[1])  # headroom: the legend sits above the bars
+        ax.legend(loc="upper left", fontsize=8)
+    fig.suptitle(f"node shear distributions, N = {ds.sizes[REALIZATION]}" + (" per level" if len(groups) > 1 else ""))
     return save(fig, path)
 
 
@@ -306,7 +307,7 @@ def plot_convergence(ds: xr.Dataset, path, node: Sequence[int] | None = None, *,
     for ax in (ax_m, ax_h):
         ax.grid(alpha=0.3, which="both")
         ax.legend(loc="best", fontsize=8)
-    suptitle(fig, f"convergence of the mean shear at node (i, j) = {node} ({_node_kind(node)})")
+    fig.suptitle(f"convergence of the mean shear at node {node} ({_node_kind(node)})")
     return save(fig, path)
 
 
@@ -322,6 +323,7 @@ def plot_sweep(ds: xr.Dataset, path, *, scalars: xr.Dataset | None = None) -> Pa
         raise ValueError(f"plot_sweep needs a {FORCE!r} dim (a blank-holder force sweep); dims: {dict(ds.sizes)}")
     sc = line_scalars(ds) if scalars is None else scalars
     force = ds[FORCE].values.astype(float)
+    n = ds.sizes[REALIZATION]
     fig, (ax_q, ax_a) = panels(2, size=(5.8, 4.4))
     for var, color, text in (("plus_mean_shear", PLUS_COLOR, "+ quadrants (i·j > 0)"),
                              ("minus_mean_shear", MINUS_COLOR, "− quadrants (i·j < 0)"),
@@ -329,7 +331,7 @@ def plot_sweep(ds: xr.Dataset, path, *, scalars: xr.Dataset | None = None) -> Pa
         st = mean_statistics(sc[var]).transpose(FORCE)
         ax = ax_a if var == "asymmetry" else ax_q
         ax.errorbar(force, st["mean"].values, yerr=st["sd"].values, color=color, marker="o", capsize=3,
-                    label=f"{text}, mean ± 1 sd")
+                    label=f"{text}, mean ± 1 sd" if n > 1 else text)
     for ax in (ax_q, ax_a):
         ax.axhline(0.0, color="0.6", linewidth=0.8)
         ax.set_xlabel("blank-holder force F_BH (N)")
@@ -338,23 +340,8 @@ def plot_sweep(ds: xr.Dataset, path, *, scalars: xr.Dataset | None = None) -> Pa
     k_max = sc.attrs.get("k_max")
     ax_q.set(ylabel="line-mean shear (deg)", title=f"mean shear over line nodes k = 1..{k_max}")
     ax_a.set(ylabel="asymmetry (deg)", title="± quadrant asymmetry")
-    suptitle(fig, f"blank-holder force sweep, N = {ds.sizes[REALIZATION]} per level\n{describe(ds)}")
+    suptitle(fig, f"blank-holder force sweep, {f'N = {n}' if n > 1 else 'one drape'} per level", describe(ds))
     return save(fig, path)
-
-
-def varying_factors(ds: xr.Dataset) -> list[str]:
-    """Sampled scalar factors (names of ``uqdrape.study.FACTOR_SETTINGS``) stored along
-    ``realization`` that take more than one value in ``ds``, in the study's factor order."""
-    from uqdrape.study import FACTOR_SETTINGS
-
-    out = []
-    for name in FACTOR_SETTINGS:
-        if name in ds.data_vars and ds[name].dims == (REALIZATION,):
-            values = ds[name].values
-            finite = values[np.isfinite(values)]
-            if finite.size and finite.min() < finite.max():
-                out.append(name)
-    return out
 
 
 #: Thesis quadrant numbers (Fig 5.6: Q1-Q4) of the max-shear quadrant labels, counter-clockwise from (+i, +j).
@@ -404,5 +391,5 @@ def plot_scalar_vs_factor(ds: xr.Dataset, path, factor: str) -> Path:
     for ax in (ax_e, ax_s):
         ax.grid(alpha=0.3)
         ax.legend(loc="best", fontsize=8)
-    suptitle(fig, f"per-realisation results against {factor}, N = {ds.sizes[REALIZATION]}\n{describe(ds)}")
+    suptitle(fig, f"each drape against {factor}, N = {ds.sizes[REALIZATION]}", describe(ds))
     return save(fig, path)

@@ -25,7 +25,7 @@ FORCE_COLUMN = "blankholder_force_N"
 
 @dataclass(frozen=True)
 class ExperimentalPoints:
-    """Measured points: distance from the tip (mm), shear (deg), quadrant sign (+1/-1), force (N or NaN)."""
+    """Measured points: distance from the crossover (mm), shear (deg), quadrant sign (+1/-1), force (N or NaN)."""
 
     distance_mm: np.ndarray
     shear_deg: np.ndarray

@@ -8,8 +8,8 @@ top (style, panels, labels, blank-holder levels) are shared with ``ensemble_figu
 from __future__ import annotations
 
 import functools
+import io
 import math
-import textwrap
 from pathlib import Path
 
 import matplotlib as mpl
@@ -18,6 +18,7 @@ import xarray as xr
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+from PIL import Image
 
 from uqdrape.drape.lines import QUADRANTS, max_shear_lines
 
@@ -33,11 +34,13 @@ QUADRANT_STYLE = {
     "+-": dict(color="tab:blue", marker="v", linestyle="--"),
 }
 PLUS_COLOR, MINUS_COLOR = "tab:red", "tab:blue"
-DISTANCE_LABEL = "distance from the tip (mm)"
+#: The lines start at the crossover (the tip of a dome or cone, the centre of a plate).
+DISTANCE_LABEL = "distance from the crossover (mm)"
 SHEAR_LABEL = "shear angle γ (deg)"
 _RC = {"font.size": 11, "axes.titlesize": 12, "axes.labelsize": 11, "legend.fontsize": 9,
        "xtick.labelsize": 10, "ytick.labelsize": 10, "figure.titlesize": 13}
-DPI = 110
+#: Pixels per inch of every PNG: a 5.4 in wide panel is 540 px, sharp in a two-column page.
+DPI = 100
 
 
 def styled(func):
@@ -49,9 +52,10 @@ def styled(func):
     return wrapper
 
 
-def panels(n: int, *, size=(5.4, 4.2), max_cols: int = 4, **subplot_kw):
-    """A constrained-layout Figure with ``n`` panels in a near-square grid; returns (fig, axes list)."""
-    cols = n if n <= 3 else min(max_cols, math.ceil(math.sqrt(n)))
+def panels(n: int, *, size=(5.4, 4.2), max_cols: int = 4, cols: int | None = None, **subplot_kw):
+    """A constrained-layout Figure with ``n`` panels of ``size`` (in), ``cols`` per row (default:
+    a near-square grid of at most ``max_cols``); returns (fig, axes list)."""
+    cols = cols or (n if n <= 3 else min(max_cols, math.ceil(math.sqrt(n))))
     rows = math.ceil(n / cols)
     fig = Figure(figsize=(size[0] * cols, size[1] * rows), layout="constrained")
     FigureCanvasAgg(fig)
@@ -67,12 +71,21 @@ def shared_ylim(axes) -> None:
 
 
 def save(fig: Figure, path) -> Path:
-    """Write ``fig`` as a PNG at ``path`` (parent folders created) and return the Path."""
+    """Write ``fig`` as a lossless RGB PNG at ``path`` (parent folders created); return the Path.
+
+    The figure is opaque, so dropping matplotlib's alpha channel loses nothing, and
+    Pillow's ``optimize`` recompresses it: about 85 % of matplotlib's RGBA file (measured
+    on a line plot and a shaded map), with none of the banding a palette image gives
+    colour bars.
+    """
     path = Path(path)
     if path.suffix.lower() != ".png":
         raise ValueError(f"path must end in .png, got {str(path)!r}")
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=DPI)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=DPI)
+    with Image.open(buffer) as image:
+        image.convert("RGB").save(path, optimize=True)
     return path
 
 
@@ -110,17 +123,21 @@ def check_realization(ds: xr.Dataset, realization) -> int:
 
 
 def describe(ds: xr.Dataset) -> str:
-    """Description of a drape Dataset for figure titles (geometry, material, mode)."""
-    parts = [ds.attrs.get("geometry"), ds.attrs.get("material"), ds.attrs.get("mode")]
+    """Short description of a drape Dataset for figure titles: the mould's kind (its
+    parameters are on the page), the material card and the drape mode, e.g. "nose cone,
+    ebxhd936_like, energy drape"."""
+    geometry = str(ds.attrs.get("geometry", "")).split("(")[0].replace("_", " ")
+    mode = ds.attrs.get("mode")
+    parts = [geometry, ds.attrs.get("material"), f"{mode} drape" if mode else None]
     return ", ".join(str(p) for p in parts if p not in (None, "", "none"))
 
 
-def suptitle(fig: Figure, text: str, fontsize: float | None = None) -> None:
-    """Figure title with each line wrapped to the figure width."""
-    size = fontsize or mpl.rcParams["figure.titlesize"]
-    size = mpl.font_manager.FontProperties(size=size).get_size_in_points()
-    width = max(30, int(fig.get_figwidth() * 72 / (0.55 * size)))
-    fig.suptitle("\n".join(textwrap.fill(line, width) for line in text.split("\n")), fontsize=size)
+def suptitle(fig: Figure, head: str, detail: str = "") -> None:
+    """Figure title "head: detail" on one line if it fits the figure's width (about 0.55
+    em a character), else with the detail on a second line; never wrapped further."""
+    size = mpl.font_manager.FontProperties(size=mpl.rcParams["figure.titlesize"]).get_size_in_points()
+    fits = len(head) + len(detail) + 2 <= fig.get_figwidth() * 72 / (0.55 * size)
+    fig.suptitle(f"{head}{': ' if fits else chr(10)}{detail}" if detail else head)
 
 
 def _site_dims(da: xr.DataArray) -> tuple[str, str]:
@@ -141,16 +158,27 @@ def signed_norm(values: np.ndarray, units: str | None):
     return mpl.colors.Normalize(lo, hi if hi > lo else lo + 1.0), mpl.colormaps["viridis"]
 
 
+def _net_cells(one: xr.Dataset, var: str, site):
+    """(quads (2n, 2n, 4, 3) in mm, cell values, mask of drawable cells) of one drape."""
+    P = np.stack([one[c].transpose("i", "j").values for c in ("x", "y", "z")], axis=-1)
+    quads = np.stack([P[:-1, :-1], P[1:, :-1], P[1:, 1:], P[:-1, 1:]], axis=2)
+    values = one[var].transpose(*site).values.astype(float)
+    if site == ("i", "j"):
+        values = np.mean(np.stack([values[:-1, :-1], values[1:, :-1], values[1:, 1:], values[:-1, 1:]]), axis=0)
+    return quads, values, np.isfinite(quads).all(axis=(2, 3)) & np.isfinite(values)
+
+
 @styled
 def plot_net(ds: xr.Dataset, path, var: str = "shear", realization: int = 0, title: str | None = None) -> Path:
-    """Draw one draped net in 3-D, cells coloured by ``var``, and write a PNG.
+    """Draw a draped net in 3-D, cells coloured by ``var``, and write a PNG.
 
-    ``ds`` is a drape Dataset (dims realization, i, j; a ``blankholder_force`` level must be
-    selected first); ``realization`` is a position along ``realization``. Cells are the
-    quads between valid nodes (fibre lines are their edges); a node variable (e.g. shear)
-    colours a cell by the mean of its four corners, a cell variable (e.g. cell_shear)
-    directly. Angles get a diverging colour map centred on 0 with a colour bar in deg.
-    Axes are x, y, z in mm with equal scales. Returns the path.
+    ``ds`` is a drape Dataset (dims [blankholder_force,] realization, i, j): one panel per
+    blank-holder level, titled with its force, on one shared colour scale, so levels
+    compare at a glance. ``realization`` is a position along ``realization``. Cells are
+    the quads between valid nodes (fibre lines are their edges); a node variable (e.g.
+    shear) colours a cell by the mean of its four corners, a cell variable (e.g.
+    cell_shear) directly. Angles get a diverging colour map centred on 0 with a colour
+    bar in deg. Axes are x, y, z in mm with equal scales. Returns the path.
     """
     if var not in ds.data_vars:
         raise ValueError(f"var={var!r} is not a data variable; valid: {sorted(map(str, ds.data_vars))}")
@@ -158,39 +186,35 @@ def plot_net(ds: xr.Dataset, path, var: str = "shear", realization: int = 0, tit
     if missing:
         raise ValueError(f"plot_net needs node positions x, y, z; missing {missing}")
     r = check_realization(ds, realization)
-    one = ds[["x", "y", "z", var]].isel({REALIZATION: r})
-    site = _site_dims(one[var])
-    extra = [d for d in (*one["x"].dims, *one[var].dims) if d not in ("i", "j", *site)]
+    site = _site_dims(ds[var])
+    extra = [d for d in (*ds["x"].dims, *ds[var].dims) if d not in ("i", "j", REALIZATION, FORCE, *site)]
     if extra:
-        raise ValueError(f"plot_net draws one net; the Dataset also has dims {sorted(set(extra))}: "
-                         f"select one level first, e.g. ds.sel({extra[0]}=...)")
-    P = np.stack([one[c].transpose("i", "j").values for c in ("x", "y", "z")], axis=-1)
-    quads = np.stack([P[:-1, :-1], P[1:, :-1], P[1:, 1:], P[:-1, 1:]], axis=2)  # (2n, 2n, 4, 3)
-    values = one[var].transpose(*site).values.astype(float)
-    if site == ("i", "j"):
-        values = np.mean(np.stack([values[:-1, :-1], values[1:, :-1], values[1:, 1:], values[:-1, 1:]]), axis=0)
-    keep = np.isfinite(quads).all(axis=(2, 3)) & np.isfinite(values)
-    if not keep.any():
+        raise ValueError(f"plot_net draws one net per blank-holder level; the Dataset also has dims "
+                         f"{sorted(set(extra))}: select one first, e.g. ds.sel({extra[0]}=...)")
+    nets = [(force, _net_cells(level[["x", "y", "z", var]].isel({REALIZATION: r}), var, site))
+            for force, level in levels(ds)]
+    drawn = np.concatenate([values[keep] for _, (_, values, keep) in nets])
+    if not drawn.size:
         raise ValueError(f"realization {r} has no cell with four valid nodes and a finite {var!r}; nothing to draw")
-    norm, cmap = signed_norm(values[keep], one[var].attrs.get("units"))
-
-    fig, (ax,) = panels(1, size=(7.6, 6.4), projection="3d")
-    lw = 0.35 if quads.shape[0] <= 40 else 0.15
-    ax.add_collection3d(Poly3DCollection(quads[keep], facecolors=cmap(norm(values[keep])),
-                                         edgecolors="0.15", linewidths=lw))
-    pts = quads[keep].reshape(-1, 3)
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
-    span = np.maximum(hi - lo, 1e-6)
-    span[2] = max(span[2], 0.05 * span[:2].max())
-    ax.set(xlim=(lo[0], lo[0] + span[0]), ylim=(lo[1], lo[1] + span[1]), zlim=(lo[2], lo[2] + span[2]),
-           xlabel="x (mm)", ylabel="y (mm)", zlabel="z (mm)")
-    ax.set_box_aspect(tuple(span))
-    ax.view_init(elev=32, azim=-60)
-    fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.65, pad=0.08,
-                 label=label(one[var]))
-    n_bad = int((~np.isfinite(P).all(axis=-1)).sum())
-    suptitle(fig, title or f"draped net, realisation {int(one[REALIZATION])}"
-             + (f" ({n_bad} invalid nodes)" if n_bad else "") + f"\n{describe(ds)}", fontsize=11)
+    norm, cmap = signed_norm(drawn, ds[var].attrs.get("units"))
+    fig, axes = panels(len(nets), size=(7.0, 5.6) if len(nets) == 1 else (5.6, 4.6), max_cols=2,
+                       projection="3d")
+    for ax, (force, (quads, values, keep)) in zip(axes, nets):
+        ax.add_collection3d(Poly3DCollection(quads[keep], facecolors=cmap(norm(values[keep])),
+                                             edgecolors="0.15", linewidths=0.35 if quads.shape[0] <= 40 else 0.15))
+        pts = quads[keep].reshape(-1, 3)
+        lo, span = pts.min(axis=0), np.maximum(np.ptp(pts, axis=0), 1e-6)
+        span[2] = max(span[2], 0.05 * span[:2].max())
+        ax.set(xlim=(lo[0], lo[0] + span[0]), ylim=(lo[1], lo[1] + span[1]), zlim=(lo[2], lo[2] + span[2]),
+               xlabel="x (mm)", ylabel="y (mm)", zlabel="z (mm)")
+        ax.set_box_aspect(tuple(span))
+        ax.locator_params(nbins=4)  # more ticks run into each other on the slanted axes
+        ax.view_init(elev=32, azim=-60)
+        n_bad = int((~keep).sum())
+        ax.set_title(", ".join(t for t in (force_title(force) if force is not None else "",
+                                           f"{n_bad} cells not drawn" if n_bad else "") if t), fontsize=10)
+    fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=axes, shrink=0.6, pad=0.06, label=label(ds[var]))
+    suptitle(fig, title or f"draped net, realisation {int(ds[REALIZATION][r])}", "" if title else describe(ds))
     return save(fig, path)
 
 
@@ -228,7 +252,7 @@ def overlay_experimental(ax, points, force) -> None:
 
 @styled
 def plot_lines(ds: xr.Dataset, path, realization: int | None = 0, experimental=None) -> Path:
-    """Shear (deg) against distance from the tip (mm) along the four max-shear lines (thesis Fig 5.9).
+    """Shear (deg) against distance from the crossover (mm) along the four max-shear lines (thesis Fig 5.9).
 
     Quadrants with i*j > 0 (++, --) are red, the others (-+, +-) blue. One panel per
     blank-holder force: per level of a ``blankholder_force`` dim, or per distinct force
@@ -259,5 +283,5 @@ def plot_lines(ds: xr.Dataset, path, realization: int | None = 0, experimental=N
             ax.set_title(force_title(force))
         ax.legend(loc="best")
     shared_ylim(axes)
-    suptitle(fig, f"shear along the max-shear lines\n{describe(ds)}")
+    suptitle(fig, "shear along the max-shear lines", describe(ds))
     return save(fig, path)

@@ -1,49 +1,58 @@
-"""``write_report``: every figure of an ensemble plus one self-contained HTML page.
+"""``write_report``: the figures of an ensemble's report plan and one self-contained HTML page.
 
 The page (``index.html``) uses inline CSS and relative links to PNGs in the same
-folder, so the folder can be copied or served as is. ``summary.json`` holds the same
-headline numbers as the page's table (see ``uqdrape.report.summary``).
+folder, so the folder can be copied or served as is. Layout: title, provenance (date,
+uqdrape version, git commit, wall time of the run), the headline table, a sensitivity
+design's indices, the figures two to a row (a wide figure spans the row), the study
+file once and the ensemble's other attributes. ``summary.json`` holds the same numbers
+(``uqdrape.stats.headline_numbers``) and the provenance.
 """
 
 from __future__ import annotations
 
+import datetime
 import html
 import json
 import math
+import subprocess
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import xarray as xr
+from PIL import Image
 
-from uqdrape.stats import line_statistics, node_statistics
+from uqdrape import __version__
+from uqdrape.stats import dominant_factors, headline_numbers, node_statistics, study_kind, wrinkle_risk
+from uqdrape.stats.headline import DESIGN, DETERMINISTIC, RANDOM, SWEPT
 
-from .ensemble_figures import (
-    plot_convergence,
-    plot_histograms,
-    plot_line_statistics,
-    plot_mean_map,
-    plot_scalar_vs_factor,
-    plot_sd_map,
-    plot_sweep,
-    plot_wrinkle_map,
-    varying_factors,
-)
 from .experimental import read_experimental
-from .figures import FORCE, REALIZATION, levels, plot_lines, plot_net
-from .sensitivity_figures import INDICES, plot_sensitivity_bars, plot_sensitivity_map, plot_sensitivity_vs_force
-from .summary import headline_numbers, wrinkle_risk
+from .figures import FORCE, REALIZATION
+from .plan import PLAN, SENSITIVITY_PLAN, Context, render
+from .sensitivity_figures import INDICES
 
 #: The node number along the max-shear lines the thesis shows histograms of (Fig 5.20).
 THESIS_HISTOGRAM_NODE = 6
+#: Attributes shown elsewhere on the page (the study file) or too long for the table.
+_HIDDEN_ATTRS = ("study_toml", "study_json")
+_KIND_TEXT = {
+    RANDOM: "a random sample: every ensemble statistic applies",
+    DETERMINISTIC: "one drape per blank-holder level: no spread statistics",
+    SWEPT: "a deterministic sweep over one factor: results against the factor, no distribution fits",
+    DESIGN: "the rows of a sensitivity design: indices first; no confidence intervals or convergence",
+}
 _CSS = """
-body { font-family: system-ui, sans-serif; max-width: 1300px; margin: 1.5em auto; padding: 0 1em; color: #222; }
-h1 { font-size: 1.6em; } h2 { font-size: 1.25em; margin-top: 1.6em; border-bottom: 1px solid #ccc; }
+body { font-family: system-ui, sans-serif; max-width: 1500px; margin: 1.5em auto; padding: 0 1em; color: #222; }
+h1 { font-size: 1.6em; margin-bottom: 0.2em; } h2 { font-size: 1.25em; margin-top: 1.6em; border-bottom: 1px solid #ccc; }
 table { border-collapse: collapse; margin: 0.5em 0; } td, th { border: 1px solid #ccc; padding: 0.3em 0.7em; }
-th { background: #f2f2f2; text-align: left; } td.num { text-align: right; font-variant-numeric: tabular-nums; }
-figure { margin: 1.2em 0; } figure img { max-width: 100%; border: 1px solid #ddd; }
+th { background: #f2f2f2; text-align: left; white-space: nowrap; }
+td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
+.figures { display: grid; grid-template-columns: repeat(2, minmax(0, 1fr)); gap: 1.2em; align-items: start; }
+.wide { grid-column: 1 / -1; }
+figure { margin: 0; } figure img { width: 100%; height: auto; border: 1px solid #ddd; }
+figure.wide img { width: auto; max-width: 100%; }
 figcaption { font-size: 0.95em; color: #444; margin-top: 0.3em; }
-pre { background: #f7f7f7; border: 1px solid #ddd; padding: 0.8em; overflow-x: auto; font-size: 0.9em; }
-.note { color: #666; font-size: 0.9em; }
+pre { background: #f7f7f7; border: 1px solid #ddd; padding: 0.8em; white-space: pre-wrap; font-size: 0.9em; }
+.note { color: #555; font-size: 0.95em; }
 """
 
 
@@ -55,11 +64,23 @@ def default_histogram_nodes(ds: xr.Dataset, node_stats: xr.Dataset) -> list[tupl
     count = node_stats["count"]
     if FORCE in count.dims:
         count = count.min(FORCE)
-    k_top = min(THESIS_HISTOGRAM_NODE, int(ds["i"].max()))
-    for k in range(k_top, 0, -1):
+    for k in range(min(THESIS_HISTOGRAM_NODE, int(ds["i"].max())), 0, -1):
         if int(count.sel(i=k, j=k)) > 0 and int(count.sel(i=-k, j=k)) > 0:
             return [(k, k), (-k, k)]
     return [(0, 0)]
+
+
+def provenance(wall_time_s: float | None = None) -> dict:
+    """Date (UTC), uqdrape version, git commit of the code (``git describe --always
+    --dirty`` in the package's folder; None outside a git checkout) and the run's wall
+    time (s, None if not recorded)."""
+    try:
+        commit = subprocess.run(["git", "describe", "--always", "--dirty"], cwd=Path(__file__).parent,
+                                capture_output=True, text=True, timeout=10, check=True).stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        commit = None
+    return {"date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+            "uqdrape_version": __version__, "git_commit": commit, "wall_time_s": wall_time_s}
 
 
 def _fmt(value, digits: int = 3) -> str:
@@ -77,35 +98,41 @@ def _where(site: Mapping) -> str:
     return text
 
 
-def _rows(numbers: Mapping, extra: Mapping) -> list[tuple[str, str, str]]:
-    """(quantity, value, where/how) rows of the headline table."""
-    rows = [("realisations N" + (" per level" if numbers["blankholder_force_levels_N"] else ""),
-             str(numbers["realizations"]), "")]
-    if numbers["blankholder_force_levels_N"]:
-        rows.append(("blank-holder force levels (N)",
-                     ", ".join(f"{f:g}" for f in numbers["blankholder_force_levels_N"]), ""))
+def _rows(numbers: Mapping, extra: Mapping, dominant: list | None) -> list[tuple[str, str, str]]:
+    """(quantity, value, where/how) rows of the headline table; only what applies to the kind."""
+    kind, levels = numbers["kind"], numbers["blankholder_force_levels_N"]
+    count = {DESIGN: "design evaluations", SWEPT: "drapes in the sweep"}.get(kind, "realisations N")
+    rows = [("study kind", kind, _KIND_TEXT[kind]), (count + (" per level" if levels else ""),
+                                                      str(numbers["realizations"]), "")]
+    if levels:
+        rows.append(("blank-holder force levels (N)", ", ".join(f"{f:g}" for f in levels), ""))
     model = numbers["blankholder_model"]
     rows.append(("blank-holder friction model", model,
                  "friction on the radial draw-in only (thesis Eq 5.1-5.5)" if model == "radial"
                  else "friction on the whole plan slip of the held fabric"))
     rows.append(("valid fraction", f"{numbers['valid_fraction']:.4f}", "valid node values / all node values"))
-    for key, name in (("max_abs_mean_shear_deg", "max |mean shear| (deg)"), ("max_sd_deg", "max sd of shear (deg)")):
-        site = numbers[key]
-        rows.append((name, _fmt(site["value"]), _where(site) if site["value"] is not None else ""))
-    wr = numbers["max_wrinkle_probability"]
-    if wr is None or wr["value"] is None:
-        rows.append(("max wrinkle-risk probability", "n/a", "no locking angle in the ensemble (geodesic drape "
-                     "without a material)" if wr is None else "no valid node"))
-    else:
-        rows.append((f"max wrinkle risk {wr['measure']}",
-                     f"{wr['value']:.3f} [{wr['lower']:.3f}, {wr['upper']:.3f}]",
-                     f"{_where(wr)}; {wr['interval']}"))
-    sn = numbers["samples_needed"]
-    if sn is None:
-        rows.append(("N needed for ±1° at the most variable node", "n/a", "no spread in the ensemble"))
-    else:
+    site = numbers["max_abs_mean_shear_deg"]
+    rows.append(("max |shear| (deg)" if kind == DETERMINISTIC else "max |mean shear| (deg)", _fmt(site["value"]),
+                 _where(site) if site["value"] is not None else ""))
+    if numbers["max_sd_deg"] is not None:
+        site = numbers["max_sd_deg"]
+        rows.append(("max sd of shear (deg)", _fmt(site["value"]), _where(site) if site["value"] is not None else ""))
+    if kind == RANDOM:
+        wr = numbers["max_wrinkle_probability"]
+        if wr is None or wr["value"] is None:
+            rows.append(("max wrinkle risk", "n/a", "no locking angle (a geodesic drape without a material)"
+                         if wr is None else "no valid node"))
+        else:
+            rows.append((f"max wrinkle risk {wr['measure']}", f"{wr['value']:.3f} [{wr['lower']:.3f}, {wr['upper']:.3f}]",
+                         f"{_where(wr)}; {wr['interval']}"))
+        sn = numbers["samples_needed"]
         rows.append((f"N needed for ±{sn['half_width_deg']:g}° ({sn['confidence']:.0%}) at the most variable node",
-                     str(sn["value"]), f"{_where(sn)}, sd = {sn['sd_deg']:.3g}° (Student t)"))
+                     str(sn["value"]), f"{_where(sn)}, sd = {sn['sd_deg']:.3g}° (Student t)") if sn else
+                    ("N needed for ±1° at the most variable node", "n/a", "no spread in the ensemble"))
+    for d in dominant or ():
+        at = "" if d["blankholder_force_N"] is None else f", F_BH = {d['blankholder_force_N']:g} N"
+        rows.append((f"largest total-order Sobol' index ST{at}", f"{d['factor']} {d['ST']:.2f} ± {d['ST_conf']:.2f}",
+                     f"of {d['qoi']}, the largest over all factors and quantities of interest"))
     rows.extend((str(k), _fmt(v), "supplied by the caller") for k, v in extra.items())
     return rows
 
@@ -122,25 +149,23 @@ def _check_extra(summary) -> dict:
     return dict(summary)
 
 
-def write_report(ds: xr.Dataset, out_dir, *, title: str, study_text: str | None = None,
-                 histogram_nodes: Sequence[Sequence[int]] | None = None, experimental_csv=None,
-                 summary: Mapping | None = None, sensitivity: xr.Dataset | None = None,
-                 sensitivity_maps: xr.Dataset | None = None) -> Path:
-    """Write every figure of ensemble ``ds``, ``summary.json`` and ``index.html`` into ``out_dir``.
+def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None = None,
+                 study_text: str | None = None, histogram_nodes: Sequence[Sequence[int]] | None = None,
+                 experimental_csv=None, summary: Mapping | None = None, sensitivity: xr.Dataset | None = None,
+                 sensitivity_maps: xr.Dataset | None = None, wall_time_s: float | None = None) -> Path:
+    """Write the figures of ensemble ``ds``'s report plan, ``summary.json`` and ``index.html``
+    into ``out_dir``; returns the index.html path.
 
-    ``ds``: ensemble Dataset (realization, i, j; optional leading ``blankholder_force``).
-    ``study_text``: the study TOML, shown verbatim. ``histogram_nodes``: [(i, j), ...]
-    (default: node 6, or the largest valid k below it, of a + and a - max-shear line).
+    ``ds``: ensemble Dataset (realization, i, j; optional leading ``blankholder_force``);
+    its kind (``uqdrape.stats.study_kind``) picks the figures (``uqdrape.report.plan``).
+    ``title``: short page title; ``description``: a sentence under it. ``study_text``:
+    the study TOML, shown once, verbatim. ``histogram_nodes``: [(i, j), ...] (default:
+    node 6, or the largest valid k below it, of a + and a - max-shear line).
     ``experimental_csv``: measured points overlaid on the line plots (checked first).
-    ``summary``: extra headline items (name -> number/string) for the table and the
-    JSON (under ``extra``). Figures that do not apply are left out (no wrinkle map
-    without a locking angle, no sweep plot without a sweep, no sd map, wrinkle map, line
-    statistics, histograms or convergence for one realisation per level); an ensemble
-    without a sweep whose realisations vary exactly one scalar factor (e.g. ``skew``)
-    gets ``vs_<factor>.png`` (energies and line means against it). ``sensitivity`` /
-    ``sensitivity_maps``: the QoI indices and node-shear index maps of a sensitivity run
-    (``uqdrape.workflow.open_sensitivity``), drawn as bar charts, index-vs-force lines
-    and maps, and tabulated in a Sensitivity section. Returns the index.html path.
+    ``summary``: extra headline items (name -> number/string) for the table and the JSON
+    (under ``extra``). ``sensitivity`` / ``sensitivity_maps``: the QoI indices and
+    node-shear index maps of a sensitivity run (``uqdrape.workflow.open_sensitivity``),
+    shown first. ``wall_time_s``: the run's wall time for the provenance line.
     """
     if REALIZATION not in ds.dims:
         raise ValueError(f"write_report needs an ensemble Dataset with a {REALIZATION!r} dim; dims: {dict(ds.sizes)}")
@@ -148,68 +173,34 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, study_text: str | None 
         raise ValueError(f"title must be a non-empty string, got {title!r}")
     extra = _check_extra(summary)
     points = read_experimental(experimental_csv) if experimental_csv is not None else None
+    if sensitivity is not None and sensitivity.attrs.get("method") not in INDICES:
+        raise ValueError(f"sensitivity has method={sensitivity.attrs.get('method')!r} in its attributes; "
+                         f"expected one of {tuple(INDICES)}")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
 
+    kind = study_kind(ds)
     node_stats = node_statistics(ds)
-    # one realisation (per level) is a deterministic drape: no spread, so no spread figures
-    spread = ds.sizes[REALIZATION] > 1
-    exceedance = wrinkle_risk(ds) if spread else None
+    exceedance = wrinkle_risk(ds) if kind == RANDOM else None
     nodes = default_histogram_nodes(ds, node_stats) if histogram_nodes is None else histogram_nodes
-    figures: list[tuple[Path, str]] = []
-    for force, level in levels(ds):
-        name = "net.png" if force is None else f"net_{force:g}N.png"
-        at = "" if force is None else f" at F_BH = {force:g} N"
-        figures.append((plot_net(level, out / name, realization=0),
-                        f"Draped net of the first realisation{at}, cells coloured by node shear (deg)."))
-    figures += [
-        (plot_lines(ds, out / "lines.png", realization=0, experimental=points),
-         "Shear along the four max-shear lines of the first realisation (red: i·j > 0 quadrants, blue: the "
-         "others)" + (", with the measured points" if points is not None else "") + "."),
-        (plot_mean_map(ds, out / "mean_shear.png", node_stats=node_stats),
-         "Ensemble-mean node shear on the mean node positions." if spread else "Node shear on the node positions."),
-    ]
-    factors = varying_factors(ds) if FORCE not in ds.dims else []
-    if len(factors) == 1:
-        figures.append((plot_scalar_vs_factor(ds, out / f"vs_{factors[0]}.png", factors[0]),
-                        f"Blank-holder energy per quadrant and in total, and the max-shear line means, against "
-                        f"the one sampled factor, {factors[0]} (thesis Fig 5.6 for the skew)."))
-    if spread:
-        figures.append((plot_sd_map(ds, out / "sd_shear.png", node_stats=node_stats),
-                        "Standard deviation of node shear on the mean node positions."))
-    if exceedance is not None:
-        figures.append((plot_wrinkle_map(ds, out / "wrinkle_risk.png", exceedance=exceedance),
-                        f"Wrinkle risk {exceedance.attrs['risk']} per node (a cell locks past its own "
-                        "branch's locking angle), with its binomial confidence interval at the node of highest risk."))
-    if spread:
-        figures += [
-            (plot_line_statistics(ds, out / "line_statistics.png", line_stats=line_statistics(ds),
-                                  experimental=points),
-             "Shear against distance from the tip along the max-shear lines: mean ± 1 sd per node and the band "
-             "holding the central 95 % of realisations (thesis Figs 5.18/5.19)."),
-            (plot_histograms(ds, out / "histograms.png", nodes),
-             "Histograms of node shear with the fitted Normal (thesis Fig 5.20)."),
-            (plot_convergence(ds, out / "convergence.png", node_stats=node_stats),
-             "Convergence of the mean shear with N at the most variable node."),
-        ]
-    if FORCE in ds.dims:
-        figures.append((plot_sweep(ds, out / "sweep.png"),
-                        "Mean shear of the + and − quadrant max-shear lines and their asymmetry against "
-                        "blank-holder force (mean ± 1 sd over the realisations)."))
-
-    sens_figures = [] if sensitivity is None else _sensitivity_figures(ds, sensitivity, sensitivity_maps, out)
+    c = Context(ds, kind, out, node_stats, exceedance, nodes, points, sensitivity, sensitivity_maps)
+    sens_items, items = render(SENSITIVITY_PLAN, c), render(PLAN, c)
 
     numbers = headline_numbers(ds, node_stats=node_stats, exceedance=exceedance)
-    record = {"title": title, **numbers, "extra": extra, "attrs": {k: _json_attr(v) for k, v in ds.attrs.items()},
-              "figures": [p.name for p, _ in figures + sens_figures]}
+    dominant = dominant_factors(sensitivity) if sensitivity is not None and "ST" in sensitivity else None
+    record = {"title": title, "description": description, **numbers, "extra": extra, "provenance": provenance(wall_time_s),
+              "attrs": {k: _json_attr(v) for k, v in ds.attrs.items()},
+              "figures": [item[0].name for item in sens_items + items if not isinstance(item, str)],
+              "notes": [item for item in sens_items + items if isinstance(item, str)]}
     if sensitivity is not None:
         record["sensitivity"] = {k: _json_attr(sensitivity.attrs[k])
                                  for k in ("method", "base_samples", "n_evaluations", "conf_level")}
+        record["sensitivity"]["largest_ST"] = dominant
     summary_path = out / "summary.json"
     summary_path.write_text(json.dumps(record, indent=2, allow_nan=False) + "\n", encoding="utf-8")
 
-    section = "" if sensitivity is None else _sensitivity_section(sensitivity, sens_figures)
-    page = _page(title, ds, _rows(numbers, extra), figures, study_text, summary_path.name, section)
+    section = "" if sensitivity is None else _sensitivity_section(sensitivity, sens_items)
+    page = _page(record, ds, _rows(numbers, extra, dominant), items, study_text, summary_path.name, section)
     index = out / "index.html"
     index.write_text(page, encoding="utf-8")
     return index
@@ -226,36 +217,26 @@ def _json_attr(value):
     return str(value)
 
 
-def _figures_html(figures) -> str:
+def _figures_html(items) -> str:
+    """The figures two to a row (a figure of more than 900 px, i.e. of two panels or more
+    side by side, spans the row at its own size), and the sentences standing in for
+    figures left out, each across the row."""
     esc = html.escape
-    return "\n".join(
-        f"<figure><a href=\"{esc(p.name)}\"><img src=\"{esc(p.name)}\" alt=\"{esc(caption)}\"></a>"
-        f"<figcaption>{esc(caption)}</figcaption></figure>"
-        for p, caption in figures
-    )
+    out = []
+    for item in items:
+        if isinstance(item, str):
+            out.append(f"<p class=\"note wide\">{esc(item)}</p>")
+            continue
+        path, caption = item
+        with Image.open(path) as im:
+            wide = " class=\"wide\"" if im.width > 900 else ""
+        out.append(f"<figure{wide}><a href=\"{esc(path.name)}\">"
+                   f"<img src=\"{esc(path.name)}\" alt=\"{esc(caption)}\"></a><figcaption>{esc(caption)}</figcaption>"
+                   "</figure>")
+    return "<div class=\"figures\">\n" + "\n".join(out) + "\n</div>"
 
 
-def _sensitivity_figures(ds: xr.Dataset, indices: xr.Dataset, maps: xr.Dataset | None, out: Path) -> list:
-    """The sensitivity figures of a run as [(path, caption)]."""
-    method = indices.attrs.get("method")
-    if method not in INDICES:
-        raise ValueError(f"sensitivity has method={method!r} in its attributes; expected one of {tuple(INDICES)}")
-    ci = f"{100 * indices.attrs['conf_level']:g} % bootstrap confidence intervals"
-    figures = [(plot_sensitivity_bars(indices, out / "sensitivity_bars.png"),
-                f"Sensitivity indices of each quantity of interest (rows) per blank-holder level (columns), "
-                f"with {ci} as error bars.")]
-    if FORCE in indices.dims:
-        figures.append((plot_sensitivity_vs_force(indices, out / "sensitivity_vs_force.png"),
-                        f"Indices of each factor against blank-holder force, bands: {ci}."))
-    if maps is not None:
-        for var, _, name in INDICES[method]:
-            figures.append((plot_sensitivity_map(ds, maps, out / f"sensitivity_map_{var}.png", index=var),
-                            f"{name} of node shear per factor (rows) and blank-holder level (columns), on the "
-                            "ensemble-mean net; blank where a node is invalid in some evaluation."))
-    return figures
-
-
-def _sensitivity_section(indices: xr.Dataset, figures) -> str:
+def _sensitivity_section(indices: xr.Dataset, items) -> str:
     """HTML: the design, a table of the indices (± confidence half-width) per QoI and
     factor with one column per blank-holder level, and the sensitivity figures."""
     esc = html.escape
@@ -272,53 +253,53 @@ def _sensitivity_section(indices: xr.Dataset, figures) -> str:
                 cells.append(" / ".join(f"{float(at[v]):.2f} ± {float(at[c]):.2f}" for v, c, _ in pairs))
             body.append(f"<tr><th>{esc(str(q))}</th><th>{esc(str(factor))}</th>"
                         + "".join(f"<td class=\"num\">{esc(c)}</td>" for c in cells) + "</tr>")
-    what = " / ".join(v for v, _, _ in pairs)
     unit = "trajectories" if method == "morris" else "base samples"
     return f"""<h2>Sensitivity</h2>
 <p>{esc(method)} design: {indices.attrs['base_samples']} {unit}, {indices.attrs['n_evaluations']} drapes per
-blank-holder level (the realisations of this report are the design's rows, the same at every level); a random
-field is one group of its Karhunen&ndash;Lo&egrave;ve variables. Table: {esc(what)} ± the half-width of the
+blank-holder level (the same rows at every level); a random field is one group of its Karhunen&ndash;Lo&egrave;ve
+variables. Table: {esc(" / ".join(v for v, _, _ in pairs))} ± the half-width of the
 {100 * indices.attrs['conf_level']:g} % bootstrap confidence interval.</p>
+{_figures_html(items)}
 <table>
 <tr><th>quantity</th><th>factor</th>{head}</tr>
 {chr(10).join(body)}
 </table>
-{_figures_html(figures)}
 """
 
 
-def _page(title, ds, rows, figures, study_text, summary_name, sensitivity_html="") -> str:
+def _page(record, ds, rows, items, study_text, summary_name, sensitivity_html="") -> str:
     esc = html.escape
     table = "\n".join(
-        f"<tr><th>{esc(q)}</th><td class=\"num\">{esc(v)}</td><td>{esc(w)}</td></tr>" for q, v, w in rows
-    )
-    attrs = "\n".join(
-        f"<tr><th>{esc(str(k))}</th><td>{esc(_fmt(_json_attr(v)))}</td></tr>" for k, v in ds.attrs.items()
-    )
-    figs = _figures_html(figures)
+        f"<tr><th>{esc(q)}</th><td class=\"num\">{esc(v)}</td><td>{esc(w)}</td></tr>" for q, v, w in rows)
+    attrs = "\n".join(f"<tr><th>{esc(str(k))}</th><td>{esc(_fmt(_json_attr(v)))}</td></tr>"
+                      for k, v in ds.attrs.items() if k not in _HIDDEN_ATTRS)
+    prov = record["provenance"]
+    wall = "not recorded" if prov["wall_time_s"] is None else f"{prov['wall_time_s']:.1f} s"
     study = (f"<h2>Study file</h2>\n<pre>{esc(study_text)}</pre>" if study_text
              else "<p class=\"note\">No study file was given.</p>")
+    description = f"<p>{esc(record['description'])}</p>" if record["description"] else ""
     return f"""<!DOCTYPE html>
 <html lang="en">
 <head>
 <meta charset="utf-8">
 <meta name="viewport" content="width=device-width, initial-scale=1">
-<title>{esc(title)}</title>
+<title>{esc(record['title'])}</title>
 <style>{_CSS}</style>
 </head>
 <body>
-<h1>{esc(title)}</h1>
-<p class="note">uqdrape {esc(str(ds.attrs.get("uqdrape_version", "")))} report.
-Angles in degrees, lengths in mm, forces in N.
-Numbers also in <a href="{esc(summary_name)}">{esc(summary_name)}</a>.</p>
+<h1>{esc(record['title'])}</h1>
+{description}
+<p class="note">Report of {esc(prov['date'])}, uqdrape {esc(prov['uqdrape_version'])}, git commit
+{esc(prov['git_commit'] or 'n/a (not a git checkout)')}; wall time of the run: {esc(wall)}.
+Angles in degrees, lengths in mm, forces in N. Numbers also in <a href="{esc(summary_name)}">{esc(summary_name)}</a>.</p>
 <h2>Headline numbers</h2>
 <table>
 <tr><th>quantity</th><th>value</th><th>where / how</th></tr>
 {table}
 </table>
-<h2>Figures</h2>
-{figs}
 {sensitivity_html}
+<h2>Figures</h2>
+{_figures_html(items)}
 {study}
 <h2>Ensemble attributes</h2>
 <table>

@@ -15,6 +15,7 @@ import numpy as np
 import xarray as xr
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 from .ensemble_figures import triangulation, mean_positions
 from .figures import FORCE, describe, force_title, save, styled, suptitle, unit_text
@@ -98,7 +99,7 @@ def plot_sensitivity_bars(indices: xr.Dataset, path):
             ax.set_title(q + ("" if force is None else f", {force_title(force)}"), fontsize=10)
             ax.set_ylabel(_qoi_axis_label(indices, q))
     axes[0, 0].legend(loc="upper left", fontsize=8)
-    suptitle(fig, f"sensitivity indices per quantity of interest\n{_design_text(indices)}")
+    fig.suptitle(f"sensitivity indices per quantity of interest\n{_design_text(indices)}")
     return save(fig, path)
 
 
@@ -125,18 +126,19 @@ def plot_sensitivity_vs_force(indices: xr.Dataset, path):
             sel = indices.sel(qoi=q, factor=factor).transpose(FORCE)
             for var, conf, name in pairs:
                 v, c = sel[var].values, sel[conf].values
-                ax.plot(force, v, color=cmap(k % 10), linestyle=styles[var], marker="o", markersize=4,
-                        label=f"{factor} {var}")
+                ax.plot(force, v, color=cmap(k % 10), linestyle=styles[var], marker="o", markersize=4)
                 ax.fill_between(force, v - c, v + c, color=cmap(k % 10), alpha=0.12, linewidth=0)
         ax.axhline(0.0, color="0.5", linewidth=0.8)
         ax.set(xlabel="blank-holder force F_BH (N)", ylabel=_qoi_axis_label(indices, q), title=q)
         ax.grid(alpha=0.3)
     for ax in axes.flat[len(qois):]:
         ax.set_visible(False)
-    axes.flat[0].legend(loc="best", fontsize=7, ncol=2)
-    what = "ST solid, S1 dashed" if method == "sobol" else "μ*"
-    suptitle(fig, f"sensitivity against blank-holder force ({what}, bands: confidence intervals)\n"
-                  f"{_design_text(indices)}")
+    # one legend entry per factor (its colour) and per index (its line style, drawn long enough to read)
+    handles = [Line2D([], [], color=cmap(k % 10), linewidth=6, label=str(f))
+               for k, f in enumerate(indices["factor"].values)]
+    handles += [Line2D([], [], color="0.2", linestyle=styles[var], label=name) for var, _, name in pairs]
+    fig.legend(handles=handles, loc="outside right upper", fontsize=9, handlelength=3.5)
+    fig.suptitle(f"sensitivity against blank-holder force, bands: confidence intervals\n{_design_text(indices)}")
     return save(fig, path)
 
 
@@ -152,7 +154,7 @@ def plot_sensitivity_map(ds: xr.Dataset, maps: xr.Dataset, path, index: str = "S
     pos = mean_positions(ds)
     groups = _levels(maps)
     factors = [str(f) for f in maps["factor"].values]
-    fig, axes = _grid(len(factors), len(groups), size=(3.6, 3.3))
+    fig, axes = _grid(len(factors), len(groups), size=(2.9, 2.7))
     values = maps[index].values
     top = float(np.nanmax(values)) if np.isfinite(values).any() else 1.0
     norm = mpl.colors.Normalize(0.0, 1.0 if method == "sobol" else (top or 1.0))
@@ -171,5 +173,5 @@ def plot_sensitivity_map(ds: xr.Dataset, maps: xr.Dataset, path, index: str = "S
             ax.set_title(factor + ("" if force is None else f", {force_title(force)}"), fontsize=9)
     label = f"{index} of node shear" + (" (-)" if method == "sobol" else " (deg per unit step)")
     fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=axes, shrink=0.8, label=label)
-    suptitle(fig, f"{index} of node shear on the mean net (x-y plan)\n{_design_text(maps)}; {describe(ds)}")
+    suptitle(fig, f"{index} of node shear on the mean net (x-y plan), {describe(ds)}", _design_text(maps))
     return save(fig, path)

@@ -10,10 +10,11 @@ with CF ``units`` / ``long_name`` attributes.
 
 from .convergence import convergence, samples_needed
 from .exceedance import clopper_pearson_interval, exceedance_probability, wilson_interval
+from .headline import KINDS, dominant_factors, headline_numbers, study_kind, varying_factors, wrinkle_risk
 from .histogram import node_histogram
 from .lines import line_scalars, line_statistics
 from .qoi import QOI_ATTRS, QOIS, realization_qois
-from .summary import mean_statistics, node_statistics
+from .summary import inner_outer_sd, mean_statistics, node_statistics, ring_sd
 
 __all__ = [
     "node_statistics",
@@ -29,4 +30,12 @@ __all__ = [
     "QOIS",
     "QOI_ATTRS",
     "realization_qois",
+    "ring_sd",
+    "inner_outer_sd",
+    "KINDS",
+    "study_kind",
+    "varying_factors",
+    "wrinkle_risk",
+    "headline_numbers",
+    "dominant_factors",
 ]

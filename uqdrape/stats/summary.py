@@ -163,3 +163,32 @@ def node_statistics(
     out = xr.merge([moment_statistics(da, c), quantile_statistics(da, quantiles, c)], combine_attrs="override")
     out.attrs = {**ds.attrs, "variable": var, "confidence": c}
     return out.compute()
+
+
+def ring_sd(ds: xr.Dataset, var: str = "shear") -> xr.DataArray:
+    """Per-node ensemble sd of ``var`` (deg) averaged over each ring k = max(|i|, |j|) = 1..n.
+
+    Rings are the net's distance from the crossover in segments; the result has dim
+    ``ring`` (plus a leading ``blankholder_force`` of a sweep). Nodes with fewer than
+    two valid realisations are left out of their ring's average.
+    """
+    sd = node_statistics(ds, var)["sd"]
+    ring = np.maximum(abs(sd["i"]), abs(sd["j"]))
+    n = int(ring.max())
+    per_ring = [sd.where(ring == k).mean(("i", "j")) for k in range(1, n + 1)]
+    out = xr.concat(per_ring, dim="ring").assign_coords(ring=np.arange(1, n + 1))
+    return out.assign_attrs(units=sd.attrs.get("units", "degree"),
+                            long_name=f"mean over the ring's nodes of the ensemble sd of {var}")
+
+
+def inner_outer_sd(ds: xr.Dataset, var: str = "shear", band: int = 5) -> tuple[float, float]:
+    """(inner, outer) ring-averaged sd of ``var`` (deg): rings 1..band and the ``band``
+    rings just inside the boundary ring (n-band..n-1). The boundary ring is left out:
+    its node shear averages fewer cells (one at a corner), which adds scatter of its own."""
+    per_ring = ring_sd(ds, var)
+    n = per_ring.sizes["ring"]
+    if n < 2 * band + 1:
+        raise ValueError(f"band={band} needs a net of at least {2 * band + 1} rings, got {n}")
+    inner = float(per_ring.sel(ring=slice(1, band)).mean())
+    outer = float(per_ring.sel(ring=slice(n - band, n - 1)).mean())
+    return inner, outer

@@ -1,6 +1,6 @@
 """The reference gallery: every thesis-figure study run end to end, its small report kept.
 
-``python -m uqdrape.gallery [--only NAME ...] [--workers N]`` runs each study of
+``python tools/gallery.py [--only NAME ...] [--workers N]`` runs each study of
 :data:`GALLERY` from the checkout's ``studies/`` (ensemble under ``results/<name>/``, as
 ``uqdrape run`` would), writes its report and copies the report -- PNGs, ``index.html``,
 ``summary.json``, not the netCDF chunks -- into ``results/gallery/<name>/``, plus the
@@ -8,11 +8,11 @@ entry's headline numbers in ``headline.json`` and, for entries with ``exports``,
 VTK and flat-pattern export in ``export/``. ``results/gallery/README.md`` is then
 rebuilt from the headline files of all entries present, so ``--only`` refreshes one entry.
 
-The gallery is committed, so its PNGs are stored as 256-colour palette PNGs (about a
-third of matplotlib's RGBA size; the plots are line art and colour maps, so the
-difference is not visible). Paths are relative to the checkout root (the folder holding
-``studies/``), whatever the current directory, so the stored study records carry the
-relative output folder and the gallery is reproducible on any machine.
+The PNGs are the report's own lossless ones. Paths are relative to the checkout root
+(the folder holding ``studies/``), whatever the current directory, so the stored study
+records carry the relative output folder and the gallery is reproducible on any machine.
+A script of the checkout, not of the installed package: it needs ``studies/`` and
+``results/gallery/`` beside it.
 """
 
 from __future__ import annotations
@@ -28,10 +28,9 @@ from pathlib import Path
 
 import numpy as np
 import xarray as xr
-from PIL import Image
 from scipy.stats import spearmanr
 
-from .stats import line_scalars, line_statistics, node_statistics
+from uqdrape.stats import inner_outer_sd, line_scalars, line_statistics, wrinkle_risk
 
 ROOT = Path(__file__).resolve().parent.parent
 #: Where the committed reference reports live, relative to the checkout root.
@@ -40,38 +39,6 @@ GALLERY_DIR = Path("results") / "gallery"
 KEPT = ("*.png", "index.html", "summary.json")
 #: Rings at each end of the net summarised by ``inner_outer_sd``.
 RING_BAND = 5
-
-
-# ----------------------------------------------------------------------------- ring statistics
-
-
-def ring_sd(ds: xr.Dataset, var: str = "shear") -> xr.DataArray:
-    """Per-node ensemble sd of ``var`` (deg) averaged over each ring k = max(|i|, |j|) = 1..n.
-
-    Rings are the net's distance from the crossover in segments; the result has dim
-    ``ring`` (plus a leading ``blankholder_force`` of a sweep). Nodes with fewer than
-    two valid realisations are left out of their ring's average.
-    """
-    sd = node_statistics(ds, var)["sd"]
-    ring = np.maximum(abs(sd["i"]), abs(sd["j"]))
-    n = int(ring.max())
-    per_ring = [sd.where(ring == k).mean(("i", "j")) for k in range(1, n + 1)]
-    out = xr.concat(per_ring, dim="ring").assign_coords(ring=np.arange(1, n + 1))
-    return out.assign_attrs(units=sd.attrs.get("units", "degree"),
-                            long_name=f"mean over the ring's nodes of the ensemble sd of {var}")
-
-
-def inner_outer_sd(ds: xr.Dataset, var: str = "shear", band: int = RING_BAND) -> tuple[float, float]:
-    """(inner, outer) ring-averaged sd of ``var`` (deg): rings 1..band and the ``band``
-    rings just inside the boundary ring (n-band..n-1). The boundary ring is left out:
-    its node shear averages fewer cells (one at a corner), which adds scatter of its own."""
-    per_ring = ring_sd(ds, var)
-    n = per_ring.sizes["ring"]
-    if n < 2 * band + 1:
-        raise ValueError(f"band={band} needs a net of at least {2 * band + 1} rings, got {n}")
-    inner = float(per_ring.sel(ring=slice(1, band)).mean())
-    outer = float(per_ring.sel(ring=slice(n - band, n - 1)).mean())
-    return inner, outer
 
 
 # ----------------------------------------------------------------------------- headline numbers
@@ -100,9 +67,9 @@ def _sweep_headline(ds: xr.Dataset) -> dict:
 def _levels_headline(ds: xr.Dataset) -> dict:
     """The -/+ quadrant gap at each force level and the symmetrising force (uqdrape.symmetry),
     draped again with the study's own mould, material, blank-holder model and settings."""
-    from .geometry import build
-    from .material import load_material
-    from .symmetry import symmetrising_force
+    from uqdrape.geometry import build
+    from uqdrape.material import load_material
+    from uqdrape.symmetry import symmetrising_force
 
     study = json.loads(ds.attrs["study_json"])
     fabric, solver, process = study["fabric"], study["solver"], study["process"]
@@ -144,7 +111,7 @@ def _node6_headline(ds: xr.Dataset) -> dict:
 
 
 def _plate_headline(ds: xr.Dataset) -> dict:
-    inner, outer = inner_outer_sd(ds)
+    inner, outer = inner_outer_sd(ds, band=RING_BAND)
     n = int(ds.attrs["rings"])
     pooled = float(ds["shear"].std(skipna=True))
     return {f"shear sd, rings 1-{RING_BAND} (deg)": _round(inner),
@@ -154,8 +121,6 @@ def _plate_headline(ds: xr.Dataset) -> dict:
 
 
 def _wrinkle_headline(ds: xr.Dataset) -> dict:
-    from .report.summary import wrinkle_risk
-
     ex = wrinkle_risk(ds)
     p = ex["probability"]
     top = ex.isel(p.argmax(...))
@@ -166,7 +131,7 @@ def _wrinkle_headline(ds: xr.Dataset) -> dict:
 
 
 def _sensitivity_headline(ds: xr.Dataset, out: Path) -> dict:
-    from .workflow import open_sensitivity
+    from uqdrape.workflow import open_sensitivity
 
     indices = open_sensitivity(out)[0]
     out_ = {}
@@ -232,18 +197,11 @@ ENTRIES = {e.name: e for e in GALLERY}
 # ----------------------------------------------------------------------------- building
 
 
-def palette_png(path: Path) -> None:
-    """Rewrite a PNG in place as a 256-colour palette PNG (lossy in colour only)."""
-    with Image.open(path) as im:
-        rgb = im.convert("RGB")
-    rgb.quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE).save(path, optimize=True)
-
-
 def build_entry(entry: Entry, *, workers: int | None = None, resume: bool = False, progress: bool = True) -> Path:
     """Run ``entry``'s study, write its report and copy it into the gallery; returns the
     gallery folder. Call with the checkout root as the current directory (``main`` does)."""
-    from .ensemble import open_ensemble
-    from .workflow import run_report, run_study
+    from uqdrape.ensemble import open_ensemble
+    from uqdrape.workflow import run_report, run_study
 
     out = run_study(entry.study, workers=workers, resume=resume, progress=progress)
     report = run_report(out).parent
@@ -256,8 +214,6 @@ def build_entry(entry: Entry, *, workers: int | None = None, resume: bool = Fals
     for pattern in KEPT:
         for path in sorted(report.glob(pattern)):
             shutil.copy2(path, target / path.name)
-            if path.suffix == ".png":
-                palette_png(target / path.name)
     if entry.exports:
         export_entry(entry, out, target)
     record = {"study": entry.study.as_posix(), "thesis_figure": entry.figure, "thesis": entry.thesis,
@@ -273,29 +229,26 @@ COMPARISON = "blankholder-models"
 
 
 def write_level_comparison() -> Path | None:
-    """Plot the nose-cone asymmetry against blank-holder force for every level study of
-    :data:`LEVEL_ENTRIES` whose ensemble is under ``results/`` (one line per material card
-    and blank-holder model) and keep the numbers; returns the PNG, or None if none ran."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from .ensemble import open_ensemble
+    """Plot the gap of every level study of :data:`LEVEL_ENTRIES` in the gallery against
+    blank-holder force (one line per material card and blank-holder model, from the
+    entries' headline numbers) and keep the numbers; returns the PNG, or None if none is there."""
+    from uqdrape.report.figures import panels, save
 
     series = []
     for name in LEVEL_ENTRIES:
-        folder = Path("results") / name
-        if not (folder / "run.json").is_file():
+        path = GALLERY_DIR / name / "headline.json"
+        if not path.is_file():
             continue
-        ds = open_ensemble(folder)
-        asym = line_scalars(ds)["asymmetry"].mean("realization")
-        series.append({"study": name, "material": ds.attrs["material"], "blankholder_model": ds.attrs["blankholder_model"],
-                       "force_N": [float(f) for f in asym["blankholder_force"].values],
-                       "gap_deg": [_round(-float(v)) for v in asym.values]})
+        headline = json.loads(path.read_text(encoding="utf-8"))["headline"]
+        gaps = {float(key.split(" at ")[1].split(" N")[0]): value for key, value in headline.items()
+                if key.startswith("gap - minus + quadrants at ")}
+        series.append({"study": name, "material": headline["material card"],
+                       "blankholder_model": headline["blank-holder model"], "force_N": list(gaps),
+                       "gap_deg": list(gaps.values()),
+                       "symmetrising_force_N": headline["symmetrising force, gap down to 10 % of 0 N (N)"]})
     if not series:
         return None
-    fig, ax = plt.subplots(figsize=(6.4, 4.0), layout="constrained")
+    fig, (ax,) = panels(1, size=(6.4, 4.0))
     for line in series:
         ax.plot(line["force_N"], line["gap_deg"], marker="o",
                 label=f"{line['material']}, {line['blankholder_model']} friction")
@@ -305,9 +258,7 @@ def write_level_comparison() -> Path | None:
     ax.set_ylim(bottom=0)
     ax.grid(alpha=0.3)
     ax.legend()
-    png = GALLERY_DIR / f"{COMPARISON}.png"
-    fig.savefig(png, dpi=110)
-    plt.close(fig)
+    png = save(fig, GALLERY_DIR / f"{COMPARISON}.png")
     (GALLERY_DIR / f"{COMPARISON}.json").write_text(json.dumps(series, indent=2) + "\n", encoding="utf-8")
     return png
 
@@ -325,16 +276,18 @@ def _comparison_section() -> list[str]:
         "The nose-cone drapes of Figs 5.9-5.12 under the thesis's blank-holder model (friction on",
         "the radial draw-in, Eq 5.1-5.5) and with friction on the whole plan slip of the held",
         "fabric (`blankholder_model = \"slip\"`). The gap is the mean |shear| along the - quadrants'",
-        "max-shear lines minus that along the + quadrants' (= minus the asymmetry above).",
+        "max-shear lines minus that along the + quadrants' (nodes k = 1 to the last valid at 0 N),",
+        "and the symmetrising force the one at which it falls to 10 % of its 0 N value (uqdrape.symmetry).",
         "",
         f"![gap against force]({COMPARISON}.png)",
         "",
-        "| material card | blank-holder model | " + " | ".join(f"gap at {f:g} N (deg)" for f in forces) + " |",
-        "|---|---|" + "---|" * len(forces),
+        "| material card | blank-holder model | " + " | ".join(f"gap at {f:g} N (deg)" for f in forces)
+        + " | symmetrising force (N) |",
+        "|---|---|" + "---|" * (len(forces) + 1),
     ]
     for line in series:
         lines.append(f"| {line['material']} | {line['blankholder_model']} | "
-                     + " | ".join(f"{g:.1f}" for g in line["gap_deg"]) + " |")
+                     + " | ".join(f"{g:.1f}" for g in line["gap_deg"]) + f" | {line['symmetrising_force_N']} |")
     return lines
 
 
@@ -343,8 +296,8 @@ def export_entry(entry: Entry, run_folder: Path, target: Path) -> list[Path]:
     statistics, P(locked), fibre directions), ``<name>-mould.vtu``, the flat pattern
     (``-flat-nodes.csv``, ``-flat-outline.csv``, ``-flat.dxf``), and ``export.png``, a
     render of the exported VTK file; returns the paths."""
-    from .export import export_flat, export_vtk, levels, open_result
-    from .export.render import render_vtu
+    from uqdrape.export import export_flat, export_vtk, levels, open_result
+    from uqdrape.export.render import render_vtu
 
     ds, _ = open_result(run_folder)
     per_level = levels(ds, True)
@@ -353,7 +306,6 @@ def export_entry(entry: Entry, run_folder: Path, target: Path) -> list[Path]:
     png = render_vtu(vtk[0], target / "export" / "export.png", "shear_mean", mould_vtu=vtk[-1],
                      label="ensemble mean shear (deg)",
                      title=f"{entry.name}.vtu: mean shear over {ds.sizes['realization']} drapes, fibre 1 arrows")
-    palette_png(png)
     return vtk + export_flat(per_level, stem) + [png]
 
 
@@ -370,7 +322,7 @@ def write_readme() -> Path:
         "Small reference reports of the thesis-figure studies (Wiggers 2007, ch. 5) and two beyond it.",
         "Each folder holds the report of `uqdrape run studies/<name>.toml` (open its `index.html`),",
         "its `summary.json` and the headline numbers below (`headline.json`). The ensembles",
-        "themselves (netCDF chunks) are not kept; the PNGs are stored as 256-colour palette images.",
+        "themselves (netCDF chunks) are not kept.",
         "",
         "Entries with an `export/` folder also ship their ensemble as `uqdrape export` writes it: the net's",
         "per-node statistics and the mould as VTK (`.vtu`, open in ParaView), and the flat pattern (CSV, DXF).",
@@ -378,8 +330,8 @@ def write_readme() -> Path:
         "Regenerate all of it (a few minutes on 2 cores), or one entry, from the checkout root:",
         "",
         "```",
-        "python -m uqdrape.gallery            # every entry",
-        "python -m uqdrape.gallery --only plate-spacing",
+        "python tools/gallery.py            # every entry",
+        "python tools/gallery.py --only plate-spacing",
         "```",
         "",
         "| entry | thesis figure and what it reports | headline numbers (this gallery) |",
@@ -395,6 +347,11 @@ def write_readme() -> Path:
                      f"[![{entry.name}]({entry.name}/{entry.picture})]({entry.name}/index.html) "
                      f"| {_cell(record['thesis_figure'])}: {_cell(record['thesis'])} | {numbers} |")
     lines += _comparison_section()
+    shots = sorted((GALLERY_DIR / "screenshots").glob("*.png"))
+    if shots:
+        lines += ["", "## What a report page looks like", "",
+                  "The top of report pages in headless Chromium at 1400 px (`tools/screenshot_reports.sh`):", ""]
+        lines += [f"![{path.stem} report page](screenshots/{path.name})" for path in shots]
     readme = GALLERY_DIR / "README.md"
     readme.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return readme
@@ -402,7 +359,7 @@ def write_readme() -> Path:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
-        prog="python -m uqdrape.gallery",
+        prog="python tools/gallery.py",
         description="Run the gallery studies and refresh results/gallery/ (reports, headline numbers, README).")
     parser.add_argument("--only", action="append", metavar="NAME", choices=list(ENTRIES),
                         help=f"only this entry (repeatable): {', '.join(ENTRIES)}")
