@@ -248,7 +248,7 @@ def write_level_comparison() -> Path | None:
                        "symmetrising_force_N": headline["symmetrising force, gap down to 10 % of 0 N (N)"]})
     if not series:
         return None
-    fig, (ax,) = panels(1, size=(6.4, 4.0))
+    fig, (ax,) = panels(1, size=(6.4, 4.6))
     for line in series:
         ax.plot(line["force_N"], line["gap_deg"], marker="o",
                 label=f"{line['material']}, {line['blankholder_model']} friction")
@@ -257,7 +257,7 @@ def write_level_comparison() -> Path | None:
     ax.set_title("Nose cone: shear asymmetry against blank-holder force")
     ax.set_ylim(bottom=0)
     ax.grid(alpha=0.3)
-    ax.legend()
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=2, frameon=False)
     png = save(fig, GALLERY_DIR / f"{COMPARISON}.png")
     (GALLERY_DIR / f"{COMPARISON}.json").write_text(json.dumps(series, indent=2) + "\n", encoding="utf-8")
     return png
