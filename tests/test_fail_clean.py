@@ -209,7 +209,7 @@ HOSTILE_VALUES = {
     ("sensitivity", "method"): ['"sobol"', '"fast"'],
     ("sensitivity", "base_samples"): ["64", "-1"],
     ("report", "histogram_nodes"): ["[[99, 99]]", "[[1]]", '"all"'],
-    ("report", "experimental_csv"): ['"missing.csv"', "1"],
+    ("report", "experimental_csv"): ['"missing.csv"', "1", '"bad.csv"'],
     ("output", "directory"): ['""', "5"],
     ("output", "float32"): ['"yes"', "1", "true"],
     ("fabric", "orientation_deg"): ["720", "-1e9", '"north"'],
@@ -284,6 +284,7 @@ def _hostile_study(tmp_path: Path, case: str) -> Path:
     """The study file of a hostile study case, written under ``tmp_path``."""
     kind, *what = CASES[case]
     path = tmp_path / "hostile.toml"
+    (tmp_path / "bad.csv").write_text("distance_mm,shear_deg\n1,2\n")  # no quadrant_sign column
     if kind == "file":
         path.write_bytes(what[0])
     else:

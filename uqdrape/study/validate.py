@@ -537,7 +537,13 @@ def _report(src: _Source, doc: dict, rings: int) -> Report:
         t.invalid("histogram_nodes", hint)
     csv = None
     if t.has("experimental_csv"):
+        from ..report.experimental import read_experimental  # matplotlib comes with report: only when needed
+
         csv = src.relative_file("report.experimental_csv", t.data["experimental_csv"])
+        try:
+            read_experimental(csv)  # a run must not find a bad CSV only when it writes the report
+        except ValueError as err:
+            src.invalid("report.experimental_csv", t.data["experimental_csv"], str(err))
     return Report(tuple((int(i), int(j)) for i, j in nodes), csv)
 
 
