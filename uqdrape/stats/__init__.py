@@ -11,7 +11,7 @@ with CF ``units`` / ``long_name`` attributes.
 from .convergence import convergence, samples_needed
 from .exceedance import clopper_pearson_interval, exceedance_probability, wilson_interval
 from .histogram import node_histogram
-from .lines import line_scalars, line_statistics
+from .lines import line_means, line_scalars, line_statistics
 from .qoi import QOI_ATTRS, QOIS, realization_qois
 from .summary import mean_statistics, node_statistics
 
@@ -23,6 +23,7 @@ __all__ = [
     "clopper_pearson_interval",
     "line_statistics",
     "line_scalars",
+    "line_means",
     "node_histogram",
     "convergence",
     "samples_needed",
