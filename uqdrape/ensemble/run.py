@@ -121,11 +121,14 @@ def _prepare(out: Path, manifest: dict, resume: bool) -> None:
     write_manifest(out, manifest)
 
 
-def _compute(tasks: list, sizes: list, scheduler: str | None, workers: int | None, progress: Progress) -> None:
-    """Run the chunk tasks locally or on a dask.distributed cluster, counting each finished
-    chunk's realisations (``sizes``) in ``progress``; re-raise a failure."""
+def compute_tasks(tasks: list, sizes: list, scheduler: str | None, workers: int | None, progress: Progress,
+                  pool=None) -> list:
+    """Run dask tasks locally or on a dask.distributed cluster, counting each finished
+    task's realisations (``sizes``) in ``progress``; return their results in task order and
+    re-raise a failure. ``scheduler`` and ``workers`` as for :func:`run_ensemble`; ``pool``
+    (a ``concurrent.futures`` process pool) keeps local workers alive across calls."""
     if not tasks:
-        return
+        return []
     count = {task.key: size for task, size in zip(tasks, sizes)}
     if scheduler is None or scheduler in LOCAL_SCHEDULERS:
         options = {"scheduler": scheduler or "processes"}
@@ -135,20 +138,23 @@ def _compute(tasks: list, sizes: list, scheduler: str | None, workers: int | Non
             options["chunksize"] = 1
         if workers is not None:
             options["num_workers"] = workers
+        if pool is not None and options["scheduler"] == "processes":
+            options["pool"] = pool
 
         def finished(key, result, dsk, state, worker_id):
             if key in count:
-                progress.update(count[key], Path(result).name)
+                progress.update(count[key], Path(result).name if isinstance(result, str) else None)
 
         with Callback(posttask=finished):
-            dask.compute(*tasks, **options)
-        return
+            return list(dask.compute(*tasks, **options))
     from distributed import Client, as_completed
 
     with Client(scheduler) as client:
         futures = client.compute(tasks)
         for future in as_completed(futures):
-            progress.update(count[future.key], Path(future.result()).name)
+            result = future.result()
+            progress.update(count[future.key], Path(result).name if isinstance(result, str) else None)
+        return [future.result() for future in futures]
 
 
 def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance: dict | None = None,
@@ -203,7 +209,7 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
     bar = Progress(sum(sizes), sum(sizes) - sum(c.stop - c.start for c in todo), enabled=progress, verbose=verbose,
                    desc=study.name)
     try:
-        _compute([run(study, c, str(folder), attrs, None if design_rows is None else design_rows[c.start:c.stop])
+        compute_tasks([run(study, c, str(folder), attrs, None if design_rows is None else design_rows[c.start:c.stop])
                   for c in todo], [c.stop - c.start for c in todo], scheduler, workers, bar)
     finally:
         bar.close()
