@@ -20,6 +20,7 @@ from .ensemble_figures import (
     plot_wrinkle_map,
     varying_factors,
 )
+from .design import write_design_report
 from .experimental import ExperimentalPoints, read_experimental
 from .figures import plot_lines, plot_net
 from .html import write_report
@@ -45,4 +46,5 @@ __all__ = [
     "headline_numbers",
     "read_experimental",
     "ExperimentalPoints",
+    "write_design_report",
 ]
