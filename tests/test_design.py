@@ -170,3 +170,11 @@ def test_symmetric_woven_on_the_hemisphere_gets_equal_sector_forces(tmp_path):
                          / design.DESIGN_FILE)
     opt = np.asarray(ds.attrs["optimum"])
     np.testing.assert_allclose(opt, opt.mean(), atol=40.0)
+
+
+def test_design_command_needs_a_design_section(tmp_path, capsys):
+    path = tmp_path / "plain.toml"
+    path.write_text(BASE)
+    assert cli(["design", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err == f"uqdrape design: error: study 'd' ({path}) has no [design] section; run it with `uqdrape run`\n"

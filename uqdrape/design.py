@@ -359,7 +359,10 @@ def optimise(prob: Problem, evaluate: Evaluator) -> Result:
     k_max = evaluate.k_max = _k_max(evaluate([prob.baseline])[0])
 
     def values(X):
-        return np.array([objective_value(s, spec) for s in evaluate.statistics(X)])
+        # to 12 significant digits: numpy's sums can differ in the last bit with the memory
+        # alignment of an array (a record just draped, or read back from its file), and the
+        # optimiser's next design must not, or a resumed run would leave the cached path
+        return np.array([float(f"{objective_value(s, spec):.12g}") for s in evaluate.statistics(X)])
 
     if len(prob.names) == 1:
         lo, hi = prob.bounds[0]
