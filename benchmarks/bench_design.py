@@ -52,7 +52,8 @@ def main() -> int:
     ds = xr.load_dataset(out / DESIGN_FILE)
     designs = int((ds["sample"] == "design").sum())
     print(f"{study.name}: {designs} designs x {study.realizations} realisations + validation, "
-          f"{ds.attrs['drapes']} drapes in {elapsed:.0f} s ({ds.attrs['drapes'] / elapsed:.2f} drapes/s, "
+          f"{ds.attrs['drapes_this_run']} of its {ds.attrs['drapes_total']} drapes done in {elapsed:.0f} s "
+          f"({ds.attrs['drapes_this_run'] / elapsed:.2f} drapes/s, "
           f"{args.workers} workers, load average {load:.1f} at the start, {os.getloadavg()[0]:.1f} at the end)")
     print(ds.attrs["summary"])
     print(f"report: {report}")

@@ -462,7 +462,9 @@ def result_dataset(result: Result, evaluate: Evaluator) -> xr.Dataset:
         variables=list(prob.names), bounds=json.dumps(prob.bounds), budget_N=spec.budget_N or "none",
         k_max=result.k_max, optimiser=result.message, design_seed=prob.study.seed,
         design_realizations=prob.study.realizations, validation_seed=prob.validation.seed,
-        validation_realizations=prob.validation.realizations, drapes=int(evaluate.drapes),
+        validation_realizations=prob.validation.realizations, drapes_this_run=int(evaluate.drapes),
+        drapes_total=int(sum(prob.study.realizations if s == "design" else prob.validation.realizations
+                             for s, _, _ in rows)),
         optimum=list(result.optimum), optimum_lower=list(np.quantile(best, 0.025, axis=0)),
         optimum_upper=list(np.quantile(best, 0.975, axis=0)), optimum_interval=(
             f"2.5-97.5 % of the best evaluated design over {BOOTSTRAP} realisation resamples"),
