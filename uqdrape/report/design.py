@@ -63,13 +63,15 @@ def plot_objective(ds: xr.Dataset, path) -> Path:
         if ds.attrs["target"] != "none":
             ax.axhline(float(ds.attrs["target"]), color="k", ls=":", lw=1, label=f"target {ds.attrs['target']:g}")
         n = _n_forces(ds)
-        for role, colour in (("baseline", "tab:red"), ("optimum", "tab:green"), ("uniform", "tab:orange")):
+        for role, colour, marker, size in (("baseline", "tab:red", "s", 6), ("uniform", "tab:orange", "o", 6),
+                                           ("optimum", "tab:green", "D", 10)):
             v = _validation(ds).get(role)
             if v is None:
                 continue
             e = v["estimate"]
-            ax.errorbar([sum(v["x"][:n])], [e[0]], yerr=[[e[0] - e[1]], [e[2] - e[0]]], fmt="s", color=colour,
-                        ms=6, capsize=3, label=f"{role}, validation sample")
+            ax.errorbar([sum(v["x"][:n])], [e[0]], yerr=[[e[0] - e[1]], [e[2] - e[0]]], fmt=marker, color=colour,
+                        ms=size, mfc="none" if role == "optimum" else colour, mew=2, capsize=3,
+                        label=f"{role if role != 'uniform' else 'uniform at the optimum total'}, validation sample")
         _log_if_wide(ax, est)
         ax.set_xlabel("total blank-holder force (N)")
         ax.set_ylabel(_LABELS[name])
@@ -130,16 +132,19 @@ def plot_sectors(ds: xr.Dataset, path, surface) -> Path:
     theta = (np.arange(n) + 0.5) * width
     top = float(np.max(hi))
     with mpl.rc_context(_RC):
-        fig = _figure((6.4, 6.0))
-        ax = fig.add_subplot()
+        fig = Figure(figsize=(6.4, 6.4))  # fixed axes: the polar bars share the plan's centre
+        FigureCanvasAgg(fig)
+        rect = [0.12, 0.08, 0.8, 0.8]
+        ax = fig.add_axes(rect)
         _outline(ax, surface, extent)
         ax.set_aspect("equal")
         ax.set_xlim(-extent, extent)
         ax.set_ylim(-extent, extent)
         ax.set_xlabel("x (mm)")
         ax.set_ylabel("y (mm)")
-        polar = fig.add_axes(ax.get_position(), projection="polar", frameon=False)
-        polar.bar(theta, opt, width=0.9 * width, color="tab:green", alpha=0.45, edgecolor="tab:green")
+        polar = fig.add_axes(rect, projection="polar", frameon=False)
+        polar.bar(theta, opt, width=0.9 * width, color="tab:green", alpha=0.45, edgecolor="tab:green",
+                  label="sector force at the optimum")
         polar.errorbar(theta, opt, yerr=[opt - lo, hi - opt], fmt="none", ecolor="k", capsize=3, lw=1)
         polar.plot(np.linspace(0, 2 * np.pi, 181), np.full(181, opt.sum() / n), "--", color="tab:orange",
                    label=f"uniform, same total ({opt.sum():.0f} N)")
@@ -150,9 +155,10 @@ def plot_sectors(ds: xr.Dataset, path, surface) -> Path:
         polar.set_xticks(np.arange(n) * width)
         polar.set_xticklabels([])
         polar.grid(alpha=0.3)
-        polar.legend(loc="lower left", bbox_to_anchor=(-0.05, -0.12))
-        ax.set_title(f"sector forces at the optimum (bars: {ds.attrs['optimum_interval'].split(' of')[0]} "
-                     "interval)\non the part outline", fontsize=10)
+        polar.legend(loc="lower left", bbox_to_anchor=(0.0, 0.0), fontsize=8, framealpha=0.9)
+        fig.suptitle(f"{ds.attrs['study_name']}: sector forces at the optimum on the part outline\n"
+                     f"(bar radius: force, 0-{1.2 * top:.0f} N; error bars: the optimum's "
+                     "resampling interval)", fontsize=9, x=0.12, ha="left")
         fig.savefig(path, dpi=110)
     return Path(path)
 
