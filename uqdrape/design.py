@@ -147,10 +147,11 @@ def problem(study) -> Problem:
         hi = min(hi, spec.budget_N)
     names = ("force",) if n == 1 else tuple(f"sector_{k}" for k in range(n))
     bounds = [(lo, hi)] * n
-    f0 = study.force_levels[0]
-    w0 = np.full(n, 1.0 / n) if study.process.sectors is None or n == 1 else \
-        np.asarray(study.process.sectors) / np.sum(study.process.sectors)
-    baseline = list(f0 * w0) if n > 1 and len(w0) == n else [f0 / n] * n
+    f0, weights = study.force_levels[0], study.process.sectors
+    if n > 1 and weights is not None and len(weights) == n:  # the study's own sectors
+        baseline = list(f0 * np.asarray(weights) / np.sum(weights))
+    else:
+        baseline = [f0 / n] * n
     if spec.friction_bounds is not None:
         names += ("friction",)
         bounds.append(spec.friction_bounds)
@@ -337,11 +338,11 @@ def objective_value(stats: dict, spec):
 
 @dataclass
 class Result:
-    """A finished design: the optimiser's history and the validation."""
+    """A finished design: the optimum and the designs draped on the validation sample
+    (the history is the evaluator's ``order``)."""
 
     prob: Problem
     k_max: int
-    history: list  # design-sample x in the order evaluated
     optimum: tuple
     message: str
     validation: dict  # role -> x, draped on the validation sample
@@ -401,7 +402,7 @@ def optimise(prob: Problem, evaluate: Evaluator) -> Result:
         roles["uniform"] = tuple(prob.uniform(sum(optimum[: prob.n_forces]), optimum))
         evaluate([roles["uniform"]])
     evaluate(list(roles.values()), "validation")
-    return Result(prob, k_max, history, tuple(optimum), message, roles)
+    return Result(prob, k_max, tuple(optimum), message, roles)
 
 
 # ----------------------------------------------------------------------------- results
