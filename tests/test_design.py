@@ -178,3 +178,10 @@ def test_design_command_needs_a_design_section(tmp_path, capsys):
     assert cli(["design", str(path)]) == 2
     err = capsys.readouterr().err
     assert err == f"uqdrape design: error: study 'd' ({path}) has no [design] section; run it with `uqdrape run`\n"
+
+
+def test_run_of_a_design_study_refuses_ensemble_options(tmp_path, capsys):
+    path = write(tmp_path, 'variables = "force"\nforce_bounds_N = [0.0, 100.0]\nobjective = "p_locked"')
+    assert cli(["run", str(path), "--method", "morris"]) == 2
+    assert capsys.readouterr().err == (f"uqdrape run: error: {path} is a [design] study: --method, --chunk-size "
+                                       "and --no-resume do not apply\n")
