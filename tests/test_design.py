@@ -50,17 +50,20 @@ def write(tmp_path, design_text: str, name="d.toml") -> Path:
 
 #: Synthetic optimum: sector forces (N) at which the synthetic quantile is least.
 CENTRE = 290.0
+#: ... and the friction coefficient (the study's own is 0.2).
+FRICTION = 0.2
 
 
 def synthetic_drape(study, realizations, force, sectors, friction):
     """A drape stand-in with a known optimum: max |shear| of realisation r is
-    30 + ((f_k - CENTRE) / 100)^2 summed over the sector forces f_k + noise_r, so every
-    quantile of it, and its CRN estimate, is least at f_k = CENTRE (deg)."""
+    30 + ((f_k - CENTRE) / 100)^2 summed over the sector forces f_k
+    + ((friction - FRICTION) / 0.05)^2 + noise_r, so every quantile of it, and its CRN
+    estimate, is least at f_k = CENTRE, friction = FRICTION (deg)."""
     r = np.asarray(realizations)
     n = 1 if sectors is None else len(sectors)
     forces = np.full(n, force / n) if sectors is None else force * np.asarray(sectors)
     noise = np.array([np.random.default_rng([study.seed, int(k)]).normal() for k in r])
-    shear = 30.0 + np.sum(((forces - CENTRE) / 100.0) ** 2) + 0.5 * noise
+    shear = 30.0 + np.sum(((forces - CENTRE) / 100.0) ** 2) + ((friction - FRICTION) / 0.05) ** 2 + 0.5 * noise
     line = np.zeros((4, r.size, 3))
     line[:, :, 1:] = noise[None, :, None]
     return xr.Dataset({
@@ -102,6 +105,15 @@ def test_sector_forces_find_the_known_minimum_under_the_budget(tmp_path):
     np.testing.assert_allclose(opt, 200.0, atol=40.0)  # a few DE generations: 40 N stated in the docs
     margin = json.loads(ds.attrs["margin"])
     assert set(margin) == {"design", "validation"}
+
+
+@pytest.mark.slow
+def test_force_and_friction_find_the_known_minimum(tmp_path):
+    ds = run(write(tmp_path, 'variables = "force"\nforce_bounds_N = [0.0, 1000.0]\nfriction_bounds = [0.1, 0.4]\n'
+                             'objective = "q95_max_abs_shear"\nstatistic = "estimate"\nmax_evaluations = 60\n'))
+    force, friction = ds.attrs["optimum"]
+    assert abs(force - CENTRE) <= 60.0 and abs(friction - FRICTION) <= 0.03  # a few DE generations
+    assert list(ds["variable"].values) == ["force", "friction"]
 
 
 def test_interrupted_design_resumes_to_the_same_result(tmp_path):
