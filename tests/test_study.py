@@ -165,7 +165,7 @@ def test_relative_paths_resolve_against_the_study_file(tmp_path):
     sub = tmp_path / "cards"
     sub.mkdir()
     (sub / "mine.csv").write_text("angle_deg,ns_positive\n0,0\n20,50\n40,200\n60,900\n")
-    (sub / "exp.csv").write_text("distance_mm,shear_deg\n0,0\n")
+    (sub / "exp.csv").write_text("distance_mm,shear_deg,quadrant_sign\n0,0,1\n")
     text = edit('"generic_woven"', '"cards/mine.csv"') + '\n[report]\nexperimental_csv = "cards/exp.csv"\n'
     s = load_study(write(tmp_path, text, "ok.toml"))
     assert Path(s.fabric.material) == (sub / "mine.csv").resolve()

@@ -1,4 +1,4 @@
-"""The ``uqdrape`` command: drape | run | report | validate | materials | export.
+"""The ``uqdrape`` command: drape | run | design | report | validate | materials | export.
 
 Heavy imports (xarray, dask, matplotlib, SALib) happen inside the sub-commands so that
 ``uqdrape --help`` answers at once. Every user error is printed as one line on stderr
@@ -181,6 +181,10 @@ def cmd_run(args) -> int:
     study = load_study(args.study)
     if args.out:
         study = dataclasses.replace(study, output_dir=Path(args.out))
+    if study.design is not None:
+        if args.method or args.chunk_size or args.no_resume:
+            raise ValueError(f"{args.study} is a [design] study: --method, --chunk-size and --no-resume do not apply")
+        return cmd_design(args)
     out = run_study(study, scheduler=args.scheduler, workers=args.workers, chunk_size=args.chunk_size,
                     resume=not args.no_resume, progress=args.verbosity > 0, verbose=args.verbosity > 1,
                     method=args.method)
@@ -188,6 +192,22 @@ def cmd_run(args) -> int:
     if not args.no_report:
         if args.verbosity > 0:
             print(f"{study.name}: writing the report (statistics, figures, HTML)", file=sys.stderr, flush=True)
+        print(f"report: {run_report(out)}")
+    return 0
+
+
+def cmd_design(args) -> int:
+    import dataclasses
+
+    from .study import load_study
+    from .workflow import run_design, run_report
+
+    study = load_study(args.study)
+    if args.out:
+        study = dataclasses.replace(study, output_dir=Path(args.out))
+    out = run_design(study, scheduler=args.scheduler, workers=args.workers, progress=args.verbosity > 0)
+    print(f"designs written to {out}")
+    if not args.no_report:
         print(f"report: {run_report(out)}")
     return 0
 
@@ -286,6 +306,20 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--no-resume", action="store_true", help="recompute chunks that already exist")
     r.add_argument("--no-report", action="store_true", help="skip the report")
     r.set_defaults(func=cmd_run)
+
+    dsg = sub.add_parser("design", help="run a study's [design]: the blank-holder force(s) under uncertainty",
+                        description="Optimise the blank-holder force (total or per sector, optionally the "
+                                    "friction) of a study with a [design] section: every candidate drapes the "
+                                    "study's realisations (common random numbers), the optimum is re-draped on "
+                                    "a fresh sample; writes design.nc and the report (resumes from the designs "
+                                    "already draped). `uqdrape run` on such a study does the same.")
+    dsg.add_argument("study", help="study file (TOML) with a [design] section, e.g. studies/design-nosecone-symmetrise.toml")
+    dsg.add_argument("--scheduler", metavar="ADDRESS",
+                    help="address of an existing dask.distributed scheduler (default: local processes)")
+    dsg.add_argument("--workers", type=int, help="local worker processes (default: all cores)")
+    dsg.add_argument("--out", metavar="DIR", help="output folder (default: the study's [output] directory)")
+    dsg.add_argument("--no-report", action="store_true", help="skip the report")
+    dsg.set_defaults(func=cmd_design)
 
     rep = sub.add_parser("report", help="write the report of a finished run")
     rep.add_argument("results", help="a run's output folder, e.g. results/nosecone-zero-angle")

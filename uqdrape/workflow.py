@@ -1,4 +1,4 @@
-"""The application layer: run a study, analyse it, report it.
+"""The application layer: run a study, analyse it, design it, report it.
 
 This is the one place where the stages meet (``uqdrape.cli`` calls nothing else for a
 study): the study file (``uqdrape.study``) is drawn and draped by the ensemble engine
@@ -30,6 +30,10 @@ Morris mu/mu_star are therefore per unit step in u or z, not in the factor's own
 Spacing cv, offset sigma0 and correlation length are not factors: they are parameters of
 the random fields' distributions, not per-realisation inputs.
 
+Design studies. A study with a ``[design]`` section is run by ``uqdrape.design`` (its
+candidate designs drape the study's realisations with common random numbers) into
+``<output_dir>/design.nc``, and reported by ``uqdrape.report.write_design_report``.
+
 Method override: a run with another method than the study's (``uqdrape run --method``)
 writes to ``<output_dir>-<method>``; Morris then uses the study's base_samples as
 trajectories if the study is a Morris study, else ``MORRIS_SCREENING_TRAJECTORIES``.
@@ -45,8 +49,9 @@ import xarray as xr
 from scipy.special import ndtr
 from scipy.stats import qmc
 
+from . import design as _design
 from .ensemble import design_variables, open_ensemble, read_manifest, run_ensemble, write_atomic
-from .report import write_report
+from .report import write_design_report, write_report
 from .sensitivity import Design, check_base_samples, map_indices, make_problem, qoi_indices, sample
 from .sensitivity.design import UNBOUNDED, check_method
 from .stats import QOIS, realization_qois
@@ -69,9 +74,14 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
     ``method`` None: the study's [sensitivity] method; "sobol" / "morris": drape that
     SALib design and write sensitivity.nc; "none": the Monte Carlo sample. Another method
     than the study's writes to ``<output_dir>-<method>``. The other arguments are those of
-    ``uqdrape.ensemble.run_ensemble``.
+    ``uqdrape.ensemble.run_ensemble``. A study with a [design] section runs its design
+    (:func:`run_design`); ``method`` must then be None.
     """
     study = study if isinstance(study, Study) else load_study(study)
+    if study.design is not None:
+        if method is not None:
+            raise ValueError(f"study {study.name!r} is a [design] study; it takes no sensitivity method")
+        return run_design(study, scheduler=scheduler, workers=workers, progress=progress)
     method = study.sensitivity.method if method is None else method
     if method not in SENSITIVITY_METHODS:
         raise ValueError(f"method must be None or one of {SENSITIVITY_METHODS}, got {method!r}")
@@ -174,12 +184,26 @@ def open_sensitivity(output_dir) -> tuple[xr.Dataset, xr.Dataset] | None:
     return xr.load_dataset(out / INDICES_FILE), xr.load_dataset(out / MAPS_FILE)
 
 
+def run_design(study, *, scheduler: str | None = None, workers: int | None = None, progress: bool = True) -> Path:
+    """Run the [design] of a study (a ``Study`` or a study file's path) into its output
+    folder (``design.nc`` and the per-design records; resumes from them); return the folder."""
+    study = study if isinstance(study, Study) else load_study(study)
+    if study.design is None:
+        raise ValueError(f"study {study.name!r} ({study.path}) has no [design] section; run it with `uqdrape run`")
+    return _design.run_design(study, scheduler=scheduler, workers=workers, progress=progress)
+
+
 def run_report(output_dir, out_dir=None) -> Path:
     """Report of a finished run: the ensemble under ``output_dir`` with the title
     (the study's name), description, study text, histogram nodes and experimental CSV of
     the study stored in its attributes, the wall time from its manifest, and its
-    sensitivity results if it has them. Writes into ``out_dir`` (default
-    ``output_dir/report``); returns the index.html path."""
+    sensitivity results if it has them; of a design run, its design page. Writes into
+    ``out_dir`` (default ``output_dir/report``); returns the index.html path."""
+    if (Path(output_dir) / _design.DESIGN_FILE).is_file():
+        ds = xr.load_dataset(Path(output_dir) / _design.DESIGN_FILE)
+        study = from_dict(json.loads(ds.attrs["study_json"]), Path(output_dir))
+        return write_design_report(ds, Path(out_dir) if out_dir else Path(output_dir) / "report",
+                                   surface=study.geometry.build_mould())
     ds = open_ensemble(output_dir)
     sensitivity = open_sensitivity(output_dir)
     study = from_dict(json.loads(ds.attrs["study_json"]), Path(output_dir))

@@ -4,13 +4,16 @@
 resumable) and returns the output folder; ``open_ensemble(folder)`` opens it lazily as
 one xarray Dataset. ``sampled_inputs`` / ``inputs_from_design`` give the solver inputs of
 realisations as deterministic functions of standard variables, and ``drape_inputs``
-drapes them (e.g. for a sensitivity design).
+drapes them (e.g. for a sensitivity design); ``compute_tasks`` runs any such batches as
+dask tasks on the same schedulers (e.g. the candidate designs of ``uqdrape.design``).
 """
 
 from .chunk import drape_inputs, write_atomic
 from .inputs import design_variables, inputs_from_design, sampled_inputs
-from .run import run_ensemble
+from .hygiene import local_pool, run_lock
+from .progress import Progress
+from .run import compute_tasks, run_ensemble
 from .store import open_ensemble, read_manifest
 
 __all__ = ["run_ensemble", "open_ensemble", "sampled_inputs", "inputs_from_design", "design_variables",
-           "drape_inputs", "write_atomic", "read_manifest"]
+           "drape_inputs", "write_atomic", "read_manifest", "compute_tasks", "Progress", "local_pool", "run_lock"]

@@ -130,26 +130,29 @@ def _prepare(out: Path, manifest: dict, resume: bool) -> None:
     write_manifest(out, manifest)
 
 
-def _compute(tasks: list, sizes: list, scheduler: str | None, workers: int | None, progress: Progress) -> None:
-    """Run the chunk tasks locally or on a dask.distributed cluster, counting each finished
-    chunk's realisations (``sizes``) in ``progress``; re-raise a failure."""
+def compute_tasks(tasks: list, sizes: list, scheduler: str | None, workers: int | None, progress: Progress,
+                  pool=None) -> list:
+    """Run dask tasks locally or on a dask.distributed cluster, counting each finished
+    task's realisations (``sizes``) in ``progress``; return their results in task order and
+    re-raise a failure. ``scheduler`` and ``workers`` as for :func:`run_ensemble`; ``pool``
+    (a ``hygiene.local_pool``) keeps local workers alive across calls."""
     if not tasks:
-        return
+        return []
     count = {task.key: size for task, size in zip(tasks, sizes)}
     if scheduler is None or scheduler in LOCAL_SCHEDULERS:
         def finished(key, result, dsk, state, worker_id):
             if key in count:
-                progress.update(count[key], Path(result).name)
+                progress.update(count[key], Path(result).name if isinstance(result, str) else None)
 
         with Callback(posttask=finished):
             if scheduler == "synchronous":
-                dask.compute(*tasks, scheduler="synchronous")
-                return
-            with local_pool(workers) as pool:
-                # dask batches local tasks (6 per dispatch by default); a chunk is already a
-                # big batch, so dispatch one at a time or two chunks share one process
-                dask.compute(*tasks, scheduler="processes", pool=pool, chunksize=1)
-        return
+                return list(dask.compute(*tasks, scheduler="synchronous"))
+            # dask batches local tasks (6 per dispatch by default); a chunk is already a
+            # big batch, so dispatch one at a time or two chunks share one process
+            if pool is not None:
+                return list(dask.compute(*tasks, scheduler="processes", pool=pool, chunksize=1))
+            with local_pool(workers) as own:
+                return list(dask.compute(*tasks, scheduler="processes", pool=own, chunksize=1))
     from distributed import Client, as_completed
 
     try:
@@ -160,7 +163,9 @@ def _compute(tasks: list, sizes: list, scheduler: str | None, workers: int | Non
     with client:
         futures = client.compute(tasks)
         for future in as_completed(futures):
-            progress.update(count[future.key], Path(future.result()).name)
+            result = future.result()
+            progress.update(count[future.key], Path(result).name if isinstance(result, str) else None)
+        return [future.result() for future in futures]
 
 
 def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance: dict | None = None,
@@ -248,7 +253,7 @@ def _drape_chunks(study, chunks, todo, folder, provenance, attrs, design_rows, s
     bar = Progress(sum(sizes), sum(sizes) - sum(c.stop - c.start for c in todo), enabled=progress, verbose=verbose,
                    desc=study.name)
     try:
-        _compute([run(study, c, str(folder), attrs, None if design_rows is None else design_rows[c.start:c.stop])
+        compute_tasks([run(study, c, str(folder), attrs, None if design_rows is None else design_rows[c.start:c.stop])
                   for c in todo], [c.stop - c.start for c in todo], scheduler, workers, bar)
     finally:
         bar.close()

@@ -20,6 +20,7 @@ from .ensemble_figures import (
     plot_sweep,
     plot_wrinkle_map,
 )
+from .design import write_design_report
 from .experimental import ExperimentalPoints, read_experimental
 from .figures import plot_lines, plot_net
 from .html import write_report
@@ -42,4 +43,5 @@ __all__ = [
     "write_report",
     "read_experimental",
     "ExperimentalPoints",
+    "write_design_report",
 ]

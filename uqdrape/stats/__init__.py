@@ -12,7 +12,7 @@ from .convergence import convergence, samples_needed
 from .exceedance import clopper_pearson_interval, exceedance_probability, wilson_interval
 from .headline import KINDS, dominant_factors, headline_numbers, study_kind, varying_factors, wrinkle_risk
 from .histogram import node_histogram
-from .lines import line_scalars, line_statistics
+from .lines import line_means, line_scalars, line_statistics
 from .qoi import QOI_ATTRS, QOIS, realization_qois
 from .summary import inner_outer_sd, mean_statistics, node_statistics, ring_sd
 
@@ -24,6 +24,7 @@ __all__ = [
     "clopper_pearson_interval",
     "line_statistics",
     "line_scalars",
+    "line_means",
     "node_histogram",
     "convergence",
     "samples_needed",

@@ -54,7 +54,16 @@ def line_statistics(ds: xr.Dataset, kind: str = "max", confidence: float = 0.95)
 
 
 def line_scalars(ds: xr.Dataset, k_max: int | None = None) -> xr.Dataset:
-    """Per-realisation scalars along the max-shear lines, for sensitivity and summaries.
+    """Per-realisation scalars along the max-shear lines, for sensitivity and summaries:
+    :func:`line_means` of the max-shear lines of the drapes in ``ds``."""
+    out = line_means(_lines(ds, "max")["shear"], k_max)
+    out.attrs = {**ds.attrs, "k_max": out.attrs["k_max"]}
+    return out
+
+
+def line_means(shear: xr.DataArray, k_max: int | None = None) -> xr.Dataset:
+    """Line scalars of max-shear-line shear (degree, dims ..., realization, quadrant, k;
+    ``uqdrape.drape.max_shear_lines``), e.g. lines kept from drapes no longer at hand.
 
     ``line_mean_shear`` (..., realization, quadrant): signed shear averaged over nodes
     k = 1..k_max of a diagonal (the crossover k = 0 is common to all four and left out);
@@ -65,8 +74,6 @@ def line_scalars(ds: xr.Dataset, k_max: int | None = None) -> xr.Dataset:
     quadrant, so every scalar averages the same nodes; a line invalid within 1..k_max
     gives NaN.
     """
-    lines = _lines(ds, "max")
-    shear = lines["shear"]
     n_k = shear.sizes["k"] - 1
     if k_max is None:
         valid = shear.notnull().all([d for d in shear.dims if d != "k"]).compute().values
@@ -95,5 +102,5 @@ def line_scalars(ds: xr.Dataset, k_max: int | None = None) -> xr.Dataset:
             ),
         }
     )
-    out.attrs = {**ds.attrs, "k_max": k_max}
+    out.attrs = {"k_max": k_max}
     return out.compute()

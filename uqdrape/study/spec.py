@@ -27,8 +27,18 @@ FIELDS = tuple(FIELD_KEYS)
 SENSITIVITY_METHODS = ("sobol", "morris", "none")
 SECTIONS = (
     "study", "geometry", "fabric", "process", "solver",
-    "uncertainty", "sampling", "sensitivity", "report", "output",
+    "uncertainty", "sampling", "sensitivity", "design", "report", "output",
 )
+#: Decision variables of a [design]: one total blank-holder force, or one force per sector.
+DESIGN_VARIABLES = ("force", "sectors")
+#: Design objectives by name -> (the per-drape quantity, the statistic of it):
+#: P(any node locked) (binomial, Wilson limits), the 95 % quantile of the largest |node
+#: shear| (order-statistic limits), |mean asymmetry| (Student-t limits of the mean).
+DESIGN_OBJECTIVES = {"p_locked": ("any_locked", "probability"),
+                     "q95_max_abs_shear": ("max_abs_shear", "quantile95"),
+                     "abs_mean_asymmetry": ("asymmetry", "abs_mean")}
+#: What a design minimises of its objective: the upper confidence limit or the estimate.
+DESIGN_STATISTICS = ("upper", "estimate")
 #: Study-file parameter names of each factor distribution; "bounds" = [lower, upper].
 DIST_KEYS = {"normal": ("mean", "sd"), "truncnormal": ("mean", "sd", "bounds"),
              "uniform": ("bounds",), "lognormal": ("mean", "sd")}
@@ -141,6 +151,34 @@ class Sensitivity:
 
 
 @dataclass(frozen=True)
+class Design:
+    """A blank-holder design problem (``uqdrape.design``): forces in N.
+
+    ``variables`` "force": the total force in ``force_bounds_N``; "sectors": the force of
+    each of ``sectors`` equal angular sectors (from +x, anticlockwise), each in
+    ``force_bounds_N``, their sum at most ``budget_N``. ``friction_bounds`` (optional) adds
+    the friction coefficient as a variable. The design minimises ``statistic`` ("upper"
+    confidence limit at ``confidence``, or the "estimate") of ``objective`` (a key of
+    DESIGN_OBJECTIVES), or with ``target`` its distance from the target value. At most
+    ``max_evaluations`` designs of the study's realisations each (common random numbers);
+    the optimum is re-evaluated on ``validation_realizations`` fresh ones.
+    """
+
+    variables: str
+    force_bounds_N: tuple[float, float]
+    objective: str
+    sectors: int | None = None
+    friction_bounds: tuple[float, float] | None = None
+    budget_N: float | None = None
+    statistic: str = "upper"
+    target: float | None = None
+    confidence: float = 0.95
+    max_evaluations: int = 40
+    tolerance_N: float = 5.0
+    validation_realizations: int | None = None
+
+
+@dataclass(frozen=True)
 class Report:
     histogram_nodes: tuple[tuple[int, int], ...]
     experimental_csv: Path | None
@@ -165,6 +203,8 @@ class Study:
     sensitivity: Sensitivity
     report: Report
     output_dir: Path
+    #: the [design] section, None for a study without one
+    design: Design | None = None
     #: chunks store floats as float32 with zlib (``uqdrape.conventions.cf_encode``)
     float32: bool = False
 
@@ -205,6 +245,9 @@ class Study:
             if "lower" in p:
                 p["bounds"] = [p.pop("lower"), p.pop("upper")]
             doc["uncertainty"][name] = {"dist": factor.dist, **p}
+        if self.design is not None:
+            doc["design"] = {f.name: _plain(getattr(self.design, f.name)) for f in dataclasses.fields(Design)
+                             if getattr(self.design, f.name) is not None}
         doc["output"] = {"directory": str(self.output_dir), **({"float32": True} if self.float32 else {})}
         return doc
 
@@ -264,5 +307,6 @@ def from_dict(doc: dict, path) -> Study:
         report=section(Report, report, histogram_nodes=tuple(tuple(n) for n in report["histogram_nodes"]),
                        experimental_csv=Path(report["experimental_csv"]) if report.get("experimental_csv") else None),
         output_dir=Path(doc["output"]["directory"]),
+        design=section(Design, doc["design"]) if "design" in doc else None,
         float32=doc["output"].get("float32", False),
     )

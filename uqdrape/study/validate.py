@@ -22,6 +22,11 @@ Sections and keys (units: mm, N, degrees)::
     [uncertainty.<factor>]    dist + parameters, factor in FACTOR_SETTINGS
     [sampling]     plan = "monte_carlo"
     [sensitivity]  method = "none", base_samples, qoi = all of QOIS
+    [design]       variables ("force" | "sectors"), sectors (>= 2, for "sectors"), force_bounds_N = [lo, hi]
+                   (the total force, or each sector's), friction_bounds = [lo, hi], budget_N (total force),
+                   objective (DESIGN_OBJECTIVES), statistic = "upper" | "estimate", target, confidence = 0.95,
+                   max_evaluations = 40, tolerance_N = 5, validation_realizations = study.realizations:
+                   a blank-holder design (uqdrape.design); the study's own force is the baseline design
     [report]       histogram_nodes = [], experimental_csv
     [output]       directory = "results/<study name>", float32 = false (true: chunks store floats as
                    float32 with zlib, about a third of the size, rounded to 7 significant digits)
@@ -69,9 +74,9 @@ from .. import stochastic as _stochastic
 from ..drape import BLANKHOLDER_MODELS, MODES, drape, placement_failures
 from ..schema import SOLVER_INPUTS
 from ..stats import QOIS
-from .spec import (DIST_KEYS, FACTOR_SETTINGS, FIELD_KEYS, FIELDS, SECTIONS, SENSITIVITY_METHODS, Fabric,
-                   Geometry, Process, RandomField, Report, Sampling, Sensitivity, Solver, Study, Uncertainty,
-                   prestrain_map)
+from .spec import (DESIGN_OBJECTIVES, DESIGN_STATISTICS, DESIGN_VARIABLES, DIST_KEYS, FACTOR_SETTINGS, FIELD_KEYS,
+                   FIELDS, SECTIONS, SENSITIVITY_METHODS, Design, Fabric, Geometry, Process, RandomField, Report,
+                   Sampling, Sensitivity, Solver, Study, Uncertainty, prestrain_map)
 
 
 class StudyError(ValueError):
@@ -527,6 +532,73 @@ def _sensitivity(src: _Source, doc: dict, uncertainty: Uncertainty) -> Sensitivi
     return Sensitivity(method, base, tuple(qoi))
 
 
+def _bounds(t: _Table, key: str, unit: str):
+    """Two numbers [lo, hi] with 0 <= lo < hi."""
+    hint = f"{key} must be two numbers [lo, hi] with 0 <= lo < hi{unit}"
+    lo, hi = t.numbers(key, length=2, hint=hint)
+    if not 0 <= lo < hi:
+        t.invalid(key, hint)
+    return lo, hi
+
+
+def _fewest_for_quantile_limit(p: float, confidence: float) -> int:
+    """Fewest realisations whose order statistics give an upper confidence limit of the p-quantile."""
+    from scipy import stats
+
+    n = 2
+    while stats.binom.ppf(0.5 + confidence / 2, n, p) + 1 > n:
+        n += 1
+    return n
+
+
+def _design(src: _Source, doc: dict, process: Process, uncertainty: Uncertainty, sensitivity: Sensitivity,
+            realizations: int):
+    """The [design] section (None without one) and the rules tying it to the study."""
+    if "design" not in doc:
+        return None
+    t = _Table(src, "design", doc["design"], ("variables", "sectors", "force_bounds_N", "friction_bounds",
+                                              "budget_N", "objective", "statistic", "target", "confidence",
+                                              "max_evaluations", "tolerance_N", "validation_realizations"))
+    variables = t.string("variables", choices=DESIGN_VARIABLES)
+    sectors = None
+    if variables == "sectors":
+        sectors = t.number("sectors", integer=True, ge=2)
+    elif t.has("sectors"):
+        t.invalid("sectors", 'sectors is only used with variables = "sectors"')
+    lo, hi = _bounds(t, "force_bounds_N", " (N" + (", each sector's force)" if sectors else ", total force)"))
+    friction = _bounds(t, "friction_bounds", "") if t.has("friction_bounds") else None
+    budget = t.number("budget_N", None, gt=0)
+    floor = lo * (sectors or 1)
+    if budget is not None and budget < floor:
+        t.invalid("budget_N", f"budget_N must be >= the smallest total force the bounds allow, "
+                              f"{sectors or 1} x {lo:g} = {floor:g} N")
+    objective = t.string("objective", choices=tuple(DESIGN_OBJECTIVES))
+    statistic = t.string("statistic", "upper", choices=DESIGN_STATISTICS)
+    target = t.number("target", None, ge=0)
+    confidence = t.number("confidence", 0.95, gt=0, lt=1)
+    evaluations = t.number("max_evaluations", 40, integer=True, ge=4)
+    tolerance = t.number("tolerance_N", 5.0, gt=0)
+    validation = t.number("validation_realizations", None, integer=True, ge=2)
+    if DESIGN_OBJECTIVES[objective][1] == "quantile95" and statistic == "upper":
+        fewest = _fewest_for_quantile_limit(0.95, confidence)
+        for key, n in (("study.realizations", realizations), ("design.validation_realizations", validation)):
+            if n is not None and n < fewest:
+                src.invalid(key, n, f"the upper {confidence:g} confidence limit of a 95 % quantile needs at least "
+                                    f"{fewest} realisations; use more, or statistic = \"estimate\"")
+    if len(process.blankholder_force_N) > 1:
+        src.invalid("process.blankholder_force_N", list(process.blankholder_force_N),
+                    "a [design] study takes one force, its baseline design; remove the sweep")
+    for name, varied in (("blankholder_force", True), ("friction", friction is not None)):
+        if varied and name in uncertainty.factors:
+            src.invalid(f"uncertainty.{name}", doc["uncertainty"][name],
+                        f"{name} is a [design] variable here; remove [uncertainty.{name}]")
+    if sensitivity.method != "none":
+        src.invalid("sensitivity.method", sensitivity.method,
+                    'a [design] study runs its own designs; set method = "none" or remove [design]')
+    return Design(variables, (lo, hi), objective, sectors, friction, budget, statistic, target, confidence,
+                  evaluations, tolerance, validation)
+
+
 def _report(src: _Source, doc: dict, rings: int) -> Report:
     t = _Table(src, "report", doc.get("report", {}), ("histogram_nodes", "experimental_csv"))
     hint = f"histogram_nodes must be a list of [i, j] integer pairs with |i|, |j| <= rings = {rings}"
@@ -633,6 +705,7 @@ def load_study(path) -> Study:
     uncertainty = _uncertainty(src, doc, fabric, process, solver, mould)
     sampling = _sampling(src, doc, head["realizations"], head["seed"])
     sensitivity = _sensitivity(src, doc, uncertainty)
+    design = _design(src, doc, process, uncertainty, sensitivity, head["realizations"])
     report = _report(src, doc, solver.rings)
     output_dir, float32 = _output(src, doc, head["name"])  # checked last, as the sections are ordered
     _resources(src, head["realizations"], head["chunk_size"], solver.rings, len(process.blankholder_force_N),
@@ -650,6 +723,7 @@ def load_study(path) -> Study:
         sensitivity=sensitivity,
         report=report,
         output_dir=output_dir,
+        design=design,
         float32=float32,
     )
 

@@ -1,0 +1,199 @@
+"""Blank-holder design under uncertainty: the [design] section, the optimisers on known
+answers (a synthetic drape through the same pipeline), validation, resume, refusals."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from uqdrape import design
+from uqdrape.cli import main as cli
+from uqdrape.study import StudyError, load_study
+
+STUDIES = Path(__file__).resolve().parents[1] / "studies"
+
+BASE = """\
+[study]
+name = "d"
+seed = 7
+realizations = 32
+chunk_size = 16
+
+[geometry]
+kind = "hemisphere"
+radius = 100.0
+
+[fabric]
+material = "generic_woven"
+spacing_mm = 5.0
+
+[process]
+blankholder_force_N = 100.0
+
+[solver]
+rings = 4
+
+[uncertainty.zero_angle]
+sd_deg = 2.0
+"""
+
+
+def write(tmp_path, design_text: str, name="d.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(BASE + "\n[design]\n" + design_text + f'\n[output]\ndirectory = "{tmp_path / "out"}"\n')
+    return path
+
+
+#: Synthetic optimum: sector forces (N) at which the synthetic quantile is least.
+CENTRE = 290.0
+#: ... and the friction coefficient (the study's own is 0.2).
+FRICTION = 0.2
+
+
+def synthetic_drape(study, realizations, force, sectors, friction):
+    """A drape stand-in with a known optimum: max |shear| of realisation r is
+    30 + ((f_k - CENTRE) / 100)^2 summed over the sector forces f_k
+    + ((friction - FRICTION) / 0.05)^2 + noise_r, so every quantile of it, and its CRN
+    estimate, is least at f_k = CENTRE, friction = FRICTION (deg)."""
+    r = np.asarray(realizations)
+    n = 1 if sectors is None else len(sectors)
+    forces = np.full(n, force / n) if sectors is None else force * np.asarray(sectors)
+    noise = np.array([np.random.default_rng([study.seed, int(k)]).normal() for k in r])
+    shear = 30.0 + np.sum(((forces - CENTRE) / 100.0) ** 2) + ((friction - FRICTION) / 0.05) ** 2 + 0.5 * noise
+    line = np.zeros((4, r.size, 3))
+    line[:, :, 1:] = noise[None, :, None]
+    return xr.Dataset({
+        "any_locked": ("realization", (noise > 1.0).astype(float)),
+        "max_abs_shear": ("realization", shear),
+        "line_shear": (("quadrant", "realization", "k"), line),
+        "node_locked": (("i", "j"), np.zeros((3, 3))),
+        "node_valid": (("i", "j"), np.full((3, 3), float(r.size))),
+        "node_x": (("i", "j"), np.zeros((3, 3))),
+        "node_y": (("i", "j"), np.zeros((3, 3))),
+    }, coords={"realization": r, "quadrant": ["++", "-+", "--", "+-"], "k": [0, 1, 2]})
+
+
+def run(path, out=None, drape=synthetic_drape):
+    study = load_study(path)
+    folder = design.run_design(study, output_dir=out, scheduler="synchronous", progress=False, drape=drape)
+    return xr.load_dataset(folder / design.DESIGN_FILE)
+
+
+def test_uniform_force_finds_the_known_minimum(tmp_path):
+    ds = run(write(tmp_path, 'variables = "force"\nforce_bounds_N = [0.0, 1000.0]\n'
+                             'objective = "q95_max_abs_shear"\nstatistic = "estimate"\ntolerance_N = 2.0\nmax_evaluations = 30\n'))
+    assert abs(float(ds.attrs["optimum"]) - CENTRE) <= 2.0  # xatol of the bounded Brent
+    assert int((ds["sample"] == "design").sum()) <= 30
+    val = json.loads(ds.attrs["validation"])
+    assert val["optimum"]["x"] == [float(ds.attrs["optimum"])]
+    assert ds.attrs["validation_seed"] == design.validation_seed(load_study(tmp_path / "d.toml"))
+    assert "F = 29" in ds.attrs["summary"]
+
+
+@pytest.mark.slow
+def test_sector_forces_find_the_known_minimum_under_the_budget(tmp_path):
+    # 4 sectors, each free in [0, 500] N but together at most 800 N: the constrained optimum
+    # is 200 N each (the budget binds, the objective is symmetric in the sectors)
+    ds = run(write(tmp_path, 'variables = "sectors"\nsectors = 4\nforce_bounds_N = [0.0, 500.0]\n'
+                             'budget_N = 800.0\nobjective = "q95_max_abs_shear"\nstatistic = "estimate"\nmax_evaluations = 60\n'))
+    opt = np.asarray(ds.attrs["optimum"])
+    assert opt.sum() <= 800.0 + 1e-9
+    np.testing.assert_allclose(opt, 200.0, atol=40.0)  # a few DE generations: 40 N stated in the docs
+    margin = json.loads(ds.attrs["margin"])
+    assert set(margin) == {"design", "validation"}
+
+
+@pytest.mark.slow
+def test_force_and_friction_find_the_known_minimum(tmp_path):
+    ds = run(write(tmp_path, 'variables = "force"\nforce_bounds_N = [0.0, 1000.0]\nfriction_bounds = [0.1, 0.4]\n'
+                             'objective = "q95_max_abs_shear"\nstatistic = "estimate"\nmax_evaluations = 60\n'))
+    force, friction = ds.attrs["optimum"]
+    assert abs(force - CENTRE) <= 60.0 and abs(friction - FRICTION) <= 0.03  # a few DE generations
+    assert list(ds["variable"].values) == ["force", "friction"]
+
+
+def test_interrupted_design_resumes_to_the_same_result(tmp_path):
+    text = ('variables = "force"\nforce_bounds_N = [0.0, 1000.0]\nobjective = "q95_max_abs_shear"\nstatistic = "estimate"\n'
+            'tolerance_N = 2.0\nmax_evaluations = 30\n')
+    clean = run(write(tmp_path, text), out=tmp_path / "clean")
+    calls = []
+
+    def dying(*args):
+        calls.append(1)
+        if len(calls) > 12:  # killed after 6 designs (2 chunks each)
+            raise KeyboardInterrupt
+        return synthetic_drape(*args)
+
+    path = write(tmp_path, text)
+    with pytest.raises(KeyboardInterrupt):
+        run(path, out=tmp_path / "resumed", drape=dying)
+    assert len(list((tmp_path / "resumed" / design.EVALUATIONS).glob("*.nc"))) == 6
+    resumed = run(path, out=tmp_path / "resumed")
+    for name in ("x", "objective", "q95_max_abs_shear", "q95_max_abs_shear_upper", "key"):
+        np.testing.assert_array_equal(resumed[name].values, clean[name].values)
+    assert resumed.attrs["summary"] == clean.attrs["summary"]
+
+
+@pytest.mark.parametrize("text, expected", [
+    ('variables = "force"\nforce_bounds_N = [500.0, 100.0]\nobjective = "p_locked"',
+     "design.force_bounds_N = [500.0, 100.0] is invalid: force_bounds_N must be two numbers [lo, hi] with 0 <= lo < hi "
+     "(N, total force)"),
+    ('variables = "sectors"\nsectors = 4\nforce_bounds_N = [100.0, 500.0]\nbudget_N = 300.0\nobjective = "p_locked"',
+     "design.budget_N = 300.0 is invalid: budget_N must be >= the smallest total force the bounds allow, 4 x 100 = 400 N"),
+    ('variables = "force"\nforce_bounds_N = [0.0, 100.0]\nobjective = "p_wrinkle"',
+     'design.objective = "p_wrinkle" is invalid: objective must be one of "p_locked", "q95_max_abs_shear", '
+     '"abs_mean_asymmetry"'),
+    ('variables = "sectors"\nsectors = 1\nforce_bounds_N = [0.0, 100.0]\nobjective = "p_locked"',
+     "design.sectors = 1 is invalid: sectors must be an integer >= 2"),
+])
+def test_bad_design_is_refused_in_one_line(tmp_path, capsys, text, expected):
+    path = write(tmp_path, text)
+    with pytest.raises(StudyError) as err:
+        load_study(path)
+    assert str(err.value) == f"{path}: {expected}"
+    assert cli(["validate", str(path)]) == 2
+    stderr = capsys.readouterr().err
+    assert stderr.count("\n") == 1 and "Traceback" not in stderr and expected in stderr
+
+
+def test_design_round_trips_through_the_study_dict():
+    from uqdrape.study import from_dict
+
+    for path in STUDIES.glob("design-*.toml"):
+        study = load_study(path)
+        assert from_dict(study.to_dict(), path).design == study.design
+
+
+@pytest.mark.slow
+def test_symmetric_woven_on_the_hemisphere_gets_equal_sector_forces(tmp_path):
+    """Real drapes: a woven fabric on a hemisphere is symmetric under a quarter turn, so
+    the 4-sector design of least 95 % quantile of max |shear| at a fixed budget is the
+    equal split (to the DE tolerance, 40 N of 800 N)."""
+    path = tmp_path / "h.toml"
+    path.write_text(BASE.replace("rings = 4", "rings = 8").replace("realizations = 32", "realizations = 16")
+                    + '\n[design]\nvariables = "sectors"\nsectors = 4\nforce_bounds_N = [0.0, 400.0]\n'
+                      'budget_N = 800.0\nobjective = "q95_max_abs_shear"\nstatistic = "estimate"\n'
+                      f'max_evaluations = 48\n[output]\ndirectory = "{tmp_path / "out"}"\n')
+    ds = xr.load_dataset(design.run_design(load_study(path), scheduler="synchronous", progress=False)
+                         / design.DESIGN_FILE)
+    opt = np.asarray(ds.attrs["optimum"])
+    np.testing.assert_allclose(opt, opt.mean(), atol=40.0)
+
+
+def test_design_command_needs_a_design_section(tmp_path, capsys):
+    path = tmp_path / "plain.toml"
+    path.write_text(BASE)
+    assert cli(["design", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err == f"uqdrape design: error: study 'd' ({path}) has no [design] section; run it with `uqdrape run`\n"
+
+
+def test_run_of_a_design_study_refuses_ensemble_options(tmp_path, capsys):
+    path = write(tmp_path, 'variables = "force"\nforce_bounds_N = [0.0, 100.0]\nobjective = "p_locked"')
+    assert cli(["run", str(path), "--method", "morris"]) == 2
+    assert capsys.readouterr().err == (f"uqdrape run: error: {path} is a [design] study: --method, --chunk-size "
+                                       "and --no-resume do not apply\n")

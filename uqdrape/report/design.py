@@ -1,0 +1,236 @@
+"""The report page of a blank-holder design (``uqdrape.design``): figures, index.html, summary.json.
+
+Figures: the objective against the total force with its confidence band, the optimiser's
+convergence, the sector forces at the optimum as polar bars on the part outline (sector
+designs), and the risk map P(node locked) of the baseline and the optimum on the
+validation sample. Input is the ``design.nc`` Dataset and the mould.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import textwrap
+from pathlib import Path
+
+import matplotlib as mpl
+import numpy as np
+import xarray as xr
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+_RC = {"font.size": 10, "axes.titlesize": 11, "axes.labelsize": 10, "legend.fontsize": 9}
+_LABELS = {"p_locked": "P(any node locked)", "q95_max_abs_shear": "95 % quantile of max |shear| (deg)",
+           "abs_mean_asymmetry": "|mean asymmetry| (deg)"}
+
+
+def _figure(size):
+    fig = Figure(figsize=size, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _design(ds: xr.Dataset) -> xr.Dataset:
+    return ds.isel(evaluation=np.flatnonzero(ds["sample"].values == "design"))
+
+
+def _validation(ds: xr.Dataset) -> dict:
+    return json.loads(ds.attrs["validation"])
+
+
+def _n_forces(ds: xr.Dataset) -> int:
+    return sum(v != "friction" for v in np.atleast_1d(ds.attrs["variables"]))
+
+
+def plot_objective(ds: xr.Dataset, path) -> Path:
+    """The objective's statistic (estimate, confidence band) against the total force (N),
+    design sample; the baseline and optimum on the validation sample marked."""
+    name, c = ds.attrs["objective"], ds.attrs["confidence"]
+    d = _design(ds)
+    order = np.argsort(d["total_force"].values, kind="stable")
+    F = d["total_force"].values[order]
+    est, lo, hi = (d[name + s].values[order] for s in ("", "_lower", "_upper"))
+    with mpl.rc_context(_RC):
+        fig = _figure((7.0, 4.4))
+        ax = fig.add_subplot()
+        uniform = _n_forces(ds) == 1 and "friction" not in np.atleast_1d(ds.attrs["variables"])
+        if uniform:
+            ax.fill_between(F, lo, hi, color="tab:blue", alpha=0.25, lw=0, label=f"{c:.0%} confidence band")
+            ax.plot(F, est, "o-", color="tab:blue", ms=3.5, label="estimate (common random numbers)")
+        else:
+            ax.errorbar(F, est, yerr=[est - lo, hi - est], fmt="o", color="tab:blue", ms=3.5, alpha=0.7,
+                        elinewidth=0.8, label=f"each design: estimate, {c:.0%} limits")
+        if ds.attrs["target"] != "none":
+            ax.axhline(float(ds.attrs["target"]), color="k", ls=":", lw=1, label=f"target {ds.attrs['target']:g}")
+        n = _n_forces(ds)
+        for role, colour, marker, size in (("baseline", "tab:red", "s", 6), ("uniform", "tab:orange", "o", 6),
+                                           ("optimum", "tab:green", "D", 10)):
+            v = _validation(ds).get(role)
+            if v is None:
+                continue
+            e = v["estimate"]
+            ax.errorbar([sum(v["x"][:n])], [e[0]], yerr=[[e[0] - e[1]], [e[2] - e[0]]], fmt=marker, color=colour,
+                        ms=size, mfc="none" if role == "optimum" else colour, mew=2, capsize=3,
+                        label=f"{role if role != 'uniform' else 'uniform at the optimum total'}, validation sample")
+        _log_if_wide(ax, est)
+        ax.set_xlabel("total blank-holder force (N)")
+        ax.set_ylabel(_LABELS[name])
+        ax.set_title(f"{ds.attrs['study_name']}: {_LABELS[name]} against force")
+        ax.legend(loc="best")
+        ax.grid(alpha=0.3)
+        fig.savefig(path, dpi=110)
+    return Path(path)
+
+
+def _log_if_wide(ax, values):
+    """A log y axis when positive values span more than 1.5 decades."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size and v.min() > 0 and v.max() / v.min() > 30:
+        ax.set_yscale("log")
+
+
+def plot_convergence(ds: xr.Dataset, path) -> Path:
+    """The objective of each design in the order evaluated, and the best so far."""
+    d = _design(ds)
+    f = d["objective"].values
+    with mpl.rc_context(_RC):
+        fig = _figure((7.0, 3.8))
+        ax = fig.add_subplot()
+        k = np.arange(1, f.size + 1)
+        ax.plot(k, f, "o", color="tab:blue", ms=4, alpha=0.6, label="design evaluated")
+        ax.plot(k, np.minimum.accumulate(f), "-", color="tab:green", lw=2, label="best so far")
+        _log_if_wide(ax, f)
+        ax.set_xlabel("evaluation (design sample)")
+        ax.set_ylabel("objective")
+        ax.set_title("\n".join(textwrap.wrap(f"{d['objective'].attrs['long_name']}; {ds.attrs['optimiser']}", 90)),
+                     fontsize=9)
+        ax.legend()
+        ax.grid(alpha=0.3)
+        fig.savefig(path, dpi=110)
+    return Path(path)
+
+
+def _outline(ax, surface, extent: float):
+    """The part's outline in plan: where the mould rises 1 % of its height above the flange."""
+    x = np.linspace(-extent, extent, 241)
+    X, Y = np.meshgrid(x, x)
+    Z = np.where(surface.inside(X, Y), surface.height(X, Y), np.nan)
+    level = np.nanmin(Z) + 0.01 * (np.nanmax(Z) - np.nanmin(Z))
+    ax.contour(X, Y, Z, levels=[level], colors="0.3", linewidths=1.2)
+
+
+def plot_sectors(ds: xr.Dataset, path, surface) -> Path:
+    """Sector forces (N) at the optimum as polar bars on the part outline, with the
+    uniform force at the same total as a dashed circle."""
+    n = _n_forces(ds)
+    opt = np.atleast_1d(ds.attrs["optimum"])[:n]
+    lo, hi = (np.atleast_1d(ds.attrs[k])[:n] for k in ("optimum_lower", "optimum_upper"))
+    xy = np.hypot(ds["optimum_node_x"], ds["optimum_node_y"])
+    extent = 1.25 * float(xy.max())
+    width = 2 * np.pi / n
+    theta = (np.arange(n) + 0.5) * width
+    top = float(np.max(hi))
+    with mpl.rc_context(_RC):
+        fig = Figure(figsize=(6.4, 6.4))  # fixed axes: the polar bars share the plan's centre
+        FigureCanvasAgg(fig)
+        rect = [0.12, 0.08, 0.8, 0.8]
+        ax = fig.add_axes(rect)
+        _outline(ax, surface, extent)
+        ax.set_aspect("equal")
+        ax.set_xlim(-extent, extent)
+        ax.set_ylim(-extent, extent)
+        ax.set_xlabel("x (mm)")
+        ax.set_ylabel("y (mm)")
+        polar = fig.add_axes(rect, projection="polar", frameon=False)
+        polar.bar(theta, opt, width=0.9 * width, color="tab:green", alpha=0.45, edgecolor="tab:green",
+                  label="sector force at the optimum")
+        polar.errorbar(theta, opt, yerr=[opt - lo, hi - opt], fmt="none", ecolor="k", capsize=3, lw=1)
+        polar.plot(np.linspace(0, 2 * np.pi, 181), np.full(181, opt.sum() / n), "--", color="tab:orange",
+                   label=f"uniform, same total ({opt.sum():.0f} N)")
+        for t, f in zip(theta, opt):
+            polar.text(t, f + 0.06 * top, f"{f:.0f} N", ha="center", va="center", fontsize=9)
+        polar.set_ylim(0, 1.2 * top)
+        polar.set_yticklabels([])
+        polar.set_xticks(np.arange(n) * width)
+        polar.set_xticklabels([])
+        polar.grid(alpha=0.3)
+        polar.legend(loc="lower left", bbox_to_anchor=(0.0, 0.0), fontsize=8, framealpha=0.9)
+        fig.suptitle(f"{ds.attrs['study_name']}: sector forces at the optimum on the part outline\n"
+                     f"(bar radius: force, 0-{1.2 * top:.0f} N; error bars: the optimum's "
+                     "resampling interval)", fontsize=9, x=0.12, ha="left")
+        fig.savefig(path, dpi=110)
+    return Path(path)
+
+
+def plot_risk_maps(ds: xr.Dataset, path) -> Path:
+    """P(node locked) of the baseline and the optimum design (validation sample), in plan."""
+    roles = ("baseline", "optimum")
+    n = _n_forces(ds)
+    val = _validation(ds)
+    with mpl.rc_context(_RC):
+        fig = _figure((11.0, 4.8))
+        axes = [fig.add_subplot(1, 2, k + 1) for k in range(2)]
+        for ax, role in zip(axes, roles):
+            p = ds[f"{role}_node_p_locked"].values.ravel()
+            x, y = ds[f"{role}_node_x"].values.ravel(), ds[f"{role}_node_y"].values.ravel()
+            ax.scatter(x[p == 0], y[p == 0], s=3, color="0.8", label="P = 0")
+            hot = p > 0
+            im = ax.scatter(x[hot], y[hot], c=p[hot], s=10, cmap="Reds", vmin=0, vmax=1)
+            if not hot.any():
+                ax.legend(loc="upper right")
+            ax.set_aspect("equal")
+            ax.set_title(f"{role}: total {sum(val[role]['x'][:n]):.0f} N, max P = {float(p.max()):.2f}")
+            ax.set_xlabel("x (mm)")
+            ax.set_ylabel("y (mm)")
+        fig.colorbar(im, ax=axes, label="P(node next to a locked cell), validation sample")
+        fig.savefig(path, dpi=110)
+    return Path(path)
+
+
+def _table(ds: xr.Dataset) -> str:
+    rows = [("study", ds.attrs["study_name"]), ("objective", f"{ds.attrs['statistic']} of {ds.attrs['objective']}"
+             + (f", target {ds.attrs['target']}" if ds.attrs["target"] != "none" else "")),
+            ("variables and bounds", f"{', '.join(np.atleast_1d(ds.attrs['variables']))}: {ds.attrs['bounds']}"),
+            ("total-force budget (N)", ds.attrs["budget_N"]), ("optimiser", ds.attrs["optimiser"]),
+            ("designs evaluated", f"{int((ds['sample'] == 'design').sum())} x {ds.attrs['design_realizations']} "
+                                  f"drapes (seed {ds.attrs['design_seed']})"),
+            ("validation", f"{ds.attrs['validation_realizations']} fresh drapes (seed {ds.attrs['validation_seed']})"),
+            ("line nodes of the asymmetry", f"1..{ds.attrs['k_max']}"),
+            ("optimum interval", ds.attrs["optimum_interval"])]
+    body = "".join(f"<tr><th>{html.escape(str(k))}</th><td>{html.escape(str(v))}</td></tr>" for k, v in rows)
+    return f"<table>{body}</table>"
+
+
+def write_design_report(ds: xr.Dataset, out_dir, *, surface) -> Path:
+    """Write the design report of ``ds`` (``design.nc``) into ``out_dir``: PNGs,
+    ``index.html`` and ``summary.json``; ``surface`` is the mould. Returns index.html."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    figures = [(plot_objective(ds, out / "objective.png"),
+                "The objective's statistic of every design on the design sample (common random numbers) "
+                "against the total force (the band is hidden under the line where the limits are within a few "
+                "per cent), and the baseline and optimum re-draped on the validation sample.")]
+    if _n_forces(ds) > 1:
+        figures.append((plot_sectors(ds, out / "sectors.png", surface),
+                        "Sector forces at the optimum; sectors are equal angles from +x, anticlockwise."))
+    figures.append((plot_risk_maps(ds, out / "risk_map.png"),
+                    "Risk before (the study's own force) and after (the optimum), validation sample."))
+    figures.append((plot_convergence(ds, out / "convergence.png"), "The optimiser's history."))
+    summary = {k: v for k, v in ds.attrs.items() if k != "study_json"}
+    for key in ("validation", "margin", "bounds"):
+        if key in summary:
+            summary[key] = json.loads(summary[key])
+    summary = json.loads(json.dumps(summary, default=lambda v: np.asarray(v).tolist()))
+    (out / "summary.json").write_text(json.dumps(summary, indent=1), encoding="utf-8")
+    figs = "".join(f'<figure><img src="{p.name}" alt="{p.stem}"><figcaption>{html.escape(cap)}</figcaption></figure>'
+                   for p, cap in figures)
+    page = (f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(ds.attrs['study_name'])}</title>"
+            "<style>body{font-family:system-ui,sans-serif;max-width:1100px;margin:1.5em auto;padding:0 1em}"
+            "td,th{border:1px solid #ccc;padding:.3em .6em;text-align:left}table{border-collapse:collapse}"
+            "figure img{max-width:100%;border:1px solid #ddd}</style></head><body>"
+            f"<h1>{html.escape(ds.attrs['study_name'])}: blank-holder design</h1>"
+            f"<p><b>{html.escape(ds.attrs['summary'])}</b></p>{_table(ds)}{figs}</body></html>")
+    index = out / "index.html"
+    index.write_text(page, encoding="utf-8")
+    return index
