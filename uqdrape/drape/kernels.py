@@ -266,19 +266,36 @@ def fill_node(surface, a, b, c, la, lb, sign_ij, tol):
     return q.reshape(shape + (3,)), status.reshape(shape)
 
 
-def quad_shear(q0, q1, q2, q3, eps0):
-    """Signed shear (rad) of the cell with corners q0..q3 in cyclic order.
+@jit
+def shear(q0, q1, q2, q3, eps0):
+    """Signed shear (rad) of the cell with corners q0..q3 (3-tuples, mm) in cyclic order.
 
     ``eps0`` is +1 when q0 is the cell's (min i, min j) or (max i, max j) corner and -1
     otherwise. At each corner the shear is 90 deg minus the angle between the +i and +j
     edges, i.e. arcsin of the cosine of that angle, with the sign alternating round the
     cell; the cell value is the mean of the four.
     """
-    e01, e12, e23, e30 = (unit(b - a) for a, b in ((q0, q1), (q1, q2), (q2, q3), (q3, q0)))
-    s = (
-        np.arcsin(np.clip(-dot(e30, e01), -1.0, 1.0))
-        - np.arcsin(np.clip(-dot(e01, e12), -1.0, 1.0))
-        + np.arcsin(np.clip(-dot(e12, e23), -1.0, 1.0))
-        - np.arcsin(np.clip(-dot(e23, e30), -1.0, 1.0))
-    )
+    e01 = _unit((q1[0] - q0[0], q1[1] - q0[1], q1[2] - q0[2]))
+    e12 = _unit((q2[0] - q1[0], q2[1] - q1[1], q2[2] - q1[2]))
+    e23 = _unit((q3[0] - q2[0], q3[1] - q2[1], q3[2] - q2[2]))
+    e30 = _unit((q0[0] - q3[0], q0[1] - q3[1], q0[2] - q3[2]))
+    s = (math.asin(min(max(-_dot(e30, e01), -1.0), 1.0)) - math.asin(min(max(-_dot(e01, e12), -1.0), 1.0))
+         + math.asin(min(max(-_dot(e12, e23), -1.0), 1.0)) - math.asin(min(max(-_dot(e23, e30), -1.0), 1.0)))
     return 0.25 * eps0 * s
+
+
+@jit
+def _shear_many(q0, q1, q2, q3, eps0, out):
+    for m in range(out.size):
+        out[m] = shear((q0[m, 0], q0[m, 1], q0[m, 2]), (q1[m, 0], q1[m, 1], q1[m, 2]),
+                       (q2[m, 0], q2[m, 1], q2[m, 2]), (q3[m, 0], q3[m, 1], q3[m, 2]), eps0[m])
+
+
+def quad_shear(q0, q1, q2, q3, eps0):
+    """``shear`` over broadcast arrays: corners (..., 3) mm, eps0 (...) -> shear (...) rad."""
+    q0, q1, q2, q3, eps0 = (np.asarray(a, float) for a in (q0, q1, q2, q3, eps0))
+    shape = np.broadcast_shapes(q0.shape[:-1], q1.shape[:-1], q2.shape[:-1], q3.shape[:-1], eps0.shape)
+    args = _flat(shape, (q0, True), (q1, True), (q2, True), (q3, True), (eps0, False))
+    out = np.empty(args[-1].size)
+    _shear_many(*args, out)
+    return out.reshape(shape)
