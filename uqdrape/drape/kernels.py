@@ -1,8 +1,7 @@
 """Node kernels of the pin-jointed net, compiled (numba) per node.
 
 ``arm_node`` and ``fill`` place one node (points are 3-tuples, x, y, z in mm; radians
-inside) and are called from the compiled ring loops; ``arm_step`` and ``fill_node`` apply
-them over arrays with arbitrary leading axes (realisation, candidate, node, ...).
+inside) and are called from the compiled net loops (``ring``).
 
 Both ways of placing a node reduce to one problem: find where a circle in space meets
 the mould surface. A generator-arm node lies on the circle of radius s around the last
@@ -31,15 +30,19 @@ _OK, _NO_INTERSECTION, _OFF_MOULD, _DEPENDENT, _FOLDED = (int(s) for s in (
     Status.OK, Status.NO_INTERSECTION, Status.OFF_MOULD, Status.DEPENDENT, Status.FOLDED))
 
 
+NAN3 = (math.nan, math.nan, math.nan)
+
+
 @jit
 def _gap(kind, par, c, u, v, rho, t):
-    """Circle point q at angle t (mm), its vertical gap z - h(x, y) and the gap's t-derivative."""
+    """Circle point q at angle t (mm), its vertical gap z - h(x, y), the gap's t-derivative
+    and the mould gradient (dh/dx, dh/dy) at q."""
     ct, st = math.cos(t), math.sin(t)
     q = (c[0] + rho * (ct * u[0] + st * v[0]), c[1] + rho * (ct * u[1] + st * v[1]),
          c[2] + rho * (ct * u[2] + st * v[2]))
     d0, d1, d2 = rho * (-st * u[0] + ct * v[0]), rho * (-st * u[1] + ct * v[1]), rho * (-st * u[2] + ct * v[2])
     h, hx, hy = height_gradient(kind, par, q[0], q[1])
-    return q, q[2] - h, d2 - hx * d0 - hy * d1
+    return q, q[2] - h, d2 - hx * d0 - hy * d1, hx, hy
 
 
 @jit
@@ -80,31 +83,32 @@ def _bracket(kind, par, c, u, v, rho, tol):
             else:
                 b, gb = t_new, g_new
             side = 1 if left else -1
-    q, g_t, _ = _gap(kind, par, c, u, v, rho, t)
-    return q, found and abs(g_t) < tol
+    q, g_t, _, hx, hy = _gap(kind, par, c, u, v, rho, t)
+    return q, found and abs(g_t) < tol, hx, hy
 
 
 @jit
 def _solve_on_circle(kind, par, c, u, v, rho, tol):
     """Point of the circle ``c + rho (cos t u + sin t v)`` on the surface, |t| < THETA_MAX.
 
-    Returns (q, ok): the root nearest t = 0 by safeguarded Newton (steps clipped to
-    0.2 rad), falling back to a bracketing search; ``tol`` is the vertical gap accepted (mm).
+    Returns (q, ok, dh/dx, dh/dy at q): the root nearest t = 0 by safeguarded Newton
+    (steps clipped to 0.2 rad), falling back to a bracketing search; ``tol`` is the
+    vertical gap accepted (mm).
     """
     if not (math.isfinite(c[0] + c[1] + c[2] + u[0] + u[1] + u[2] + v[0] + v[1] + v[2] + rho) and rho > 0):
-        return (math.nan, math.nan, math.nan), False
+        return NAN3, False, math.nan, math.nan
     theta = 0.0
+    q, g, dg, hx, hy = _gap(kind, par, c, u, v, rho, theta)
     for _ in range(_NEWTON_ITERS):
-        _, g, dg = _gap(kind, par, c, u, v, rho, theta)
         if abs(g) < tol:
             break
         step = -g / dg
         if math.isnan(step):
             break
         theta += min(max(step, -0.2), 0.2)
-    q, g, _ = _gap(kind, par, c, u, v, rho, theta)
+        q, g, dg, hx, hy = _gap(kind, par, c, u, v, rho, theta)
     if abs(g) < tol and abs(theta) < THETA_MAX:
-        return q, True
+        return q, True, hx, hy
     return _bracket(kind, par, c, u, v, rho, tol)
 
 
@@ -143,9 +147,6 @@ def _status(kind, par, q, ok, parents_valid):
     return _OK
 
 
-NAN3 = (math.nan, math.nan, math.nan)
-
-
 @jit
 def arm_node(kind, par, p, direction, turn, length, tol):
     """Next generator-arm node: distance ``length`` (mm) from ``p`` along the surface
@@ -159,7 +160,7 @@ def arm_node(kind, par, p, direction, turn, length, tol):
     w = _cross(n, t)
     ct, st = math.cos(turn), math.sin(turn)
     t = (ct * t[0] + st * w[0], ct * t[1] + st * w[1], ct * t[2] + st * w[2])
-    q, ok = _solve_on_circle(kind, par, p, t, n, length, tol)
+    q, ok, _, _ = _solve_on_circle(kind, par, p, t, n, length, tol)
     parents = math.isfinite(p[0] + p[1] + p[2] + direction[0] + direction[1] + direction[2])
     status = _status(kind, par, q, ok, parents)
     return (q if status == _OK else NAN3), status
@@ -183,11 +184,12 @@ def fill(kind, par, a, b, c, la, lb, sign_ij, tol):
     ge = _dot(guess, e)
     u = _unit((guess[0] - ge * e[0], guess[1] - ge * e[1], guess[2] - ge * e[2]))
     v = _cross(e, u)
-    q, ok = _solve_on_circle(kind, par, centre, u, v, rho, tol)
+    q, ok, hx, hy = _solve_on_circle(kind, par, centre, u, v, rho, tol)
     parents = math.isfinite(a[0] + a[1] + a[2] + b[0] + b[1] + b[2] + c[0] + c[1] + c[2])
     status = _status(kind, par, q, ok, parents)
     if status == _OK:
-        n = _normal(kind, par, q[0], q[1])
+        s = math.sqrt(hx * hx + hy * hy + 1.0)  # the normal at q, from the root's last gradient
+        n = (-hx / s, -hy / s, 1.0 / s)
         qa = (q[0] - a[0], q[1] - a[1], q[2] - a[2])
         qb = (q[0] - b[0], q[1] - b[1], q[2] - b[2])
         if sign_ij * _dot(_cross(qa, qb), n) <= 0:
@@ -208,31 +210,6 @@ def dot(a, b):
     return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
 
 
-def cross(a, b):
-    """Cross product over the last axis, written out (np.cross is slow on small axes)."""
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
-
-
-@jit
-def _arm_many(kind, par, p, direction, turn, length, tol, q, status):
-    for m in range(turn.size):
-        x, st = arm_node(kind, par, (p[m, 0], p[m, 1], p[m, 2]),
-                         (direction[m, 0], direction[m, 1], direction[m, 2]), turn[m], length[m], tol)
-        q[m, 0], q[m, 1], q[m, 2] = x
-        status[m] = st
-
-
-@jit
-def _fill_many(kind, par, a, b, c, la, lb, sign_ij, tol, q, status):
-    for m in range(la.size):
-        x, st = fill(kind, par, (a[m, 0], a[m, 1], a[m, 2]), (b[m, 0], b[m, 1], b[m, 2]),
-                     (c[m, 0], c[m, 1], c[m, 2]), la[m], lb[m], sign_ij[m], tol)
-        q[m, 0], q[m, 1], q[m, 2] = x
-        status[m] = st
-
-
 def _flat(shape, *arrays):
     """(array, is_point) pairs broadcast to ``shape`` (+ (3,) for points), flattened, float64."""
     out = []
@@ -240,30 +217,6 @@ def _flat(shape, *arrays):
         tail = (3,) if point else ()
         out.append(np.ascontiguousarray(np.broadcast_to(a, shape + tail)).reshape((-1,) + tail))
     return out
-
-
-def arm_step(surface, p, direction, turn, length, tol):
-    """``arm_node`` over broadcast arrays: p, direction (..., 3) mm, turn (...) rad, length
-    (...) mm. Returns (q (..., 3) with NaN where not placed, status (...) int8)."""
-    p, direction, turn, length = (np.asarray(a, float) for a in (p, direction, turn, length))
-    shape = np.broadcast_shapes(p.shape[:-1], direction.shape[:-1], turn.shape, length.shape)
-    p, direction, turn, length = _flat(shape, (p, 1), (direction, 1), (turn, 0), (length, 0))
-    q = np.empty((turn.size, 3))
-    status = np.empty(turn.size, np.int8)
-    _arm_many(*surface.kernel, p, direction, turn, length, tol, q, status)
-    return q.reshape(shape + (3,)), status.reshape(shape)
-
-
-def fill_node(surface, a, b, c, la, lb, sign_ij, tol):
-    """``fill`` over broadcast arrays: a, b, c (..., 3) mm, la, lb (...) mm, sign_ij (...).
-    Returns (q (..., 3) with NaN where not placed, status (...) int8)."""
-    a, b, c, la, lb, sign_ij = (np.asarray(x, float) for x in (a, b, c, la, lb, sign_ij))
-    shape = np.broadcast_shapes(a.shape[:-1], b.shape[:-1], c.shape[:-1], la.shape, lb.shape, sign_ij.shape)
-    a, b, c, la, lb, sign_ij = _flat(shape, (a, 1), (b, 1), (c, 1), (la, 0), (lb, 0), (sign_ij, 0))
-    q = np.empty((la.size, 3))
-    status = np.empty(la.size, np.int8)
-    _fill_many(*surface.kernel, a, b, c, la, lb, sign_ij, tol, q, status)
-    return q.reshape(shape + (3,)), status.reshape(shape)
 
 
 @jit

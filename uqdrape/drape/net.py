@@ -1,10 +1,10 @@
 """Building the pin-jointed net, batched over realisations.
 
-Two orders of construction share the node kernels:
+Two orders of construction share the compiled node kernels:
 
 * ``build_geodesic``: the four generator arms are traced as discrete geodesics to the
   last ring, then every other node is filled anti-diagonal by anti-diagonal
-  (|i| + |j| = d), so a drape costs about 3n Python steps whatever the batch size.
+  (|i| + |j| = d), compiled per realisation (``ring.geodesic_block``).
 * ``EnergyRings``: ring by ring (thesis Fig 5.1). At ring k each arm gets one segment
   whose turn angle about the surface normal minimises the energy of the pattern so
   far; the ring is filled from the arms towards the quadrant corners. The ring step is
@@ -19,7 +19,6 @@ import numpy as np
 
 from . import ring
 from .energy import MM_TO_M, bending_energy
-from .kernels import arm_step, fill_node
 from .status import Status
 
 ARM_STEPS = np.array([(1, 0), (0, 1), (-1, 0), (0, -1)])
@@ -82,16 +81,6 @@ class NetProblem:
         status[:, self.n, self.n] = np.where(ok, Status.OK, Status.OFF_MOULD)
         return P, status
 
-    def arm_nodes(self, P, k, turn):
-        """Arm nodes of ring k for turn angles ``turn`` (R, M, 4) rad -> (R, M, 4, 3), status."""
-        di, dj = ARM_STEPS[:, 0], ARM_STEPS[:, 1]
-        last = self.node(P, (k - 1) * di, (k - 1) * dj)[:, None]  # (R, 1, 4, 3)
-        if k == 1:
-            direction = self.first_directions()[:, None]
-        else:
-            direction = last - self.node(P, (k - 2) * di, (k - 2) * dj)[:, None]
-        return arm_step(self.surface, last, direction, turn, self.arm_lengths(k)[:, None], self.tol)
-
     def first_directions(self):
         """Unit directions (R, 4, 3) of the first arm segments on the surface.
 
@@ -106,13 +95,6 @@ class NetProblem:
         vx, vy = np.cos(a), np.sin(a)
         w = -(n[..., 0] * vx + n[..., 1] * vy)
         return np.stack([vx + n[..., 0] * w / (1 + n[..., 2]), vy + n[..., 1] * w / (1 + n[..., 2]), w], axis=-1)
-
-    def arm_lengths(self, k):
-        """Lengths (R, 4) of the k-th segment of each arm."""
-        return np.stack([
-            self.seg1(k, k - 1, 0), self.seg2(0, k, k - 1),
-            self.seg1(-k, -k + 1, 0), self.seg2(0, -k, -k + 1),
-        ], axis=-1)
 
     def ring_blankholder(self, P, k):
         """Blank-holder energy (R, 4 quadrants) of the boundary polygon of ring k (J)."""
@@ -137,25 +119,10 @@ class NetProblem:
 
 
 def build_geodesic(prob: NetProblem):
-    """Geodesic net: arms first, then anti-diagonal fill. Returns P, status."""
+    """Geodesic net: arms first, then anti-diagonal fill (``ring.geodesic_block``). Returns P, status."""
     P, status = prob.start()
-    n = prob.n
-    di, dj = ARM_STEPS[:, 0], ARM_STEPS[:, 1]
-    zero = np.zeros((prob.R, 1, 4))
-    for k in range(1, n + 1):
-        q, st = prob.arm_nodes(P, k, zero)
-        P[:, n + k * di, n + k * dj] = q[:, 0]
-        status[:, n + k * di, n + k * dj] = st[:, 0]
-    for d in range(2, 2 * n + 1):
-        a = np.arange(max(1, d - n), min(n, d - 1) + 1)
-        i = np.concatenate([a, -a, -a, a])
-        j = np.concatenate([d - a, d - a, -(d - a), -(d - a)])
-        si, sj = np.sign(i), np.sign(j)
-        q, st = fill_node(
-            prob.surface, prob.node(P, i - si, j), prob.node(P, i, j - sj), prob.node(P, i - si, j - sj),
-            prob.seg1(i, i - si, j), prob.seg2(i, j, j - sj), si * sj, prob.tol)
-        P[:, i + n, j + n] = q
-        status[:, i + n, j + n] = st
+    ring.geodesic_block(prob.surface.kernel, prob.tol, prob.n, P, status, prob.seg_i, prob.seg_j,
+                        np.ascontiguousarray(prob.first_directions()))
     return P, status
 
 

@@ -1,4 +1,8 @@
-"""The energy drape's ring step, compiled per realisation (thesis Fig 5.1).
+"""The net's construction loops, compiled per realisation: the geodesic net and the
+energy drape's ring step (thesis Fig 5.1).
+
+``geodesic_block`` traces the four generator arms as discrete geodesics and fills the
+rest of the net anti-diagonal by anti-diagonal (|i| + |j| = d).
 
 At ring k each arm gets one segment whose turn angle about the surface normal (rad)
 minimises the energy of the pattern so far. That energy splits into one term per arm
@@ -43,6 +47,55 @@ _PAIRS = ((0, 1), (1, 1), (2, 1), (1, 0), (1, 2), (2, 2))
 
 
 @jit
+def _arm_length(seg_i, seg_j, n, k, a):
+    """Length (mm) of the k-th segment of arm a."""
+    di, dj = ARMS[a]
+    if a % 2 == 0:  # fibre-1 arm: segment (k di, 0)-((k-1) di, 0)
+        return seg_i[min(k * di, (k - 1) * di) + n, n]
+    return seg_j[n, min(k * dj, (k - 1) * dj) + n]
+
+
+@jit
+def _arm_direction(P, n, k, a, first_dir):
+    """Direction of arm a's last segment before ring k (the first one's for k = 1)."""
+    di, dj = ARMS[a]
+    if k == 1:
+        return (first_dir[a, 0], first_dir[a, 1], first_dir[a, 2])
+    last = _node(P, n, (k - 1) * di, (k - 1) * dj)
+    before = _node(P, n, (k - 2) * di, (k - 2) * dj)
+    return (last[0] - before[0], last[1] - before[1], last[2] - before[2])
+
+
+@jit
+def _put(P, status, n, i, j, q, st):
+    P[i + n, j + n, 0], P[i + n, j + n, 1], P[i + n, j + n, 2] = q
+    status[i + n, j + n] = st
+
+
+@jit
+def geodesic_block(surf, tol, n, P, status, seg_i, seg_j, first_dir):
+    """Geodesic nets of a block: P (R, N, N, 3) mm and status (R, N, N), with the crossover
+    placed, are filled in place; seg_i, seg_j, first_dir (R, 4, 3) per realisation."""
+    kind, par = surf
+    for r in range(P.shape[0]):
+        Pr, sr, si_, sj_ = P[r], status[r], seg_i[r], seg_j[r]
+        for k in range(1, n + 1):
+            for a in range(4):
+                di, dj = ARMS[a]
+                q, st = arm_node(kind, par, _node(Pr, n, (k - 1) * di, (k - 1) * dj),
+                                 _arm_direction(Pr, n, k, a, first_dir[r]), 0.0, _arm_length(si_, sj_, n, k, a), tol)
+                _put(Pr, sr, n, k * di, k * dj, q, st)
+        for d in range(2, 2 * n + 1):
+            for a in range(max(1, d - n), min(n, d - 1) + 1):
+                for si, sj in ((1, 1), (-1, 1), (-1, -1), (1, -1)):
+                    i, j = si * a, sj * (d - a)
+                    q, st = fill(kind, par, _node(Pr, n, i - si, j), _node(Pr, n, i, j - sj),
+                                 _node(Pr, n, i - si, j - sj), si_[min(i, i - si) + n, j + n],
+                                 sj_[i + n, min(j, j - sj) + n], si * sj, tol)
+                    _put(Pr, sr, n, i, j, q, st)
+
+
+@jit
 def _node(P, n, i, j):
     return (P[i + n, j + n, 0], P[i + n, j + n, 1], P[i + n, j + n, 2])
 
@@ -74,18 +127,9 @@ def sides(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu,
     for c in range(turns.shape[0]):
         for a in range(4):
             di, dj = ARMS[a]
-            last = _node(P, n, (k - 1) * di, (k - 1) * dj)
-            if k == 1:
-                direction = (first_dir[a, 0], first_dir[a, 1], first_dir[a, 2])
-            else:
-                before = _node(P, n, (k - 2) * di, (k - 2) * dj)
-                direction = (last[0] - before[0], last[1] - before[1], last[2] - before[2])
-            if a % 2 == 0:  # fibre-1 arm: segment (k di, 0)-((k-1) di, 0)
-                length = seg_i[min(k * di, (k - 1) * di) + n, n]
-            else:
-                length = seg_j[n, min(k * dj, (k - 1) * dj) + n]
             turn = turns[c, a]
-            q, st = arm_node(kind, par, last, direction, turn, length, tol)
+            q, st = arm_node(kind, par, _node(P, n, (k - 1) * di, (k - 1) * dj), _arm_direction(P, n, k, a, first_dir),
+                             turn, _arm_length(seg_i, seg_j, n, k, a), tol)
             invalid = 0
             cells = 0.0
             held = 0.0

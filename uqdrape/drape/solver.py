@@ -193,6 +193,16 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
     node = ("realization", "i", "j")
     cell = ("realization", "cell_i", "cell_j")
     total = np.nan_to_num(shear_energy) + bending + bh.sum(-1)
+    described = {"orientation": ("degree", "fibre-1 plan angle from the x axis"),
+                 "pre_shear": ("degree", "shear of the flat blank"),
+                 "skew": ("degree", "generator-path skew at the crossover"),
+                 "crossover_x": ("mm", "crossover x"), "crossover_y": ("mm", "crossover y"),
+                 "blankholder_force": ("N", "total blank-holder force"),
+                 "friction": ("1", "fabric/blank-holder friction coefficient")}
+    inputs = {}  # the per-realisation inputs, built with the Dataset (one alignment, not one per input)
+    for name, value in factors.items():
+        units, long_name = described.get(name, ("1", f"sampled input {name}"))
+        inputs[name] = ("realization", np.asarray(value, dtype=float), {"units": units, "long_name": long_name})
     ds = xr.Dataset(
         {
             "x": (node, P[..., 0], {"units": "mm", "long_name": "node x"}),
@@ -217,6 +227,7 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
             "energy_total": ("realization", total, {"units": "J", "long_name": "total forming energy"}),
             "iterations": ("realization", iterations, {"long_name": "minimiser iterations, all steps", "units": "1"}),
             "converged": ("realization", converged, {"long_name": "minimiser converged at every step", "units": "1"}),
+            **inputs,
         },
         coords={"realization": np.arange(prob.R), "i": idx, "j": idx, "cell_i": cidx, "cell_j": cidx,
                 "ring": np.arange(1, n + 1), "arm": ["+i", "+j", "-i", "-j"], "quadrant": list(QUADRANTS)},
@@ -227,13 +238,4 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
                "status_codes": Status.describe(), "uqdrape_version": __version__,
                "Conventions": "CF-1.8"},
     )
-    described = {"orientation": ("degree", "fibre-1 plan angle from the x axis"),
-                 "pre_shear": ("degree", "shear of the flat blank"),
-                 "skew": ("degree", "generator-path skew at the crossover"),
-                 "crossover_x": ("mm", "crossover x"), "crossover_y": ("mm", "crossover y"),
-                 "blankholder_force": ("N", "total blank-holder force"),
-                 "friction": ("1", "fabric/blank-holder friction coefficient")}
-    for name, value in factors.items():
-        units, long_name = described.get(name, ("1", f"sampled input {name}"))
-        ds[name] = ("realization", np.asarray(value, dtype=float), {"units": units, "long_name": long_name})
     return ds
