@@ -197,17 +197,34 @@ def fill(kind, par, a, b, c, la, lb, sign_ij, tol):
     return (q if status == _OK else NAN3), status
 
 
-def unit(a):
-    return a / norm(a)[..., None]
+@jit
+def _asin1(c):
+    return math.asin(min(max(c, -1.0), 1.0))
 
 
-def norm(a):
-    """Euclidean length over the last axis (faster than np.linalg.norm for (..., 3))."""
-    return np.sqrt(dot(a, a))
-
-
-def dot(a, b):
-    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+@jit
+def net_shear(P, out):
+    """Signed cell shear (rad) of nets P (R, N, N, 3) into out (R, N-1, N-1): the value of
+    ``shear`` per cell, with each unit edge computed once per net (the corner shear is
+    arcsin of the dot product of the cell's +i and +j unit edges)."""
+    N = P.shape[1]
+    ei = np.empty((N - 1, N, 3))  # +i edges
+    ej = np.empty((N, N - 1, 3))  # +j edges
+    for r in range(P.shape[0]):
+        for a in range(N):
+            for b in range(N):
+                p = (P[r, a, b, 0], P[r, a, b, 1], P[r, a, b, 2])
+                if a + 1 < N:
+                    ei[a, b, 0], ei[a, b, 1], ei[a, b, 2] = _unit(
+                        (P[r, a + 1, b, 0] - p[0], P[r, a + 1, b, 1] - p[1], P[r, a + 1, b, 2] - p[2]))
+                if b + 1 < N:
+                    ej[a, b, 0], ej[a, b, 1], ej[a, b, 2] = _unit(
+                        (P[r, a, b + 1, 0] - p[0], P[r, a, b + 1, 1] - p[1], P[r, a, b + 1, 2] - p[2]))
+        for a in range(N - 1):
+            for b in range(N - 1):
+                lo, hi, left, right = ei[a, b], ei[a, b + 1], ej[a, b], ej[a + 1, b]
+                out[r, a, b] = 0.25 * (_asin1(_dot(lo, left)) + _asin1(_dot(lo, right)) + _asin1(_dot(hi, left))
+                                       + _asin1(_dot(hi, right)))
 
 
 def _flat(shape, *arrays):

@@ -9,14 +9,14 @@ import xarray as xr
 
 from .. import __version__
 from .energy import BlankHolder
-from .kernels import dot, unit
+from .kernels import net_shear
 from .net import QUADRANTS, EnergyRings, NetProblem, build_geodesic
 from .status import Status
 
 MODES = ("geodesic", "energy")
-#: Realisations solved together per block: large enough to amortise the Python steps,
-#: small enough that a block's nets stay in cache (1,000 at once ran 25 % slower per drape).
-BLOCK = 256
+#: Realisations solved and post-processed together per block (the solver is compiled per
+#: realisation; the block bounds the memory of the Dataset's temporaries).
+BLOCK = 1024
 
 
 def _per_realisation(name, value, tail, R):
@@ -147,14 +147,13 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
 def cell_shear(P):
     """Signed cell shear (rad), (R, 2n, 2n), of net positions P (R, N, N, 3).
 
-    Same value as ``quad_shear`` per cell, with each unit edge computed once for the net:
-    the corner shear is arcsin of the dot product of the +i and +j unit edges.
+    Same value as ``quad_shear`` per cell, with each unit edge computed once for the net
+    (``kernels.net_shear``).
     """
-    ei = unit(P[:, 1:] - P[:, :-1])  # +i edges (R, 2n, 2n+1, 3)
-    ej = unit(P[:, :, 1:] - P[:, :, :-1])  # +j edges (R, 2n+1, 2n, 3)
-    lo, hi, left, right = ei[:, :, :-1], ei[:, :, 1:], ej[:, :-1], ej[:, 1:]
-    corners = [dot(lo, left), dot(lo, right), dot(hi, left), dot(hi, right)]
-    return 0.25 * sum(np.arcsin(np.clip(c, -1.0, 1.0)) for c in corners)
+    R, N = P.shape[:2]
+    out = np.empty((R, N - 1, N - 1))
+    net_shear(np.ascontiguousarray(P, float), out)
+    return out
 
 
 def node_mean(cells):
