@@ -21,10 +21,9 @@ from . import ring
 from .energy import MM_TO_M, bending_energy
 from .status import Status
 
-ARM_STEPS = np.array([(1, 0), (0, 1), (-1, 0), (0, -1)])
-#: Per quadrant (sign i, sign j): its i-family arm and side, its j-family arm and side.
-QUADRANTS = {"++": (0, 0, 1, 0), "-+": (2, 0, 1, 1), "--": (2, 1, 3, 1), "+-": (0, 1, 3, 0)}
-QUADRANT_SIGNS = {"++": (1, 1), "-+": (-1, 1), "--": (-1, -1), "+-": (1, -1)}
+#: Per quadrant: its i-family arm and side, its j-family arm and side, its signs (si, sj).
+QUADRANTS = dict(zip(("++", "-+", "--", "+-"), ring.CORNERS))
+QUADRANT_SIGNS = {q: c[4:] for q, c in QUADRANTS.items()}
 
 
 class NetProblem:
@@ -54,20 +53,9 @@ class NetProblem:
         self.cell_s2 = 0.5 * (seg_j[:, :-1, :] + seg_j[:, 1:, :])
 
     # -- index helpers -----------------------------------------------------------------
-    def take(self, field, a, b):
-        """field[r, a, b] for every realisation r; a, b broadcast -> (R, ...)."""
-        return field[:, a, b]
-
-    def seg1(self, i_a, i_b, j):
-        """Lengths (R, ...) of fibre-1 segments between nodes (i_a, j) and (i_b, j)."""
-        return self.take(self.seg_i, np.minimum(i_a, i_b) + self.n, j + self.n)
-
-    def seg2(self, i, j_a, j_b):
-        return self.take(self.seg_j, i + self.n, np.minimum(j_a, j_b) + self.n)
-
     def node(self, P, i, j):
         """Positions (R, ..., 3) of nodes (i, j) in the batch's net P (or flat blank)."""
-        return self.take(P, i + self.n, j + self.n)
+        return P[:, i + self.n, j + self.n]
 
     # -- shared stages -----------------------------------------------------------------
     def start(self):
