@@ -9,11 +9,16 @@ design and extrapolates linearly to 256 (drapes and per-column SALib analyses bo
 with the base sample; the design's Sobol' sequence does not, so it is a slight
 over-estimate). Target: the full study in under 15 minutes on 2 cores.
 
-Run: python benchmarks/bench_sensitivity.py [--base-samples N] [--workers W] [--out DIR]
+``--rings 30`` runs the same study at the thesis's 30 rings (a copy of the study file
+with its ``rings`` changed, written to a temporary folder).
+
+Run: python benchmarks/bench_sensitivity.py [--base-samples N] [--workers W] [--out DIR] [--rings R]
 """
 
 import argparse
 import dataclasses
+import re
+import tempfile
 import time
 from pathlib import Path
 
@@ -28,9 +33,16 @@ def main():
     parser.add_argument("--base-samples", type=int, default=None, help="Sobol' base samples (default: the study's 256)")
     parser.add_argument("--workers", type=int, default=2, help="local worker processes (default 2)")
     parser.add_argument("--out", default=None, help="output folder (default: the study's)")
+    parser.add_argument("--rings", type=int, default=None, help="rings of the net (default: the study's 20)")
     args = parser.parse_args()
 
-    study = load_study(STUDY)
+    path = STUDY
+    if args.rings:
+        text, count = re.subn(r"(?m)^rings = \d+", f"rings = {args.rings}", STUDY.read_text())
+        assert count == 1, "the study file should set rings once"
+        path = Path(tempfile.mkdtemp()) / STUDY.name
+        path.write_text(text)
+    study = load_study(path)
     full = study.sensitivity.base_samples
     base = args.base_samples or full
     study = dataclasses.replace(

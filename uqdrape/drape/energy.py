@@ -8,7 +8,11 @@ slip of the held fabric. All functions are batched over leading axes.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+
+from .._jit import jit
 
 MM_TO_M = 1e-3
 
@@ -18,10 +22,53 @@ def bending_energy(turn, stiffness, spacing):
     return stiffness / (spacing * MM_TO_M) * turn**2
 
 
-def _angle2(a, b):
-    """Unsigned angle (rad) between 2-D vectors."""
-    cross = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-    return np.abs(np.arctan2(cross, np.sum(a * b, axis=-1)))
+@jit
+def _angle2(a0, a1, b0, b1):
+    """Unsigned angle (rad) between plan vectors a and b."""
+    return abs(math.atan2(a0 * b1 - a1 * b0, a0 * b0 + a1 * b1))
+
+
+@jit
+def _cumulative_share(weights, cumulative, theta):
+    """Fraction of the total force between angle 0 and ``theta`` (rad, unwrapped)."""
+    s = weights.size
+    pos = theta / (2 * np.pi) * s
+    turns = math.floor(pos / s)
+    pos = pos - turns * s
+    k = min(int(math.floor(pos)), s - 1)
+    return turns + cumulative[k] + (pos - k) * weights[k]
+
+
+@jit
+def segment_energy(bh, p1, p2, f1, f2, centre, force, friction):
+    """Energy (J) of one boundary segment under blank-holder kernel ``bh`` (``BlankHolder.kernel``):
+    draped ends p1, p2 (3,), flat ends f1, f2 (2,), crossover ``centre`` (2,), all mm."""
+    radial, weights, cumulative = bh
+    d10, d11 = p1[0] - centre[0], p1[1] - centre[1]
+    d20, d21 = p2[0] - centre[0], p2[1] - centre[1]
+    u10, u11 = f1[0] - centre[0], f1[1] - centre[1]
+    u20, u21 = f2[0] - centre[0], f2[1] - centre[1]
+    md0, md1 = 0.5 * (d10 + d20), 0.5 * (d11 + d21)
+    mu0, mu1 = 0.5 * (u10 + u20), 0.5 * (u11 + u21)
+    if radial:
+        slip = abs(math.hypot(mu0, mu1) - math.hypot(md0, md1))
+    else:
+        slip = math.hypot(md0 - mu0, md1 - mu1)
+    phi = 0.5 * (_angle2(d10, d11, d20, d21) + _angle2(u10, u11, u20, u21))
+    if weights.size == 0:
+        share = phi / (2 * np.pi)
+    else:
+        nd, nu = math.sqrt(md0 * md0 + md1 * md1), math.sqrt(mu0 * mu0 + mu1 * mu1)
+        theta = math.atan2(md1 / nd + mu1 / nu, md0 / nd + mu0 / nu)
+        share = (_cumulative_share(weights, cumulative, theta + 0.5 * phi)
+                 - _cumulative_share(weights, cumulative, theta - 0.5 * phi))
+    return 2.0 * friction * share * force * slip * MM_TO_M
+
+
+@jit
+def _segment_energy_many(bh, p1, p2, f1, f2, centre, force, friction, out):
+    for m in range(out.size):
+        out[m] = segment_energy(bh, p1[m], p2[m], f1[m], f2[m], centre[m], force[m], friction[m])
 
 
 #: Blank-holder friction models: what the friction work of a held boundary segment acts on.
@@ -61,22 +108,16 @@ class BlankHolder:
         self.force = np.asarray(force, dtype=float)
         self.friction = np.asarray(friction, dtype=float)
         if sectors is None:
-            self.weights = None
+            self.weights = np.zeros(0)
+            self.cumulative = np.zeros(1)
         else:
             w = np.asarray(sectors, dtype=float)
             if w.ndim != 1 or w.size < 1 or np.any(w < 0) or not np.isfinite(w).all() or w.sum() <= 0:
                 raise ValueError(f"sectors must be a non-empty list of non-negative weights, got {sectors!r}")
             self.weights = w / w.sum()
             self.cumulative = np.concatenate([[0.0], np.cumsum(self.weights)])
-
-    def _cumulative_share(self, theta):
-        """Fraction of the total force between angle 0 and ``theta`` (rad, unwrapped)."""
-        s = self.weights.size
-        pos = theta / (2 * np.pi) * s
-        turns = np.floor(pos / s)
-        pos = pos - turns * s
-        k = np.minimum(np.floor(pos).astype(int), s - 1)
-        return turns + self.cumulative[k] + (pos - k) * self.weights[k]
+        #: compiled form: (radial?, sector weights (empty: uniform), their cumulative sums)
+        self.kernel = (model == "radial", self.weights, self.cumulative)
 
     def segment_energy(self, p1, p2, f1, f2, centre, force, friction):
         """Energy (J) of boundary segments: draped ends p1, p2 (..., 3), flat-blank ends
@@ -91,22 +132,13 @@ class BlankHolder:
         when a segment moves outwards. Under ``"slip"`` it is the plan displacement of the
         midpoint from its flat position.
         """
-        d1 = p1[..., :2] - centre
-        d2 = p2[..., :2] - centre
-        u1 = f1 - centre
-        u2 = f2 - centre
-        mid_d = 0.5 * (d1 + d2)
-        mid_u = 0.5 * (u1 + u2)
-        if self.model == "radial":
-            slip = np.abs(np.hypot(mid_u[..., 0], mid_u[..., 1]) - np.hypot(mid_d[..., 0], mid_d[..., 1]))
-        else:
-            slip = np.hypot(mid_d[..., 0] - mid_u[..., 0], mid_d[..., 1] - mid_u[..., 1])
-        phi = 0.5 * (_angle2(d1, d2) + _angle2(u1, u2))
-        if self.weights is None:
-            share = phi / (2 * np.pi)
-        else:
-            direction = mid_d / np.linalg.norm(mid_d, axis=-1, keepdims=True)
-            direction = direction + mid_u / np.linalg.norm(mid_u, axis=-1, keepdims=True)
-            theta = np.arctan2(direction[..., 1], direction[..., 0])
-            share = self._cumulative_share(theta + 0.5 * phi) - self._cumulative_share(theta - 0.5 * phi)
-        return 2.0 * friction * share * force * slip * MM_TO_M
+        p1, p2, f1, f2, centre = (np.asarray(a, float) for a in (p1, p2, f1, f2, centre))
+        force, friction = np.asarray(force, float), np.asarray(friction, float)
+        shape = np.broadcast_shapes(p1.shape[:-1], p2.shape[:-1], f1.shape[:-1], f2.shape[:-1], centre.shape[:-1],
+                                    force.shape, friction.shape)
+        args = [np.ascontiguousarray(np.broadcast_to(a, shape + a.shape[-1:])).reshape(-1, a.shape[-1])
+                for a in (p1, p2, f1, f2, centre)]
+        args += [np.ascontiguousarray(np.broadcast_to(a, shape)).ravel() for a in (force, friction)]
+        out = np.empty(args[-1].size)
+        _segment_energy_many(self.kernel, *args, out)
+        return out.reshape(shape)

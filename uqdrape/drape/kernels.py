@@ -1,220 +1,272 @@
-"""Batched node kernels of the pin-jointed net.
+"""Node kernels of the pin-jointed net, compiled (numba) per node.
 
-Every function works on arrays with arbitrary leading axes (realisation, candidate,
-node, ...) and a trailing axis of 3 for points (x, y, z in mm). Radians inside.
+``arm_node`` and ``fill`` place one node (points are 3-tuples, x, y, z in mm; radians
+inside) and are called from the compiled net loops (``ring``).
 
 Both ways of placing a node reduce to one problem: find where a circle in space meets
 the mould surface. A generator-arm node lies on the circle of radius s around the last
 arm node in the normal plane of the steered direction; a filled node lies on the circle
-where the two spheres around its placed neighbours meet. ``solve_on_circle`` finds the
+where the two spheres around its placed neighbours meet. ``_solve_on_circle`` finds the
 root nearest the circle's reference direction by safeguarded Newton, falling back to a
 bracketing search where Newton does not settle (kinks, steep walls).
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from .._jit import jit
+from ..geometry.compiled import height_gradient, inside
 from .status import Status
 
 #: Largest circle angle (rad) searched either side of the reference direction.
 THETA_MAX = np.deg2rad(89.0)
 _NEWTON_ITERS = 12
-_BRACKET_SAMPLES = 90
+_BRACKET_GRID = np.linspace(-THETA_MAX, THETA_MAX, 90)
 _BRACKET_ITERS = 60
+#: Status codes as plain ints, for the compiled kernels.
+OK, NO_INTERSECTION, OFF_MOULD, DEPENDENT, FOLDED = (int(s) for s in (
+    Status.OK, Status.NO_INTERSECTION, Status.OFF_MOULD, Status.DEPENDENT, Status.FOLDED))
 
 
-def _point(c, u, v, rho, theta):
-    ct = np.cos(theta)[..., None]
-    st = np.sin(theta)[..., None]
-    return c + rho[..., None] * (ct * u + st * v)
+NAN3 = (math.nan, math.nan, math.nan)
 
 
-def _gap(surface, c, u, v, rho, theta):
-    """Vertical gap z - h(x, y) of the circle point at ``theta`` and its theta-derivative."""
-    q = _point(c, u, v, rho, theta)
-    ct = np.cos(theta)[..., None]
-    st = np.sin(theta)[..., None]
-    dq = rho[..., None] * (-st * u + ct * v)
-    h, hx, hy = surface.height_gradient(q[..., 0], q[..., 1])
-    return q, q[..., 2] - h, dq[..., 2] - hx * dq[..., 0] - hy * dq[..., 1]
+@jit
+def _gap(kind, par, c, u, v, rho, t):
+    """Circle point q at angle t (mm), its vertical gap z - h(x, y), the gap's t-derivative
+    and the mould gradient (dh/dx, dh/dy) at q."""
+    ct, st = math.cos(t), math.sin(t)
+    q = (c[0] + rho * (ct * u[0] + st * v[0]), c[1] + rho * (ct * u[1] + st * v[1]),
+         c[2] + rho * (ct * u[2] + st * v[2]))
+    d0, d1, d2 = rho * (-st * u[0] + ct * v[0]), rho * (-st * u[1] + ct * v[1]), rho * (-st * u[2] + ct * v[2])
+    h, hx, hy = height_gradient(kind, par, q[0], q[1])
+    return q, q[2] - h, d2 - hx * d0 - hy * d1, hx, hy
 
 
-def solve_on_circle(surface, c, u, v, rho, tol):
-    """Point of the circle ``c + rho (cos t u + sin t v)`` on the surface, |t| < THETA_MAX.
-
-    Returns ``(q, ok)``: q (..., 3) with NaN where no root was found, and ok (bool).
-    The root nearest t = 0 is taken. ``tol`` is the vertical gap accepted (mm).
-    Newton iterates only on the entries that have not yet converged.
-    """
-    shape = np.broadcast_shapes(c.shape, u.shape, v.shape, rho.shape + (3,))[:-1]
-    c, u, v = (np.broadcast_to(a, shape + (3,)).reshape(-1, 3) for a in (c, u, v))
-    rho = np.broadcast_to(rho, shape).reshape(-1)
-    with np.errstate(invalid="ignore"):
-        finite = np.isfinite(c.sum(-1) + u.sum(-1) + v.sum(-1) + rho) & (rho > 0)
-    if not finite.all():  # keep NaN out of the surface (an STL spline would refuse it)
-        c, u, v = (np.where(finite[:, None], a, 0.0) for a in (c, u, v))
-        rho = np.where(finite, rho, 1.0)
-    theta = np.zeros(rho.shape)
-    active = None  # first sweeps over every entry; then only the unconverged are gathered
-    with np.errstate(divide="ignore", invalid="ignore"):
-        for sweep in range(_NEWTON_ITERS):
-            if active is None:
-                _, g, dg = _gap(surface, c, u, v, rho, theta)
-                done = ~finite | (np.abs(g) < tol)
-            else:
-                _, g, dg = _gap(surface, c[active], u[active], v[active], rho[active], theta[active])
-                done = np.abs(g) < tol
-            step = np.clip(-g / dg, -0.2, 0.2)
-            moving = np.isfinite(step) & ~done
-            if active is None:
-                theta += np.where(moving, step, 0.0)
-                if sweep == 1:
-                    active = np.flatnonzero(moving)
-            else:
-                theta[active] += np.where(moving, step, 0.0)
-                active = active[moving]
-            if active is not None and active.size == 0:
-                break
-    q = _point(c, u, v, rho, theta)
-    g = q[:, 2] - surface.height(q[:, 0], q[:, 1])
-    ok = finite & (np.abs(g) < tol) & (np.abs(theta) < THETA_MAX)
-    retry = finite & ~ok
-    if retry.any():
-        q_r, ok_r = _bracket(surface, c[retry], u[retry], v[retry], rho[retry], tol)
-        q[retry] = q_r
-        ok[retry] = ok_r
-    q[~ok] = np.nan
-    return q.reshape(shape + (3,)), ok.reshape(shape)
-
-
-def _bracket(surface, c, u, v, rho, tol):
-    """Sign-change search on a grid of circle angles, then Illinois false position."""
-    grid = np.linspace(-THETA_MAX, THETA_MAX, _BRACKET_SAMPLES)
-    m = rho.shape[0]
-    t = np.broadcast_to(grid, (m, grid.size))
-    _, g, _ = _gap(surface, c[:, None], u[:, None], v[:, None], rho[:, None], t)
-    change = np.sign(g[:, :-1]) * np.sign(g[:, 1:]) <= 0
-    centre = np.abs(0.5 * (grid[:-1] + grid[1:]))
-    score = np.where(change, centre, np.inf)
-    pick = np.argmin(score, axis=1)
-    found = np.isfinite(score[np.arange(m), pick])
-    a = grid[pick]
-    b = grid[pick + 1]
-    ga = g[np.arange(m), pick]
-    gb = g[np.arange(m), pick + 1]
-    side = np.zeros(m)
+@jit
+def _bracket(kind, par, c, u, v, rho, tol):
+    """Sign change nearest t = 0 on a grid of circle angles, then Illinois false position."""
+    grid = _BRACKET_GRID
+    m = grid.size
+    g = np.empty(m)
+    for s in range(m):
+        g[s] = _gap(kind, par, c, u, v, rho, grid[s])[1]
+    pick, best = 0, math.inf
+    for s in range(m - 1):
+        centre = abs(0.5 * (grid[s] + grid[s + 1]))
+        if np.sign(g[s]) * np.sign(g[s + 1]) <= 0 and centre < best:
+            pick, best = s, centre
+    found = best < math.inf
+    a, b = grid[pick], grid[pick + 1]
+    ga, gb = g[pick], g[pick + 1]
+    side = 0
     t = 0.5 * (a + b)
-    settled = ~found  # entries stop once converged, so a batch equals single calls
-    with np.errstate(divide="ignore", invalid="ignore"):
+    if found:
         for _ in range(_BRACKET_ITERS):
-            t_new = np.where(gb != ga, b - gb * (b - a) / (gb - ga), 0.5 * (a + b))
-            t_new = np.where((t_new > np.minimum(a, b)) & (t_new < np.maximum(a, b)), t_new, 0.5 * (a + b))
-            _, g_new, _ = _gap(surface, c, u, v, rho, t_new)
-            t = np.where(settled, t, t_new)
-            settled |= np.abs(g_new) < tol
+            t_new = b - gb * (b - a) / (gb - ga) if gb != ga else 0.5 * (a + b)
+            if not (min(a, b) < t_new < max(a, b)):
+                t_new = 0.5 * (a + b)
+            g_new = _gap(kind, par, c, u, v, rho, t_new)[1]
+            t = t_new
+            if abs(g_new) < tol:
+                break
             left = np.sign(g_new) == np.sign(ga)
             # Illinois: halve the retained end's value when the same end is kept twice.
-            gb = np.where(left & (side == 1), 0.5 * gb, gb)
-            ga = np.where(~left & (side == -1), 0.5 * ga, ga)
-            a = np.where(left, t_new, a)
-            ga = np.where(left, g_new, ga)
-            b = np.where(left, b, t_new)
-            gb = np.where(left, gb, g_new)
-            side = np.where(left, 1, -1)
-            if settled.all():
-                break
-    q, g, _ = _gap(surface, c, u, v, rho, t)
-    return q, found & (np.abs(g) < tol)
+            if left and side == 1:
+                gb = 0.5 * gb
+            if not left and side == -1:
+                ga = 0.5 * ga
+            if left:
+                a, ga = t_new, g_new
+            else:
+                b, gb = t_new, g_new
+            side = 1 if left else -1
+    q, g_t, _, hx, hy = _gap(kind, par, c, u, v, rho, t)
+    return q, found and abs(g_t) < tol, hx, hy
 
 
-def unit(a):
-    return a / norm(a)[..., None]
+@jit
+def _solve_on_circle(kind, par, c, u, v, rho, tol):
+    """Point of the circle ``c + rho (cos t u + sin t v)`` on the surface, |t| < THETA_MAX.
+
+    Returns (q, ok, dh/dx, dh/dy at q): the root nearest t = 0 by safeguarded Newton
+    (steps clipped to 0.2 rad), falling back to a bracketing search; ``tol`` is the
+    vertical gap accepted (mm).
+    """
+    if not (math.isfinite(c[0] + c[1] + c[2] + u[0] + u[1] + u[2] + v[0] + v[1] + v[2] + rho) and rho > 0):
+        return NAN3, False, math.nan, math.nan
+    theta = 0.0
+    q, g, dg, hx, hy = _gap(kind, par, c, u, v, rho, theta)
+    for _ in range(_NEWTON_ITERS):
+        if abs(g) < tol:
+            break
+        step = -g / dg
+        if math.isnan(step):
+            break
+        theta += min(max(step, -0.2), 0.2)
+        q, g, dg, hx, hy = _gap(kind, par, c, u, v, rho, theta)
+    if abs(g) < tol and abs(theta) < THETA_MAX:
+        return q, True, hx, hy
+    return _bracket(kind, par, c, u, v, rho, tol)
 
 
-def norm(a):
-    """Euclidean length over the last axis (faster than np.linalg.norm for (..., 3))."""
-    return np.sqrt(dot(a, a))
+@jit
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-def dot(a, b):
-    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+@jit
+def _cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
-def cross(a, b):
-    """Cross product over the last axis, written out (np.cross is slow on small axes)."""
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+@jit
+def _unit(a):
+    s = math.sqrt(_dot(a, a))
+    return (a[0] / s, a[1] / s, a[2] / s)
 
 
-def arm_step(surface, p, direction, turn, length, tol):
-    """Next generator-arm node: distance ``length`` from ``p`` along the surface direction
-    obtained by turning ``direction`` by ``turn`` (rad) about the surface normal at ``p``.
+@jit
+def _normal(kind, par, x, y):
+    _, hx, hy = height_gradient(kind, par, x, y)
+    s = math.sqrt(hx * hx + hy * hy + 1.0)
+    return (-hx / s, -hy / s, 1.0 / s)
+
+
+@jit
+def _status(kind, par, q, ok, parents_valid):
+    """Status code of a placed node (``Status``)."""
+    if not parents_valid:
+        return DEPENDENT
+    if not ok:
+        return NO_INTERSECTION
+    if not inside(kind, par, q[0], q[1]):
+        return OFF_MOULD
+    return OK
+
+
+@jit
+def arm_node(kind, par, p, direction, turn, length, tol):
+    """Next generator-arm node: distance ``length`` (mm) from ``p`` along the surface
+    direction obtained by turning ``direction`` by ``turn`` (rad) about the normal at ``p``.
 
     ``turn = 0`` gives the discrete geodesic (straightest) path. Returns (q, status).
     """
-    n = surface.normal(p[..., 0], p[..., 1])
-    t = unit(direction - dot(direction, n)[..., None] * n)
-    w = cross(n, t)
-    t = np.cos(turn)[..., None] * t + np.sin(turn)[..., None] * w
-    q, ok = solve_on_circle(surface, p, t, n, length, tol)
-    return q, _status(surface, q, ok, np.isfinite(p.sum(-1) + direction.sum(-1)))
+    n = _normal(kind, par, p[0], p[1])
+    dn = _dot(direction, n)
+    t = _unit((direction[0] - dn * n[0], direction[1] - dn * n[1], direction[2] - dn * n[2]))
+    w = _cross(n, t)
+    ct, st = math.cos(turn), math.sin(turn)
+    t = (ct * t[0] + st * w[0], ct * t[1] + st * w[1], ct * t[2] + st * w[2])
+    q, ok, _, _ = _solve_on_circle(kind, par, p, t, n, length, tol)
+    parents = math.isfinite(p[0] + p[1] + p[2] + direction[0] + direction[1] + direction[2])
+    status = _status(kind, par, q, ok, parents)
+    return (q if status == OK else NAN3), status
 
 
-def fill_node(surface, a, b, c, la, lb, sign_ij, tol):
-    """Node at distance ``la`` from its fibre-1 neighbour ``a`` and ``lb`` from its fibre-2
-    neighbour ``b``, on the side away from the diagonal-opposite node ``c``.
+@jit
+def fill(kind, par, a, b, c, la, lb, sign_ij, tol):
+    """Node at distance ``la`` (mm) from its fibre-1 neighbour ``a`` and ``lb`` from its
+    fibre-2 neighbour ``b``, on the side away from the diagonal-opposite node ``c``.
 
-    ``sign_ij`` is (i_node - i_a) * (j_node - j_b) = +-1: the orientation that a right-handed
-    cell must keep (a node whose cell turns over is flagged FOLDED). Returns (q, status).
+    ``sign_ij`` is (i_node - i_a) * (j_node - j_b) = +-1: the orientation that a
+    right-handed cell must keep (a node whose cell turns over is FOLDED). Returns (q, status).
     """
-    ab = b - a
-    d = norm(ab)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        e = ab / d[..., None]
-        along = (la**2 - lb**2 + d**2) / (2 * d)
-        rho = np.sqrt(la**2 - along**2)
-        centre = a + along[..., None] * e
-        guess = a + b - c - centre
-        u = unit(guess - dot(guess, e)[..., None] * e)
-    v = cross(e, u)
-    q, ok = solve_on_circle(surface, centre, u, v, rho, tol)
-    parents = np.isfinite(a.sum(-1) + b.sum(-1) + c.sum(-1))  # NaN marks an invalid node
-    status = _status(surface, q, ok, parents)
-    n = surface.normal(q[..., 0], q[..., 1])
-    with np.errstate(invalid="ignore"):
-        turned = sign_ij * dot(cross(q - a, q - b), n) <= 0
-    status = np.where((status == Status.OK) & turned, Status.FOLDED, status).astype(np.int8)
-    q[status != Status.OK] = np.nan
-    return q, status
+    ab = (b[0] - a[0], b[1] - a[1], b[2] - a[2])
+    d = math.sqrt(_dot(ab, ab))
+    e = (ab[0] / d, ab[1] / d, ab[2] / d)
+    along = (la * la - lb * lb + d * d) / (2 * d)
+    rho = math.sqrt(la * la - along * along)
+    centre = (a[0] + along * e[0], a[1] + along * e[1], a[2] + along * e[2])
+    guess = (a[0] + b[0] - c[0] - centre[0], a[1] + b[1] - c[1] - centre[1], a[2] + b[2] - c[2] - centre[2])
+    ge = _dot(guess, e)
+    u = _unit((guess[0] - ge * e[0], guess[1] - ge * e[1], guess[2] - ge * e[2]))
+    v = _cross(e, u)
+    q, ok, hx, hy = _solve_on_circle(kind, par, centre, u, v, rho, tol)
+    parents = math.isfinite(a[0] + a[1] + a[2] + b[0] + b[1] + b[2] + c[0] + c[1] + c[2])
+    status = _status(kind, par, q, ok, parents)
+    if status == OK:
+        s = math.sqrt(hx * hx + hy * hy + 1.0)  # the normal at q, from the root's last gradient
+        n = (-hx / s, -hy / s, 1.0 / s)
+        qa = (q[0] - a[0], q[1] - a[1], q[2] - a[2])
+        qb = (q[0] - b[0], q[1] - b[1], q[2] - b[2])
+        if sign_ij * _dot(_cross(qa, qb), n) <= 0:
+            status = FOLDED
+    return (q if status == OK else NAN3), status
 
 
-def _status(surface, q, ok, parents_valid):
-    parents_valid = np.broadcast_to(parents_valid, ok.shape)
-    inside = np.zeros(ok.shape, bool)
-    inside[ok] = surface.inside(q[ok][:, 0], q[ok][:, 1])
-    status = np.full(ok.shape, Status.OK, np.int8)
-    status[~ok] = Status.NO_INTERSECTION
-    status[ok & ~inside] = Status.OFF_MOULD
-    status[~parents_valid] = Status.DEPENDENT
-    q[status != Status.OK] = np.nan
-    return status
+@jit
+def _asin1(c):
+    return math.asin(min(max(c, -1.0), 1.0))
 
 
-def quad_shear(q0, q1, q2, q3, eps0):
-    """Signed shear (rad) of the cell with corners q0..q3 in cyclic order.
+@jit
+def net_shear(P, out):
+    """Signed cell shear (rad) of nets P (R, N, N, 3) into out (R, N-1, N-1): the value of
+    ``shear`` per cell, with each unit edge computed once per net (the corner shear is
+    arcsin of the dot product of the cell's +i and +j unit edges)."""
+    N = P.shape[1]
+    ei = np.empty((N - 1, N, 3))  # +i edges
+    ej = np.empty((N, N - 1, 3))  # +j edges
+    for r in range(P.shape[0]):
+        for a in range(N):
+            for b in range(N):
+                p = (P[r, a, b, 0], P[r, a, b, 1], P[r, a, b, 2])
+                if a + 1 < N:
+                    ei[a, b, 0], ei[a, b, 1], ei[a, b, 2] = _unit(
+                        (P[r, a + 1, b, 0] - p[0], P[r, a + 1, b, 1] - p[1], P[r, a + 1, b, 2] - p[2]))
+                if b + 1 < N:
+                    ej[a, b, 0], ej[a, b, 1], ej[a, b, 2] = _unit(
+                        (P[r, a, b + 1, 0] - p[0], P[r, a, b + 1, 1] - p[1], P[r, a, b + 1, 2] - p[2]))
+        for a in range(N - 1):
+            for b in range(N - 1):
+                lo, hi, left, right = ei[a, b], ei[a, b + 1], ej[a, b], ej[a + 1, b]
+                out[r, a, b] = 0.25 * (_asin1(_dot(lo, left)) + _asin1(_dot(lo, right)) + _asin1(_dot(hi, left))
+                                       + _asin1(_dot(hi, right)))
+
+
+def _flat(shape, *arrays):
+    """(array, is_point) pairs broadcast to ``shape`` (+ (3,) for points), flattened, float64."""
+    out = []
+    for a, point in arrays:
+        tail = (3,) if point else ()
+        out.append(np.ascontiguousarray(np.broadcast_to(a, shape + tail)).reshape((-1,) + tail))
+    return out
+
+
+@jit
+def shear(q0, q1, q2, q3, eps0):
+    """Signed shear (rad) of the cell with corners q0..q3 (3-tuples, mm) in cyclic order.
 
     ``eps0`` is +1 when q0 is the cell's (min i, min j) or (max i, max j) corner and -1
     otherwise. At each corner the shear is 90 deg minus the angle between the +i and +j
     edges, i.e. arcsin of the cosine of that angle, with the sign alternating round the
     cell; the cell value is the mean of the four.
     """
-    e01, e12, e23, e30 = (unit(b - a) for a, b in ((q0, q1), (q1, q2), (q2, q3), (q3, q0)))
-    s = (
-        np.arcsin(np.clip(-dot(e30, e01), -1.0, 1.0))
-        - np.arcsin(np.clip(-dot(e01, e12), -1.0, 1.0))
-        + np.arcsin(np.clip(-dot(e12, e23), -1.0, 1.0))
-        - np.arcsin(np.clip(-dot(e23, e30), -1.0, 1.0))
-    )
+    e01 = _unit((q1[0] - q0[0], q1[1] - q0[1], q1[2] - q0[2]))
+    e12 = _unit((q2[0] - q1[0], q2[1] - q1[1], q2[2] - q1[2]))
+    e23 = _unit((q3[0] - q2[0], q3[1] - q2[1], q3[2] - q2[2]))
+    e30 = _unit((q0[0] - q3[0], q0[1] - q3[1], q0[2] - q3[2]))
+    s = (math.asin(min(max(-_dot(e30, e01), -1.0), 1.0)) - math.asin(min(max(-_dot(e01, e12), -1.0), 1.0))
+         + math.asin(min(max(-_dot(e12, e23), -1.0), 1.0)) - math.asin(min(max(-_dot(e23, e30), -1.0), 1.0)))
     return 0.25 * eps0 * s
+
+
+@jit
+def _shear_many(q0, q1, q2, q3, eps0, out):
+    for m in range(out.size):
+        out[m] = shear((q0[m, 0], q0[m, 1], q0[m, 2]), (q1[m, 0], q1[m, 1], q1[m, 2]),
+                       (q2[m, 0], q2[m, 1], q2[m, 2]), (q3[m, 0], q3[m, 1], q3[m, 2]), eps0[m])
+
+
+def quad_shear(q0, q1, q2, q3, eps0):
+    """``shear`` over broadcast arrays: corners (..., 3) mm, eps0 (...) -> shear (...) rad."""
+    q0, q1, q2, q3, eps0 = (np.asarray(a, float) for a in (q0, q1, q2, q3, eps0))
+    shape = np.broadcast_shapes(q0.shape[:-1], q1.shape[:-1], q2.shape[:-1], q3.shape[:-1], eps0.shape)
+    args = _flat(shape, (q0, True), (q1, True), (q2, True), (q3, True), (eps0, False))
+    out = np.empty(args[-1].size)
+    _shear_many(*args, out)
+    return out.reshape(shape)

@@ -11,14 +11,14 @@ import xarray as xr
 from .. import __version__
 from ..schema import SOLVER_INPUTS
 from .energy import BlankHolder
-from .kernels import dot, unit
+from .kernels import net_shear
 from .net import QUADRANTS, EnergyRings, NetProblem, build_geodesic
 from .status import Status
 
 MODES = ("geodesic", "energy")
-#: Realisations solved together per block: large enough to amortise the Python steps,
-#: small enough that a block's nets stay in cache (1,000 at once ran 25 % slower per drape).
-BLOCK = 256
+#: Realisations solved and post-processed together per block (the solver is compiled per
+#: realisation; the block bounds the memory of the Dataset's temporaries).
+BLOCK = 1024
 
 
 def _per_realisation(name, value, tail, R):
@@ -149,14 +149,13 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
 def cell_shear(P):
     """Signed cell shear (rad), (R, 2n, 2n), of net positions P (R, N, N, 3).
 
-    Same value as ``quad_shear`` per cell, with each unit edge computed once for the net:
-    the corner shear is arcsin of the dot product of the +i and +j unit edges.
+    Same value as ``quad_shear`` per cell, with each unit edge computed once for the net
+    (``kernels.net_shear``).
     """
-    ei = unit(P[:, 1:] - P[:, :-1])  # +i edges (R, 2n, 2n+1, 3)
-    ej = unit(P[:, :, 1:] - P[:, :, :-1])  # +j edges (R, 2n+1, 2n, 3)
-    lo, hi, left, right = ei[:, :, :-1], ei[:, :, 1:], ej[:, :-1], ej[:, 1:]
-    corners = [dot(lo, left), dot(lo, right), dot(hi, left), dot(hi, right)]
-    return 0.25 * sum(np.arcsin(np.clip(c, -1.0, 1.0)) for c in corners)
+    R, N = P.shape[:2]
+    out = np.empty((R, N - 1, N - 1))
+    net_shear(np.ascontiguousarray(P, float), out)
+    return out
 
 
 def node_mean(cells):
@@ -195,6 +194,11 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
     node = ("realization", "i", "j")
     cell = ("realization", "cell_i", "cell_j")
     total = np.nan_to_num(shear_energy) + bending + bh.sum(-1)
+    inputs = {}  # the per-realisation inputs, built with the Dataset (one alignment, not one per input)
+    for name, value in factors.items():
+        inp = SOLVER_INPUTS.get(name)
+        attrs = {"units": inp.units, "long_name": inp.long_name} if inp else {"units": "1", "long_name": f"sampled input {name}"}
+        inputs[name] = ("realization", np.asarray(value, dtype=float), attrs)
     ds = xr.Dataset(
         {
             "x": (node, P[..., 0], {"units": "mm", "long_name": "node x"}),
@@ -219,6 +223,7 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
             "energy_total": ("realization", total, {"units": "J", "long_name": "total forming energy"}),
             "iterations": ("realization", iterations, {"long_name": "minimiser iterations, all steps", "units": "1"}),
             "converged": ("realization", converged, {"long_name": "minimiser converged at every step", "units": "1"}),
+            **inputs,
         },
         coords={"realization": np.arange(prob.R), "i": idx, "j": idx, "cell_i": cidx, "cell_j": cidx,
                 "ring": np.arange(1, n + 1), "arm": ["+i", "+j", "-i", "-j"], "quadrant": list(QUADRANTS)},
@@ -231,8 +236,4 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
                "status_codes": Status.describe(), "uqdrape_version": __version__,
                "Conventions": "CF-1.8"},
     )
-    for name, value in factors.items():
-        inp = SOLVER_INPUTS.get(name)
-        attrs = {"units": inp.units, "long_name": inp.long_name} if inp else {"units": "1", "long_name": f"sampled input {name}"}
-        ds[name] = ("realization", np.asarray(value, dtype=float), attrs)
     return ds

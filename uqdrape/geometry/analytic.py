@@ -2,7 +2,9 @@
 
 Every mould stands on the plane z = 0 (the flange or blank-holder level) unless it has
 no rim (cylinder, saddle). Where a slope becomes vertical (hemisphere rim) the gradient
-is clipped to a large finite value, so callers never see NaN or inf.
+is clipped to a large finite value, so callers never see NaN or inf. Each class sets
+``kernel``, its kind code and parameters for ``compiled.height_gradient``, which holds
+the shape formulas.
 
 Each class has ``bounds`` = (xmin, xmax, ymin, ymax) in mm, the plan rectangle that
 holds its domain; ``params()`` returns exactly the constructor arguments, so
@@ -15,11 +17,8 @@ import math
 
 import numpy as np
 
+from . import compiled
 from .base import Surface
-
-# Smallest radius used to form x / r on surfaces of revolution (mm); at r = 0 the
-# in-plane direction is undefined and the gradient is reported as 0.
-_R_EPS = 1e-12
 
 
 #: Largest mould dimension accepted (mm): beyond any press, and far from float overflow.
@@ -64,39 +63,9 @@ class _SquareDomain(Surface):
 
     _half: float
 
-    def inside(self, x, y):
-        return (np.abs(x) <= self._half) & (np.abs(y) <= self._half)
-
     @property
     def bounds(self):
         return (-self._half, self._half, -self._half, self._half)
-
-
-class _Revolution(_SquareDomain):
-    """Surface of revolution about the z axis, z = f(r), on a square flange.
-
-    Subclasses give the profile ``_profile(r)`` and its slope ``_slope(r)`` = df/dr
-    (both vectorised, r >= 0); the slope must be 0 where the profile is the flange.
-    """
-
-    def _profile(self, r):
-        raise NotImplementedError
-
-    def _slope(self, r):
-        raise NotImplementedError
-
-    def height(self, x, y):
-        x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
-        return self._profile(np.hypot(x, y))
-
-    def gradient(self, x, y):
-        return self.height_gradient(x, y)[1:]
-
-    def height_gradient(self, x, y):
-        x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
-        r = np.hypot(x, y)
-        k = self._slope(r) / np.maximum(r, _R_EPS)
-        return self._profile(r), k * x, k * y
 
 
 class Plate(_SquareDomain):
@@ -108,19 +77,13 @@ class Plate(_SquareDomain):
         self.half_width = _length("half_width", half_width)
         self._half = self.half_width
         self.size = self.half_width
-
-    def height(self, x, y):
-        return np.zeros(np.broadcast(x, y).shape)
-
-    def gradient(self, x, y):
-        z = np.zeros(np.broadcast(x, y).shape)
-        return z, z.copy()
+        self.kernel = (compiled.PLATE, np.array([self._half]))
 
     def params(self):
         return {"half_width": self.half_width}
 
 
-class Hemisphere(_Revolution):
+class Hemisphere(_SquareDomain):
     """Hemisphere of radius R (mm) centred at the origin, standing on a flat flange z = 0.
 
     The flange is the square |x|, |y| <= flange_half_width (default 2R). The slope is
@@ -135,14 +98,7 @@ class Hemisphere(_Revolution):
         self.flange_half_width = _flange(flange_half_width, self.radius)
         self._half = self.flange_half_width
         self.size = self.radius
-
-    def _profile(self, r):
-        return np.sqrt(np.maximum(self.radius**2 - r**2, 0.0))
-
-    def _slope(self, r):
-        q = self.radius**2 - r**2
-        root = np.maximum(np.sqrt(np.maximum(q, 0.0)), 1e-9 * self.radius)
-        return np.where(q > 0, -r / root, 0.0)
+        self.kernel = (compiled.HEMISPHERE, np.array([self._half, self.radius]))
 
     def params(self):
         return {"radius": self.radius, "flange_half_width": self.flange_half_width}
@@ -168,27 +124,8 @@ class Cylinder(Surface):
             raise ValueError(f"axis must be 'x' or 'y', got {axis!r}")
         self.axis = axis
         self.size = self.radius
-
-    def _across(self, x, y):
-        """(along-axis, across-axis) coordinates, broadcast, float64."""
-        x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
-        return (x, y) if self.axis == "x" else (y, x)
-
-    def height(self, x, y):
-        _, c = self._across(x, y)
-        return np.sqrt(np.maximum(self.radius**2 - c**2, 0.0))
-
-    def gradient(self, x, y):
-        _, c = self._across(x, y)
-        q = self.radius**2 - c**2
-        root = np.maximum(np.sqrt(np.maximum(q, 0.0)), 1e-9 * self.radius)
-        across = np.where(q > 0, -c / root, 0.0)
-        along = np.zeros_like(across)
-        return (along, across) if self.axis == "x" else (across, along)
-
-    def inside(self, x, y):
-        a, c = self._across(x, y)
-        return (np.abs(a) <= 0.5 * self.length) & (np.abs(c) <= self.WIDTH_FRACTION * self.radius)
+        self.kernel = (compiled.CYLINDER,
+                       np.array([self.radius, self.length, 0.0 if axis == "x" else 1.0, self.WIDTH_FRACTION]))
 
     @property
     def bounds(self):
@@ -199,7 +136,7 @@ class Cylinder(Surface):
         return {"radius": self.radius, "length": self.length, "axis": self.axis}
 
 
-class Cone(_Revolution):
+class Cone(_SquareDomain):
     """Right circular cone, apex up on the z axis, on a flat flange z = 0.
 
     z = H - r / tan(half_angle) for r <= R_base = H tan(half_angle), else 0; the slope
@@ -223,12 +160,7 @@ class Cone(_Revolution):
         self.flange_half_width = _flange(flange_half_width, self.base_radius)
         self._half = self.flange_half_width
         self.size = self.base_radius
-
-    def _profile(self, r):
-        return np.maximum(self.cone_height - r * self._cot, 0.0)
-
-    def _slope(self, r):
-        return np.where(r < self.base_radius, -self._cot, 0.0)
+        self.kernel = (compiled.CONE, np.array([self._half, self.cone_height, self._cot, self.base_radius]))
 
     def params(self):
         return {
@@ -238,7 +170,7 @@ class Cone(_Revolution):
         }
 
 
-class NoseCone(_Revolution):
+class NoseCone(_SquareDomain):
     """Nose cone: a cone with a spherical tip blended tangentially, tip up at (0, 0).
 
     Profile (r = plan distance from the axis): a sphere of radius ``tip_radius`` for
@@ -282,17 +214,8 @@ class NoseCone(_Revolution):
         self.flange_half_width = _flange(flange_half_width, self.base_radius)
         self._half = self.flange_half_width
         self.size = self.base_radius
-
-    def _profile(self, r):
-        sphere = self._z_centre + np.sqrt(np.maximum(self.tip_radius**2 - r**2, 0.0))
-        cone = np.maximum((self.base_radius - r) * self._cot, 0.0)
-        return np.where(r <= self.blend_radius, sphere, cone)
-
-    def _slope(self, r):
-        rs = np.minimum(r, self.blend_radius)  # keeps the sphere branch finite
-        sphere = -rs / np.sqrt(self.tip_radius**2 - rs**2)
-        cone = np.where(r < self.base_radius, -self._cot, 0.0)
-        return np.where(r <= self.blend_radius, sphere, cone)
+        self.kernel = (compiled.NOSE_CONE, np.array([self._half, self.base_radius, self._cot, self.tip_radius, self.blend_radius,
+                                             self._z_centre]))
 
     def params(self):
         return {
@@ -350,37 +273,8 @@ class DoubleDome(_SquareDomain):
             )
         self._half = self.flange_half_width
         self.size = reach
-
-    def _cap(self, x, y, xc):
-        """One cap continued by its tangent cone: (f, df/dx, df/dy), everywhere finite."""
-        dx = x - xc
-        r = np.hypot(dx, y)
-        on = r <= self.base_radius
-        root = np.sqrt(np.maximum(self.dome_radius**2 - r**2, 0.0))
-        f = np.where(on, root - self._depth, (self.base_radius - r) * self._rim_slope)
-        # df/dr / r on each branch; root >= depth > 0 where ``on``
-        k = np.where(on, -1.0 / np.where(on, root, 1.0), -self._rim_slope / np.maximum(r, _R_EPS))
-        return f, k * dx, k * y
-
-    def _smooth(self, x, y):
-        """Smooth maximum of the two caps and its gradient."""
-        x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
-        d = 0.5 * self.centre_distance
-        f1, g1x, g1y = self._cap(x, y, -d)
-        f2, g2x, g2y = self._cap(x, y, d)
-        k = self.blend
-        gap = np.maximum(k - np.abs(f1 - f2), 0.0)
-        f = np.maximum(f1, f2) + gap**2 / (4 * k)
-        w = np.clip(0.5 + (f1 - f2) / (2 * k), 0.0, 1.0)  # weight of cap 1 in the gradient
-        return f, w * g1x + (1 - w) * g2x, w * g1y + (1 - w) * g2y
-
-    def height(self, x, y):
-        return np.maximum(self._smooth(x, y)[0], 0.0)
-
-    def gradient(self, x, y):
-        f, gx, gy = self._smooth(x, y)
-        up = f > 0
-        return np.where(up, gx, 0.0), np.where(up, gy, 0.0)
+        self.kernel = (compiled.DOUBLE_DOME, np.array([self._half, self.dome_radius, self.base_radius, self.centre_distance,
+                                               self.blend, self._depth, self._rim_slope]))
 
     def params(self):
         return {
@@ -406,14 +300,7 @@ class Saddle(_SquareDomain):
         self.half_width = _length("half_width", half_width)
         self._half = self.half_width
         self.size = self.half_width
-
-    def height(self, x, y):
-        x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
-        return (x**2 - y**2) / (2 * self.radius)
-
-    def gradient(self, x, y):
-        x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
-        return x / self.radius, -y / self.radius
+        self.kernel = (compiled.SADDLE, np.array([self._half, self.radius]))
 
     def params(self):
         return {"radius": self.radius, "half_width": self.half_width}

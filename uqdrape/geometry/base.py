@@ -8,32 +8,37 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import compiled
+
 
 class Surface:
     """Base class of every mould.
 
-    Subclasses implement ``height``, ``gradient`` and ``inside`` and set ``name`` and
-    ``size`` (a characteristic length in mm, used for tolerances and plots).
+    Subclasses set ``kernel = (kind, params)``, the compiled description of their shape
+    (``uqdrape.geometry.compiled``), and ``name`` and ``size`` (a characteristic length
+    in mm, used for tolerances and plots). Height, gradient, domain and normal are the
+    compiled functions evaluated point by point.
     """
 
     name: str = "surface"
     size: float = 100.0
+    kernel: tuple
 
     def height(self, x, y):
         """Surface height z (mm) at plan position (x, y) (mm)."""
-        raise NotImplementedError
+        return compiled.evaluate(self.kernel, x, y)[0]
 
     def gradient(self, x, y):
         """Tuple (dh/dx, dh/dy), dimensionless, at (x, y)."""
-        raise NotImplementedError
+        return compiled.evaluate(self.kernel, x, y)[1:]
 
     def inside(self, x, y):
         """Boolean array: True where (x, y) lies in the mould's domain."""
-        raise NotImplementedError
+        return compiled.evaluate_inside(self.kernel, x, y)
 
     def height_gradient(self, x, y):
-        """(h, dh/dx, dh/dy) in one call; subclasses override it to share work."""
-        return (self.height(x, y), *self.gradient(x, y))
+        """(h, dh/dx, dh/dy) in one call."""
+        return compiled.evaluate(self.kernel, x, y)
 
     def params(self) -> dict:
         """Shape parameters (for netCDF attributes and reports)."""

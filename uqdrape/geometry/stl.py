@@ -4,7 +4,8 @@
 (the highest triangle over each grid node: a z-buffer, the same answer as casting a ray
 downwards and keeping the first hit) and interpolates it with a cubic
 ``scipy.interpolate.RectBivariateSpline``, so height and gradient are smooth and the
-node solver's Newton steps converge. trimesh's own ray casting needs the optional
+node solver's Newton steps converge. The spline is fitted by scipy and evaluated by the
+compiled mould kernel (``compiled.height_gradient``, kind STL) like every other mould. trimesh's own ray casting needs the optional
 ``rtree`` package, so the z-buffer uses trimesh's barycentric coordinates instead.
 
 ``export_stl`` writes any Surface's height field as a binary STL. The test mesh
@@ -23,6 +24,7 @@ import trimesh
 from scipy.interpolate import RectBivariateSpline
 from scipy.ndimage import distance_transform_edt
 
+from . import compiled
 from .base import Surface
 
 # Largest number of (triangle, grid node) candidate pairs tested at once (memory bound).
@@ -135,29 +137,12 @@ class StlSurface(Surface):
         # fill uncovered nodes with their nearest covered node's height
         idx = distance_transform_edt(~self._hit, return_distances=False, return_indices=True)
         filled = top[idx[0], idx[1]]
-        self._spline = RectBivariateSpline(self._x, self._y, filled, kx=3, ky=3, s=0)
+        tx, ty, coef = RectBivariateSpline(self._x, self._y, filled, kx=3, ky=3, s=0).tck
         self.bounds = (float(xmin), float(xmax), float(ymin), float(ymax))
         self.size = 0.5 * max(xmax - xmin, ymax - ymin)
-
-    def _eval(self, x, y, dx: int, dy: int):
-        x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
-        return self._spline.ev(x.ravel(), y.ravel(), dx=dx, dy=dy).reshape(x.shape)
-
-    def height(self, x, y):
-        return self._eval(x, y, 0, 0)
-
-    def gradient(self, x, y):
-        return self._eval(x, y, 1, 0), self._eval(x, y, 0, 1)
-
-    def inside(self, x, y):
-        x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
-        ix = np.rint((x - self._x[0]) / (self._x[1] - self._x[0]))
-        iy = np.rint((y - self._y[0]) / (self._y[1] - self._y[0]))
-        xmin, xmax, ymin, ymax = self.bounds
-        ok = (x >= xmin) & (x <= xmax) & (y >= ymin) & (y <= ymax)
-        ix = np.where(ok, ix, 0).astype(np.intp)
-        iy = np.where(ok, iy, 0).astype(np.intp)
-        return ok & self._hit[ix, iy]
+        header = [self._x[0], self._x[1] - self._x[0], self._x.size, self._y[0], self._y[1] - self._y[0],
+                  self._y.size, *self.bounds, tx.size, ty.size]
+        self.kernel = (compiled.STL, np.concatenate([header, tx, ty, coef, self._hit.ravel()]).astype(float))
 
     def params(self):
         return {"path": str(self.path), "resolution_mm": self.resolution_mm}

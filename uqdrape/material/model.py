@@ -7,9 +7,13 @@ drape solver calls them from inside its batched kernels.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.integrate import cumulative_simpson
 from scipy.interpolate import CubicHermiteSpline, PchipInterpolator
+
+from .._jit import jit
 
 #: Points of the fine grid on which W is tabulated once per branch.
 TABLE_POINTS = 4097
@@ -45,25 +49,8 @@ class _Branch:
         self.w_limit = float(w[-1])
         self.slope_limit = float(dw[-1])
         # the same cubic Hermite pieces, for a lookup without a search on the uniform grid
-        self._step = grid[1] - grid[0]
-        self._w, self._dw = w, dw * self._step
-
-    def _lookup(self, x):
-        """The table's value at x in [0, limit] (rad): uniform grid, so the piece is floor(x/h)."""
-        pos = x / self._step
-        k = np.clip(pos.astype(np.intp), 0, self._w.size - 2)
-        t = pos - k
-        t2 = t * t
-        t3 = t2 * t
-        return ((2 * t3 - 3 * t2 + 1) * self._w[k] + (t3 - 2 * t2 + t) * self._dw[k]
-                + (3 * t2 - 2 * t3) * self._w[k + 1] + (t3 - t2) * self._dw[k + 1])
-
-    def energy(self, x):
-        """W along the branch (J/m²) at magnitude x (rad); quadratic wall beyond the limit."""
-        over = np.maximum(x - self.limit, 0.0)
-        with np.errstate(invalid="ignore"):
-            inside = self._lookup(np.minimum(x, self.limit))
-        return inside + over * (self.slope_limit + 0.5 * self.lock_stiffness * over)
+        self.step = grid[1] - grid[0]
+        self.w, self.dw_step = w, dw * self.step
 
     def denergy(self, x):
         """dW/dx (J/m²/rad) along the branch at magnitude x (rad)."""
@@ -71,6 +58,48 @@ class _Branch:
         inside = self.table(np.minimum(x, self.limit), 1)
         return np.where(x > self.limit, self.slope_limit + self.lock_stiffness * over, inside)
 
+
+@jit
+def _branch_energy(w, dw_step, step, limit, slope_limit, lock_stiffness, x):
+    """W along one branch (J/m²) at magnitude x >= 0 (rad): the Hermite piece floor(x / step)
+    of the uniform table up to the limit, a quadratic wall beyond it."""
+    over = max(x - limit, 0.0)
+    pos = min(x, limit) / step
+    k = min(max(int(pos), 0), w.size - 2)
+    t = pos - k
+    t2 = t * t
+    t3 = t2 * t
+    inside = ((2 * t3 - 3 * t2 + 1) * w[k] + (t3 - 2 * t2 + t) * dw_step[k]
+              + (3 * t2 - 2 * t3) * w[k + 1] + (t3 - t2) * dw_step[k + 1])
+    return inside + over * (slope_limit + 0.5 * lock_stiffness * over)
+
+
+@jit
+def energy_density(mat, g):
+    """W(γ) (J/m²) of material kernel ``mat`` (``Material.kernel``) at γ (rad); NaN -> NaN."""
+    if math.isnan(g):
+        return math.nan
+    w_pos, d_pos, w_neg, d_neg, c = mat
+    return (_branch_energy(w_pos, d_pos, c[0], c[1], c[2], c[6], max(g, 0.0))
+            + _branch_energy(w_neg, d_neg, c[3], c[4], c[5], c[6], max(-g, 0.0)))
+
+
+@jit
+def cell_energy(mat, gamma, s1, s2, gamma0):
+    """Shear energy (J) of one cell: A0 W(γ - γ0), A0 = s1 s2 sin 2φ0 (s in mm, angles rad)."""
+    return s1 * s2 * mat[4][7] * 1e-6 * energy_density(mat, gamma - gamma0)
+
+
+@jit
+def _density_many(mat, g, out):
+    for m in range(g.size):
+        out[m] = energy_density(mat, g[m])
+
+
+@jit
+def _cell_energy_many(mat, gamma, s1, s2, gamma0, out):
+    for m in range(gamma.size):
+        out[m] = cell_energy(mat, gamma[m], s1[m], s2[m], gamma0[m])
 
 def _as_curve(label, angles_deg, ns):
     """Validate one branch's (angle [deg], N_s [N/m]) points; return float arrays."""
@@ -235,6 +264,12 @@ class Material:
         stiffness = LOCK_STIFFNESS_PER_RAD * max(float(n_pos.max()), float(n_neg.max()), 1.0)
         self._pos = _Branch(np.deg2rad(a_pos), n_pos, np.deg2rad(lock_pos), self.phi0_rad, +1, stiffness)
         self._neg = _Branch(np.deg2rad(a_neg), n_neg, np.deg2rad(lock_neg), self.phi0_rad, -1, stiffness)
+        p, m = self._pos, self._neg
+        #: the compiled form of W: both branches' tables and [step, limit, end slope] of each,
+        #: the wall stiffness and sin 2φ0 (``cell_energy``)
+        self.kernel = (p.w, p.dw_step, m.w, m.dw_step,
+                       np.array([p.step, p.limit, p.slope_limit, m.step, m.limit, m.slope_limit, stiffness,
+                                 np.sin(2.0 * self.phi0_rad)]))
 
     @classmethod
     def from_curves(cls, name, angles_deg_pos, ns_pos, angles_deg_neg=None, ns_neg=None, **props):
@@ -251,7 +286,9 @@ class Material:
     def energy_density(self, gamma_rad):
         """W(γ) in J/m² per unit initial area; γ signed, in rad, any array shape; NaN -> NaN."""
         g = np.asarray(gamma_rad, dtype=float)
-        return self._pos.energy(np.maximum(g, 0.0)) + self._neg.energy(np.maximum(-g, 0.0))
+        out = np.empty(g.size)
+        _density_many(self.kernel, np.ascontiguousarray(g).ravel(), out)
+        return out.reshape(g.shape)
 
     def denergy_density(self, gamma_rad):
         """dW/dγ in J/m²/rad; at γ = 0 it returns 0 (a subgradient when N_s(0) > 0)."""
@@ -271,8 +308,10 @@ class Material:
         U = A0 · W(γ − γ0), A0 = s1·s2·sin 2φ0 the initial cell area (mm² -> m²: × 1e-6).
         Arguments broadcast against each other.
         """
-        area_m2 = np.asarray(s1_mm, dtype=float) * np.asarray(s2_mm, dtype=float) * np.sin(2.0 * self.phi0_rad) * 1e-6
-        return area_m2 * self.energy_density(np.asarray(gamma_rad, dtype=float) - gamma0_rad)
+        args = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (gamma_rad, s1_mm, s2_mm, gamma0_rad)))
+        out = np.empty(args[0].size)
+        _cell_energy_many(self.kernel, *(np.ascontiguousarray(a).ravel() for a in args), out)
+        return out.reshape(args[0].shape)
 
     def shear_force(self, gamma_rad):
         """The input curve N_s(γ) in N/m, signed (negative for γ < 0); NaN outside the data."""

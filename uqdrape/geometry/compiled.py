@@ -1,0 +1,205 @@
+"""Compiled mould evaluation: every shipped mould as a kind code and a parameter array.
+
+A ``Surface`` carries ``kernel = (kind, params)``; ``height_gradient(kind, params, x, y)``
+(one point, mm) dispatches on the kind, so the node solver's compiled loops call the
+mould without Python in between, and the Python ``Surface`` methods are thin vectorised
+wrappers of the same functions (one implementation of each shape). Kinds and their
+parameter layouts (all mm unless stated):
+
+PLATE        [half]
+HEMISPHERE   [half, R]
+CYLINDER     [R, length, axis (0: x, 1: y), width fraction]
+CONE         [half, H, cot(half-angle), base radius]
+NOSE_CONE    [half, base radius, cot(half-angle), tip radius, blend radius, sphere centre z]
+DOUBLE_DOME  [half, dome R, base radius, centre distance, blend, depth, rim slope]
+SADDLE       [half, R]
+STL          header [x0, dx, nx, y0, dy, ny, xmin, xmax, ymin, ymax, ntx, nty], then the
+             spline knots tx, ty, the bicubic B-spline coefficients (row-major over
+             (ntx - 4, nty - 4)) and the covered-node mask (nx * ny, 1.0 = covered)
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._jit import jit
+
+PLATE, HEMISPHERE, CYLINDER, CONE, NOSE_CONE, DOUBLE_DOME, SADDLE, STL = range(8)
+
+#: Smallest radius used to form x / r on surfaces of revolution (mm).
+R_EPS = 1e-12
+_STL_HEADER = 12
+
+
+@jit
+def _revolution(kind, p, r):
+    """Profile f(r) (mm) and slope df/dr of a surface of revolution."""
+    if kind == HEMISPHERE:
+        R = p[1]
+        q = R * R - r * r
+        f = math.sqrt(max(q, 0.0))
+        root = max(math.sqrt(max(q, 0.0)), 1e-9 * R)
+        return f, (-r / root if q > 0 else 0.0)
+    if kind == CONE:
+        f = max(p[1] - r * p[2], 0.0)
+        return f, (-p[2] if r < p[3] else 0.0)
+    # NOSE_CONE
+    base, cot, tip, blend, zc = p[1], p[2], p[3], p[4], p[5]
+    if r <= blend:
+        rs = min(r, blend)
+        return zc + math.sqrt(max(tip * tip - r * r, 0.0)), -rs / math.sqrt(tip * tip - rs * rs)
+    return max((base - r) * cot, 0.0), (-cot if r < base else 0.0)
+
+
+@jit
+def _cap(p, x, y, xc):
+    """One double-dome cap continued by its tangent cone: (f, df/dx, df/dy)."""
+    dome, base, depth, rim = p[1], p[2], p[5], p[6]
+    dx = x - xc
+    r = math.hypot(dx, y)
+    if r <= base:
+        root = math.sqrt(max(dome * dome - r * r, 0.0))
+        k = -1.0 / root
+        return root - depth, k * dx, k * y
+    k = -rim / max(r, R_EPS)
+    return (base - r) * rim, k * dx, k * y
+
+
+@jit
+def _bspline_basis(t, n_coef, x):
+    """Cubic B-spline basis at x (clipped to the knot span): first index, values, derivatives."""
+    x = min(max(x, t[3]), t[n_coef])
+    l = min(max(np.searchsorted(t, x, side="right") - 1, 3), n_coef - 1)
+    h = np.zeros(4)
+    d = np.zeros(4)
+    h[0] = 1.0
+    for j in range(1, 4):
+        if j == 3:  # degree-2 values give the derivative of the cubic basis
+            for m in range(4):
+                left = h[m - 1] / (t[l + m] - t[l + m - 3]) if m >= 1 else 0.0
+                right = h[m] / (t[l + m + 1] - t[l + m - 2]) if m <= 2 else 0.0
+                d[m] = 3.0 * (left - right)
+        hh = h[:j].copy()
+        h[0] = 0.0
+        for i in range(1, j + 1):
+            xb = t[l + i]
+            xa = t[l + i - j]
+            w = hh[i - 1] / (xb - xa)
+            h[i - 1] += w * (xb - x)
+            h[i] = w * (x - xa)
+    return l - 3, h, d
+
+
+@jit
+def _stl(p, x, y):
+    ntx, nty = int(p[10]), int(p[11])
+    tx = p[_STL_HEADER:_STL_HEADER + ntx]
+    ty = p[_STL_HEADER + ntx:_STL_HEADER + ntx + nty]
+    c = p[_STL_HEADER + ntx + nty:]
+    my = nty - 4
+    ix, bx, dbx = _bspline_basis(tx, ntx - 4, x)
+    iy, by, dby = _bspline_basis(ty, my, y)
+    h = 0.0
+    hx = 0.0
+    hy = 0.0
+    for a in range(4):
+        for b in range(4):
+            coef = c[(ix + a) * my + iy + b]
+            h += bx[a] * by[b] * coef
+            hx += dbx[a] * by[b] * coef
+            hy += bx[a] * dby[b] * coef
+    return h, hx, hy
+
+
+@jit
+def height_gradient(kind, p, x, y):
+    """(h, dh/dx, dh/dy) of mould ``kind`` at plan point (x, y) (mm); NaN in, NaN out."""
+    if not (math.isfinite(x) and math.isfinite(y)):
+        return math.nan, math.nan, math.nan
+    if kind == PLATE:
+        return 0.0, 0.0, 0.0
+    if kind == HEMISPHERE or kind == CONE or kind == NOSE_CONE:
+        r = math.hypot(x, y)
+        f, slope = _revolution(kind, p, r)
+        k = slope / max(r, R_EPS)
+        return f, k * x, k * y
+    if kind == CYLINDER:
+        R = p[0]
+        c = y if p[2] == 0.0 else x
+        q = R * R - c * c
+        root = max(math.sqrt(max(q, 0.0)), 1e-9 * R)
+        across = -c / root if q > 0 else 0.0
+        h = math.sqrt(max(q, 0.0))
+        return (h, 0.0, across) if p[2] == 0.0 else (h, across, 0.0)
+    if kind == DOUBLE_DOME:
+        d = 0.5 * p[3]
+        f1, g1x, g1y = _cap(p, x, y, -d)
+        f2, g2x, g2y = _cap(p, x, y, d)
+        k = p[4]
+        gap = max(k - abs(f1 - f2), 0.0)
+        f = max(f1, f2) + gap * gap / (4 * k)
+        w = min(max(0.5 + (f1 - f2) / (2 * k), 0.0), 1.0)
+        if f > 0:
+            return f, w * g1x + (1 - w) * g2x, w * g1y + (1 - w) * g2y
+        return 0.0, 0.0, 0.0
+    if kind == SADDLE:
+        return (x * x - y * y) / (2 * p[1]), x / p[1], -y / p[1]
+    return _stl(p, x, y)
+
+
+@jit
+def inside(kind, p, x, y):
+    """True where plan point (x, y) (mm) lies in the mould's domain."""
+    if kind == CYLINDER:
+        a, c = (x, y) if p[2] == 0.0 else (y, x)
+        return abs(a) <= 0.5 * p[1] and abs(c) <= p[3] * p[0]
+    if kind == STL:
+        if not (p[6] <= x <= p[7] and p[8] <= y <= p[9]):
+            return False
+        ix = int(np.rint((x - p[0]) / p[1]))
+        iy = int(np.rint((y - p[3]) / p[4]))
+        ntx, nty = int(p[10]), int(p[11])
+        start = _STL_HEADER + ntx + nty + (ntx - 4) * (nty - 4)
+        return p[start + ix * int(p[5]) + iy] > 0.5
+    return abs(x) <= p[0] and abs(y) <= p[0]
+
+
+@jit
+def normal(kind, p, x, y):
+    """Unit upward normal (3,) at (x, y)."""
+    _, hx, hy = height_gradient(kind, p, x, y)
+    s = math.sqrt(hx * hx + hy * hy + 1.0)
+    return np.array([-hx / s, -hy / s, 1.0 / s])
+
+
+@jit
+def _evaluate_many(kind, p, x, y, h, hx, hy):
+    for m in range(x.size):
+        h[m], hx[m], hy[m] = height_gradient(kind, p, x[m], y[m])
+
+
+@jit
+def _inside_many(kind, p, x, y, out):
+    for m in range(x.size):
+        out[m] = inside(kind, p, x[m], y[m])
+
+
+def evaluate(kernel, x, y):
+    """(h, dh/dx, dh/dy) arrays at broadcast plan points (mm) for ``kernel = (kind, params)``."""
+    x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
+    shape = x.shape
+    x, y = np.ascontiguousarray(x).ravel(), np.ascontiguousarray(y).ravel()
+    h, hx, hy = np.empty(x.size), np.empty(x.size), np.empty(x.size)
+    _evaluate_many(kernel[0], kernel[1], x, y, h, hx, hy)
+    return h.reshape(shape), hx.reshape(shape), hy.reshape(shape)
+
+
+def evaluate_inside(kernel, x, y):
+    """Boolean array: (x, y) inside the domain of ``kernel = (kind, params)``."""
+    x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))
+    shape = x.shape
+    out = np.empty(x.size, np.bool_)
+    _inside_many(kernel[0], kernel[1], np.ascontiguousarray(x).ravel(), np.ascontiguousarray(y).ravel(), out)
+    return out.reshape(shape)
