@@ -16,7 +16,7 @@ from scipy.spatial import Delaunay
 
 from uqdrape.cli import main
 from uqdrape.drape import drape
-from uqdrape.drape.kernels import dot, unit
+from uqdrape.export.directions import dot, unit
 from uqdrape.export import export_fe, export_flat, export_vtk, fibre_directions, levels, open_result
 from uqdrape.export.directions import fibre_deviation
 from uqdrape.export.fe import ON_NET, OFF_NET, map_level

@@ -13,7 +13,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..drape.kernels import cross, dot, unit
+
+
+def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Dot product over the last axis of batched 3-vectors."""
+    return np.einsum("...k,...k->...", a, b)
+
+
+def unit(a: np.ndarray) -> np.ndarray:
+    """Batched 3-vectors scaled to length 1 (NaN stays NaN)."""
+    return a / np.linalg.norm(a, axis=-1, keepdims=True)
 
 
 def _tangent(P: np.ndarray, axis: int) -> np.ndarray:
@@ -70,4 +79,4 @@ def fibre_deviation(d1: np.ndarray, normal: np.ndarray, orientation_deg: float) 
     """Signed angle (deg) from the reference direction ``orientation_deg`` (plan angle of
     the nominal fibre 1, laid on the mould) to fibre 1, about the mould normal."""
     ref = reference_direction(orientation_deg, normal)
-    return np.rad2deg(np.arctan2(dot(cross(ref, d1), normal), dot(ref, d1)))
+    return np.rad2deg(np.arctan2(dot(np.cross(ref, d1), normal), dot(ref, d1)))

@@ -21,7 +21,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .. import __version__
-from ..drape.kernels import dot
+from .directions import dot
 from .directions import fibre_directions, fibre_frame
 from .files import write_all
 from .result import Level, surface_of
