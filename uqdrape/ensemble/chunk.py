@@ -82,7 +82,8 @@ def write_atomic(ds: xr.Dataset, path: Path, encoding: dict | None = None, *, ke
         ds.to_netcdf(part, engine="netcdf4", encoding=encoding)
     except BaseException as err:
         part.unlink(missing_ok=True)
-        if isinstance(err, OSError) and err.errno is not None or not isinstance(err, Exception):
+        named = isinstance(err, OSError) and err.errno is not None  # the OS said what went wrong
+        if named or not isinstance(err, Exception):  # ... or an interrupt: pass it on as it is
             raise
         if shutil.disk_usage(path.parent).free < ds.nbytes:
             raise OSError(errno.ENOSPC, "the disk is full", str(path)) from err

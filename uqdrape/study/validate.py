@@ -627,9 +627,7 @@ def _output(src: _Source, doc: dict, name: str) -> tuple[Path, bool]:
     float32 = t.raw("float32", False, "float32 must be true or false")
     if not isinstance(float32, bool):
         t.invalid("float32", "float32 must be true or false")
-    existing = Path(directory).absolute()
-    while not existing.exists():
-        existing = existing.parent
+    existing = _nearest_existing(Path(directory))
     if not existing.is_dir():
         src.invalid("output.directory", directory, f"{existing} is a file, not a folder")
     if not os.access(existing, os.W_OK | os.X_OK):
@@ -655,6 +653,14 @@ def _nominal_placement(src: _Source, mould, fabric: Fabric, solver: Solver) -> N
                     f"{solver.failure_budget:g} ({why}): use fewer rings, a smaller spacing or move the crossover")
 
 
+def _nearest_existing(path: Path) -> Path:
+    """``path`` (absolute) or its nearest ancestor that exists: where the output folder will be made."""
+    path = path.absolute()
+    while not path.exists():
+        path = path.parent
+    return path
+
+
 def _memory() -> int:
     """This machine's physical memory (bytes)."""
     return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
@@ -671,9 +677,7 @@ def _resources(src: _Source, realizations: int, chunk_size: int, rings: int, lev
         src.invalid("study.chunk_size", chunk_size,
                     f"a chunk of {batch} drapes of {nodes:,} nodes needs about {need / 2**30:.3g} GiB, more than "
                     f"half of this machine's {_memory() / 2**30:.3g} GiB; use a smaller chunk_size")
-    existing = output_dir.absolute()
-    while not existing.exists():
-        existing = existing.parent
+    existing = _nearest_existing(output_dir)
     disk = realizations * levels * nodes * STORED_BYTES_PER_NODE
     free = shutil.disk_usage(existing).free
     if disk > free:
