@@ -191,7 +191,7 @@ def test_same_numbers_for_another_chunk_size_and_two_local_processes(tmp_path, r
     np.testing.assert_array_equal(ref.realization, np.arange(N))
     out = run_study(moved(study, tmp_path), chunk_size=7, workers=2, progress=False)
     with open_ensemble(out) as ds:
-        assert ds.x.chunks[0] == (7, 7, 6)  # lazily opened, one dask chunk per file
+        assert ds.x.chunks[1] == (7, 7, 6)  # lazily opened, one dask chunk per file (along realization)
         assert_same_numbers(ds, ref)
 
 
@@ -207,7 +207,12 @@ def test_same_numbers_on_a_distributed_cluster(tmp_path, reference):
 
 
 def test_ensemble_holds_inputs_provenance_and_units(reference):
-    study, ds = reference
+    study, ensemble = reference
+    # the force is a dimension of length 1 without a sweep; each drape keeps the force it was run with
+    assert ensemble.x.dims == ("blankholder_force", "realization", "i", "j")
+    np.testing.assert_array_equal(ensemble.blankholder_force, study.force_levels)
+    np.testing.assert_array_equal(ensemble.applied_blankholder_force, np.full((1, N), study.force_levels[0]))
+    ds = ensemble.isel(blankholder_force=0)
     inputs = sampled_inputs(study, range(N))
     np.testing.assert_array_equal(ds.seg_i, inputs["seg_i"])
     np.testing.assert_array_equal(ds.seg_j, inputs["seg_j"])
@@ -358,7 +363,7 @@ def test_bad_run_arguments(tmp_path, reference):
         run_study(study, scheduler="tcp://127.0.0.1:1", workers=2)
     with pytest.raises(ValueError, match="chunk_size must be a positive integer, got 0"):
         run_study(study, chunk_size=0)
-    with pytest.raises(ValueError, match="force=10.0: study .tiny. is not a blank-holder-force sweep"):
+    with pytest.raises(ValueError, match=r"force=10.0: pass one of study .tiny.'s blank-holder levels \[100.0\] N"):
         drape_inputs(study, [0], sampled_inputs(study, [0]), force=10.0)
     assert not tmp_path.joinpath("run.json").exists()  # nothing written for bad arguments
 

@@ -49,8 +49,8 @@ def _round(value: float, digits: int = 3) -> float:
 
 
 def _skew_headline(ds: xr.Dataset) -> dict:
-    skew = ds["skew"].values
-    energy = ds["energy_blankholder"].values
+    skew = ds["skew"].values.ravel()  # one force level
+    energy = ds["energy_blankholder"].values.ravel()
     lo, hi = int(np.argmin(skew)), int(np.argmax(skew))
     return {f"E_BH total at skew {skew[lo]:.1f} deg (J)": _round(energy[lo]),
             f"E_BH total at skew {skew[hi]:.1f} deg (J)": _round(energy[hi]),
