@@ -43,6 +43,7 @@ from .figures import (
     SHEAR_LABEL,
     describe,
     force_title,
+    label,
     levels,
     overlay_experimental,
     panels,
@@ -362,8 +363,7 @@ def plot_scalar_vs_factor(ds: xr.Dataset, path, factor: str) -> Path:
         raise ValueError(f"factor={factor!r} is not a variable along {REALIZATION!r}; valid: {', '.join(stored)}")
     x = ds[SOLVER_INPUTS[factor].variable].values.astype(float)
     order = np.argsort(x)
-    fa = ds[SOLVER_INPUTS[factor].variable].attrs
-    xlabel = f"{fa.get('long_name', factor)} ({fa.get('units', '-')})".replace("(degree)", "(deg)").replace("(1)", "(-)")
+    xlabel = label(ds[SOLVER_INPUTS[factor].variable])
     fig, (ax_e, ax_s) = panels(2, size=(5.8, 4.4))
     if "energy_blankholder_quadrant" in ds.data_vars:
         eq = ds["energy_blankholder_quadrant"].transpose(REALIZATION, "quadrant").values

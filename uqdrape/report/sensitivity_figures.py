@@ -13,13 +13,11 @@ from __future__ import annotations
 import matplotlib as mpl
 import numpy as np
 import xarray as xr
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from .ensemble_figures import triangulation, mean_positions
 from ..schema import FORCE
-from .figures import describe, force_title, levels, report_figure, save, suptitle, unit_text
+from .figures import describe, force_title, levels, panels, report_figure, save, suptitle, unit_text
 
 #: The indices drawn per method: (variable, its confidence half-width, label).
 INDICES = {
@@ -33,12 +31,6 @@ def _method(ds: xr.Dataset) -> str:
     if method not in INDICES:
         raise ValueError(f"the indices Dataset has method={method!r} in its attributes; expected one of {tuple(INDICES)}")
     return method
-
-
-def _grid(rows: int, cols: int, size):
-    fig = Figure(figsize=(size[0] * cols, size[1] * rows), layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig, fig.subplots(rows, cols, squeeze=False)
 
 
 def _design_text(ds: xr.Dataset) -> str:
@@ -65,14 +57,10 @@ def plot_sensitivity_bars(indices: xr.Dataset, path):
     qois = [str(q) for q in indices["qoi"].values]
     factors = [str(f) for f in indices["factor"].values]
     size = (max(3.6, 0.9 * len(factors) + 1.2), 2.9)
-    if len(groups) == 1:
-        cols = min(3, len(qois))
-        fig, grid = _grid(-(-len(qois) // cols), cols, size)
-        for ax in grid.flat[len(qois):]:
-            ax.set_visible(False)
-        axes = grid.reshape(-1, 1)
-    else:
-        fig, axes = _grid(len(qois), len(groups), size)
+    # one level: the QoIs fill a grid of up to 3 columns; else a row per QoI, a column per level
+    cols = min(3, len(qois)) if len(groups) == 1 else len(groups)
+    fig, axes = panels(len(qois) * len(groups), size=size, cols=cols)
+    axes = np.reshape(axes, (len(qois), len(groups)))
     x = np.arange(len(factors))
     width = 0.8 / len(pairs)
     colors = ("tab:blue", "tab:orange")
@@ -106,13 +94,11 @@ def plot_sensitivity_vs_force(indices: xr.Dataset, path):
     pairs = INDICES[method]
     qois = [str(q) for q in indices["qoi"].values]
     force = indices[FORCE].values.astype(float)
-    cols = min(3, len(qois))
-    rows = -(-len(qois) // cols)
-    fig, axes = _grid(rows, cols, size=(5.0, 3.9))
+    fig, axes = panels(len(qois), size=(5.0, 3.9), cols=min(3, len(qois)))
     cmap = mpl.colormaps["tab10"]
     styles = {"ST": "-", "S1": "--", "mu_star": "-"}
     for n, q in enumerate(qois):
-        ax = axes.flat[n]
+        ax = axes[n]
         for k, factor in enumerate(indices["factor"].values):
             sel = indices.sel(qoi=q, factor=factor).transpose(FORCE)
             for var, conf, name in pairs:
@@ -122,8 +108,6 @@ def plot_sensitivity_vs_force(indices: xr.Dataset, path):
         ax.axhline(0.0, color="0.5", linewidth=0.8)
         ax.set(xlabel="blank-holder force F_BH (N)", ylabel=_qoi_axis_label(indices, q), title=q)
         ax.grid(alpha=0.3)
-    for ax in axes.flat[len(qois):]:
-        ax.set_visible(False)
     # one legend entry per factor (its colour) and per index (its line style, drawn long enough to read)
     handles = [Line2D([], [], color=cmap(k % 10), linewidth=6, label=str(f))
                for k, f in enumerate(indices["factor"].values)]
@@ -145,7 +129,8 @@ def plot_sensitivity_map(ds: xr.Dataset, maps: xr.Dataset, path, index: str = "S
     pos = mean_positions(ds)
     groups = levels(maps)
     factors = [str(f) for f in maps["factor"].values]
-    fig, axes = _grid(len(factors), len(groups), size=(2.9, 2.7))
+    fig, axes = panels(len(factors) * len(groups), size=(2.9, 2.7), cols=len(groups))
+    axes = np.reshape(axes, (len(factors), len(groups)))
     values = maps[index].values
     top = float(np.nanmax(values)) if np.isfinite(values).any() else 1.0
     norm = mpl.colors.Normalize(0.0, 1.0 if method == "sobol" else (top or 1.0))
