@@ -24,6 +24,7 @@ from uqdrape.ensemble import (
     design_variables, drape_inputs, inputs_from_design, open_ensemble, sampled_inputs,
 )
 from uqdrape.ensemble.store import read_manifest
+from uqdrape.stats import varying_factors
 from uqdrape.study import FACTOR_SETTINGS, load_study
 from uqdrape.workflow import run_study
 
@@ -242,6 +243,23 @@ def test_chunk_file_opens_with_plain_xarray(tmp_path, reference):
                          "energy_total": "J", "friction": "1", "seg_i": "mm", "gamma0": "degree"}
         assert {"x", "y", "z"} <= set(ds.coords)  # CF 'coordinates': plain xarray places the nodes
         xr.testing.assert_identical(ds.x.reset_coords(drop=True), ref.x.sel(realization=slice(7, 13)))
+
+
+def test_a_sampled_force_is_stored_per_drape_beside_its_nominal_level(tmp_path):
+    path = study_file(tmp_path, name="sampled")
+    path.write_text(path.read_text() + '\n[uncertainty.blankholder_force]\ndist = "uniform"\nbounds = [50.0, 150.0]\n')
+    study = load_study(path)
+    out = run_study(study, scheduler="synchronous", progress=False)
+    with open_ensemble(out) as ds:
+        ds = ds.load()
+    # the dimension holds the study's fixed setting (the nominal force the factor replaces) ...
+    np.testing.assert_array_equal(ds.blankholder_force, [100.0])
+    assert ds.applied_blankholder_force.dims == ("blankholder_force", "realization")
+    # ... and each drape the force it was run with: the sampled one
+    applied = ds.applied_blankholder_force.isel(blankholder_force=0).values
+    np.testing.assert_array_equal(applied, sampled_inputs(study, range(N))["blankholder_force"])
+    assert 50.0 <= applied.min() < applied.max() <= 150.0
+    assert varying_factors(ds) == ["blankholder_force", "friction"]
 
 
 def test_energy_sweep_uses_common_random_numbers(tmp_path):
