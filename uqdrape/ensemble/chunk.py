@@ -1,7 +1,7 @@
 """One chunk of an ensemble: one batched drape of some realisations, and its netCDF file.
 
-A chunk Dataset is the drape Dataset (notes/schema.md) with the global realisation
-indices as the ``realization`` coordinate, every sampled input along ``realization``
+A chunk Dataset is the solver's drape Dataset (``uqdrape.drape.drape``) with the global
+realisation indices as the ``realization`` coordinate, every sampled input along ``realization``
 (scalar factors are stored by ``drape`` itself; a random spacing adds the segment
 lengths ``seg_i`` (realization, cell_i, j) and ``seg_j`` (realization, i, cell_j), mm;
 a random zero angle is ``gamma0``), in the ensemble layout of ``uqdrape.schema``: a
