@@ -46,7 +46,9 @@ def varying_factors(ds: xr.Dataset) -> list[str]:
 
 
 def study_kind(ds: xr.Dataset) -> str:
-    """One of :data:`KINDS` for ensemble ``ds`` (see the module docstring for the rules)."""
+    """One of :data:`KINDS` for ``ds`` in the ensemble layout (``uqdrape.schema.by_force``;
+    see the module docstring for the rules)."""
+    ds = by_force(ds)
     if ds.attrs.get("design_method"):
         return DESIGN
     if ds.sizes[REALIZATION] < 2:
