@@ -100,7 +100,7 @@ def _sweep_scatter_headline(ds: xr.Dataset) -> dict:
 
 
 def _node6_headline(ds: xr.Dataset) -> dict:
-    st = line_statistics(ds).sel(k=6)
+    st = line_statistics(ds).sel(k=6).isel(blankholder_force=0)  # one force level
     out = {}
     for q, text in (("++", "+"), ("-+", "-")):
         s = st.sel(quadrant=q)
