@@ -44,12 +44,6 @@ def write_manifest(output_dir, manifest: dict) -> None:
     os.replace(part, path)
 
 
-def chunk_paths(output_dir, manifest: dict) -> list[Path]:
-    """Final paths of all chunk files of a run, in plan order."""
-    folder = Path(output_dir) / CHUNKS
-    return [folder / name for name in manifest["chunks"]]
-
-
 def open_ensemble(output_dir) -> xr.Dataset:
     """All chunks of a finished run as one lazy (dask-backed) Dataset.
 
@@ -64,7 +58,7 @@ def open_ensemble(output_dir) -> xr.Dataset:
     if manifest is None:
         raise FileNotFoundError(
             f"{output_dir} holds no uqdrape run (no {MANIFEST}); run the study first (uqdrape run STUDY)")
-    paths = chunk_paths(output_dir, manifest)
+    paths = [output_dir / CHUNKS / name for name in manifest["chunks"]]  # in plan order
     missing = [p.name for p in paths if not p.is_file()]
     if missing:
         shown = ", ".join(missing[:5]) + (", ..." if len(missing) > 5 else "")
