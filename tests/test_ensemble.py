@@ -184,6 +184,7 @@ def test_realisation_indices_are_checked(tmp_path):
 # ----------------------------------------------------------------------------- runs
 
 
+@pytest.mark.slow  # ~8 s: starts two worker processes
 def test_same_numbers_for_another_chunk_size_and_two_local_processes(tmp_path, reference):
     # the reference ran in one chunk of 64 in this process; one worker process and
     # chunks of 1 are covered by test_interrupted_run_resumes_to_the_same_ensemble
@@ -304,6 +305,7 @@ def test_the_studys_blankholder_model_reaches_every_drape(tmp_path, reference):
 # ----------------------------------------------------------------------------- store and resume
 
 
+@pytest.mark.slow  # ~14 s: a run in a child process, killed, then resumed
 def test_interrupted_run_resumes_to_the_same_ensemble(tmp_path, reference):
     study, ref = reference
     path = study_file(tmp_path, chunk_size=1)

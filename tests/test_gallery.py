@@ -73,7 +73,7 @@ def test_plot_scalar_vs_factor_writes_a_png_and_checks_its_input(skewed, tmp_pat
         plot_scalar_vs_factor(sweep, tmp_path / "x.png", "skew")
 
 
-def test_report_of_a_varying_skew_has_the_factor_figure(skewed, tmp_path):
+def test_report_of_a_varying_skew_has_the_factor_figure(skewed, tmp_path, unrasterised):
     write_report(skewed, tmp_path, title="skew")
     record = json.loads((tmp_path / "summary.json").read_text())
     assert "vs_skew.png" in record["figures"]

@@ -342,7 +342,7 @@ def test_write_report_links_and_summary_numbers(ensemble, exp_csv, tmp_path):
     assert f"{summary['samples_needed']['value']}</td>" in html_text
 
 
-def test_wrinkle_risk_comes_from_the_locked_flag_when_the_drape_has_it(ensemble, tmp_path):
+def test_wrinkle_risk_comes_from_the_locked_flag_when_the_drape_has_it(ensemble, tmp_path, unrasterised):
     ds = ensemble.copy()
     ds["locked"] = (abs(ds["shear"]) > 8.0).astype(float).where(ds["shear"].notnull())
     index = write_report(ds, tmp_path, title="locked")
@@ -354,7 +354,7 @@ def test_wrinkle_risk_comes_from_the_locked_flag_when_the_drape_has_it(ensemble,
     assert "wrinkle_risk.png" in summary["figures"] and "P(next to a locked cell)" in index.read_text()
 
 
-def test_write_report_sweep(sweep, tmp_path):
+def test_write_report_sweep(sweep, tmp_path, unrasterised):
     index = write_report(sweep, tmp_path, title="sweep")
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert {"net.png", "sweep.png", "histograms.png"} <= set(summary["figures"])
@@ -367,7 +367,7 @@ def test_write_report_sweep(sweep, tmp_path):
                                          j=site["node"][1]))
 
 
-def test_write_report_without_locking_angle(geodesic, tmp_path):
+def test_write_report_without_locking_angle(geodesic, tmp_path, unrasterised):
     index = write_report(geodesic, tmp_path, title="geodesic")
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["max_wrinkle_probability"] is None
@@ -421,7 +421,7 @@ def test_study_kind_rules(ensemble, sweep):
     assert study_kind(skewed.assign_attrs(study_json=field)) == "random sample"
 
 
-def test_each_kind_s_report_leaves_out_what_does_not_apply(ensemble, sweep, tmp_path):
+def test_each_kind_s_report_leaves_out_what_does_not_apply(ensemble, sweep, tmp_path, unrasterised):
     assert not bool(ensemble["locked"].any())  # nothing locks in the 12 hemisphere drapes
     random, page = _record(ensemble, tmp_path / "random")
     assert random["figures"] == ["net.png", "lines.png", "mean_shear.png", "sd_shear.png", "line_statistics.png",
@@ -455,7 +455,7 @@ def test_each_kind_s_report_leaves_out_what_does_not_apply(ensemble, sweep, tmp_
     assert {kind for spec in PLAN for kind in spec.kinds} == set(KINDS)
 
 
-def test_every_page_states_its_provenance_and_the_study_once(ensemble, tmp_path):
+def test_every_page_states_its_provenance_and_the_study_once(ensemble, tmp_path, unrasterised):
     study = '[study]\nname = "plate"\n'
     record, page = _record(ensemble.assign_attrs(study_toml=study), tmp_path, study_text=study, wall_time_s=12.34)
     prov = record["provenance"]
@@ -493,7 +493,7 @@ def test_sensitivity_legend_tells_st_solid_from_s1_dashed(tmp_path, drawn):
     np.testing.assert_allclose(lines["--"], [0.6, 0.3], rtol=1e-12)
 
 
-def test_sensitivity_page_starts_with_the_indices_and_their_largest_st(ensemble, tmp_path):
+def test_sensitivity_page_starts_with_the_indices_and_their_largest_st(ensemble, tmp_path, unrasterised):
     record, page = _record(ensemble.assign_attrs(design_method="sobol"), tmp_path, sensitivity=_indices())
     assert record["sensitivity"]["largest_ST"] == [{"blankholder_force_N": 0.0, "factor": "friction",
                                                     "qoi": "asymmetry", "ST": 0.7, "ST_conf": 0.05}]

@@ -274,6 +274,7 @@ def test_one_group_and_huge_sobol_designs_are_refused(tmp_path):
 # ----------------------------------------------------------------------------- command line
 
 
+@pytest.mark.slow  # ~25 s: 640 energy drapes in a worker process, two analyses and a report
 def test_uqdrape_run_writes_indices_and_a_report_with_the_sensitivity_figures(tmp_path, capsys):
     path = study_file(tmp_path, name="cli", rings=4, base=64)
     assert main(["run", str(path), "--quiet", "--workers", "1"]) == 0

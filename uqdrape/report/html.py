@@ -104,7 +104,9 @@ def _rows(numbers: Mapping, extra: Mapping, dominant: list | None) -> list[tuple
     rows.append(("blank-holder friction model", model,
                  "friction on the radial draw-in only (thesis Eq 5.1-5.5)" if model == "radial"
                  else "friction on the whole plan slip of the held fabric"))
-    rows.append(("valid fraction", f"{numbers['valid_fraction']:.4f}", "valid node values / all node values"))
+    failed = {name: k for name, k in numbers["node_status"].items() if name != "ok"}
+    rows.append(("valid fraction", f"{numbers['valid_fraction']:.4f}", "valid node values / all node values"
+                 + ("; not placed: " + ", ".join(f"{name} {k:,}" for name, k in failed.items()) if failed else "")))
     site = numbers["max_abs_mean_shear_deg"]
     rows.append(("max |shear| (deg)" if kind == DETERMINISTIC else "max |mean shear| (deg)", _fmt(site["value"]),
                  _where(site) if site["value"] is not None else ""))

@@ -141,6 +141,15 @@ def _histograms(c: Context):
              "Histograms of node shear with the fitted Normal (thesis Fig 5.20), each level on its own bins.")]
 
 
+def _has_spread(c: Context) -> bool:
+    return bool((c.node_stats["sd"] > 0).any())
+
+
+def _no_spread(c: Context) -> str:
+    return (f"No histograms or convergence plot: node shear is the same in all {c.ds.sizes['realization']} "
+            "realisations (no random input of the study changed any drape).")
+
+
 def _convergence(c: Context):
     return [(plot_convergence(c.ds, c.out / "convergence.png", node_stats=c.node_stats),
              "Convergence of the mean shear with N at the most variable node.")]
@@ -187,8 +196,8 @@ PLAN = (
     Spec("sd_shear", (RANDOM, DESIGN), _sd),
     Spec("wrinkle_risk", (RANDOM,), _wrinkle, when=_has_risk, otherwise=_no_risk),
     Spec("line_statistics", (RANDOM,), _line_statistics),
-    Spec("histograms", (RANDOM,), _histograms),
-    Spec("convergence", (RANDOM,), _convergence),
+    Spec("histograms", (RANDOM,), _histograms, when=_has_spread, otherwise=_no_spread),
+    Spec("convergence", (RANDOM,), _convergence, when=_has_spread),
 )
 
 

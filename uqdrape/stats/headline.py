@@ -23,6 +23,7 @@ import math
 import numpy as np
 import xarray as xr
 
+from ..drape.status import Status
 from ..schema import FORCE, REALIZATION, SOLVER_INPUTS, by_force
 from .convergence import samples_needed
 from .exceedance import exceedance_probability
@@ -103,6 +104,14 @@ def wrinkle_risk(ds: xr.Dataset, confidence: float = 0.95) -> xr.Dataset | None:
     return ex
 
 
+def _status_counts(ds: xr.Dataset) -> dict[str, int]:
+    """Node values per placement status over the whole ensemble, statuses that occur only."""
+    if "status" not in ds:
+        return {}
+    codes, counts = np.unique(np.asarray(ds["status"].values), return_counts=True)
+    return {Status(int(c)).name.lower(): int(k) for c, k in zip(codes, counts)}
+
+
 def headline_numbers(ds: xr.Dataset, *, node_stats: xr.Dataset | None = None,
                      exceedance: xr.Dataset | None = None, half_width_deg: float = 1.0,
                      confidence: float = 0.95) -> dict:
@@ -112,7 +121,7 @@ def headline_numbers(ds: xr.Dataset, *, node_stats: xr.Dataset | None = None,
     (:func:`study_kind`), ``realizations`` (N per level),
     ``blankholder_force_levels_N``, ``blankholder_model`` (ensembles written before the
     choice existed used "radial"), ``valid_fraction`` (valid node values / all node
-    values) and ``max_abs_mean_shear_deg`` (value, node, level; the shear itself for one
+    values), ``node_status`` (count of node values per status name, e.g. ``off_mould``) and ``max_abs_mean_shear_deg`` (value, node, level; the shear itself for one
     drape per level). A random sample or a sensitivity design adds ``max_sd_deg``; a
     random sample adds ``max_wrinkle_probability`` (the largest ``wrinkle_risk`` with its
     interval and ``measure``) and ``samples_needed`` (N for a ``confidence`` interval of
@@ -130,6 +139,7 @@ def headline_numbers(ds: xr.Dataset, *, node_stats: xr.Dataset | None = None,
         "blankholder_force_levels_N": [float(f) for f in ds[FORCE].values],
         "blankholder_model": ds.attrs.get("blankholder_model", "radial"),
         "valid_fraction": float(count.sum()) / (n * count.size),
+        "node_status": _status_counts(ds),
         "max_abs_mean_shear_deg": _site(abs(node_stats["mean"])),
         "max_sd_deg": _site(node_stats["sd"]) if kind in (RANDOM, DESIGN) else None,
         "max_wrinkle_probability": None,
