@@ -137,6 +137,27 @@ def test_draw_in_limit_moves_the_optimum_to_the_least_force_that_keeps_it(tmp_pa
     assert "Draw-in at the optimum (95 % quantile of the largest, mm)" in ds.attrs["summary"]
 
 
+def test_design_report_shows_the_draw_in_limit(tmp_path):
+    from PIL import Image
+
+    from uqdrape.geometry import build
+    from uqdrape.report import write_design_report
+
+    text = ('variables = "force"\nforce_bounds_N = [0.0, 1000.0]\nobjective = "q95_max_abs_shear"\n'
+            'statistic = "estimate"\ntolerance_N = 2.0\nmax_evaluations = 12\n')
+    heights = {}
+    for limit in ("", "max_draw_in_mm = 12.0\n"):
+        ds = run(write(tmp_path, text + limit), out=tmp_path / f"run{bool(limit)}")
+        index = write_design_report(ds, tmp_path / f"report{bool(limit)}", surface=build("hemisphere", radius=100.0))
+        record = json.loads((index.parent / "summary.json").read_text())
+        assert record["figures"] == ["objective.png", "risk_map.png", "convergence.png"]
+        with Image.open(index.parent / "objective.png") as im:
+            heights[bool(limit)] = im.size[1]
+        page = index.read_text()
+        assert ("<th>draw-in limit (mm)</th><td>12 on the estimate" in page) == bool(limit)
+    assert heights[True] > 1.5 * heights[False]  # the draw-in panel under the objective's
+
+
 def test_draw_in_is_zero_on_a_plate_and_the_arc_deficit_on_a_hemisphere():
     """Radial draw-in of the held edge: a plate keeps the flat blank (0); on a hemisphere of
     radius R draped geodesically from the pole the arm node (n, 0) sits at plan radius

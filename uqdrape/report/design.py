@@ -234,7 +234,8 @@ def write_design_report(ds: xr.Dataset, out_dir, *, surface) -> Path:
     figures = [(plot_objective(ds, out / "objective.png"),
                 "The objective's statistic of every design on the design sample (common random numbers) "
                 "against the total force (the band is hidden under the line where the limits are within a few "
-                "per cent), and the baseline and optimum re-draped on the validation sample.")]
+                "per cent), and the baseline and optimum re-draped on the validation sample"
+                + ("; below, the draw-in statistic and its limit." if ds.attrs["max_draw_in_mm"] != "none" else "."))]
     if _n_forces(ds) > 1:
         figures.append((plot_sectors(ds, out / "sectors.png", surface),
                         "Sector forces at the optimum; sectors are equal angles from +x, anticlockwise."))
