@@ -142,12 +142,17 @@ def _design_headline(ds: xr.Dataset) -> dict:
         return f"{e[0]:.3g} [{e[1]:.3g}, {e[2]:.3g}]"
 
     optimum = np.atleast_1d(ds.attrs["optimum"])
-    out = {"optimum force(s) (N)": " / ".join(f"{f:.0f}" for f in optimum[:n])
-           + (f" (total {optimum[:n].sum():.0f})" if n > 1 else "")}
+    if n > 1:
+        forces = " / ".join(f"{f:.0f}" for f in optimum[:n]) + f" (total {optimum[:n].sum():.0f})"
+    else:
+        lo, hi = (float(np.atleast_1d(ds.attrs[k])[0]) for k in ("optimum_lower", "optimum_upper"))
+        forces = f"{optimum[0]:.0f} [{lo:.0f}, {hi:.0f}]"
+    out = {"optimum force(s) (N)": forces}
     for role in ("optimum", "uniform", "baseline"):
         if role in val:
             total = sum(val[role]["x"][:n])
             out[f"{name} of the {role} ({total:.0f} N), validation"] = triple(val[role]["estimate"])
+    out["validation estimate within the optimisation estimate's limits"] = "yes" if ds.attrs["validated"] else "no"
     if "margin" in ds.attrs:
         m = json.loads(ds.attrs["margin"])["validation"]
         out["uniform minus sector, validation (paired bootstrap)"] = (
@@ -362,7 +367,7 @@ def write_readme() -> Path:
     lines = [
         "# uqdrape reference gallery",
         "",
-        "Small reference reports of the thesis-figure studies (Wiggers 2007, ch. 5) and two beyond it.",
+        "Small reference reports of the thesis-figure studies (Wiggers 2007, ch. 5) and studies beyond it.",
         "Each folder holds the report of `uqdrape run studies/<name>.toml` (open its `index.html`),",
         "its `summary.json` and the headline numbers below (`headline.json`). The ensembles",
         "themselves (netCDF chunks) are not kept.",
