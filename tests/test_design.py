@@ -137,6 +137,16 @@ def test_draw_in_limit_moves_the_optimum_to_the_least_force_that_keeps_it(tmp_pa
     assert "Draw-in at the optimum (95 % quantile of the largest, mm)" in ds.attrs["summary"]
 
 
+def test_a_draw_in_limit_no_design_keeps_gives_the_least_infeasible_design_and_says_so(tmp_path):
+    # the synthetic draw-in's 95 % quantile is above 15 mm at every force up to 300 N
+    ds = run(write(tmp_path, 'variables = "force"\nforce_bounds_N = [0.0, 300.0]\nobjective = "q95_max_abs_shear"\n'
+                             'statistic = "estimate"\ntolerance_N = 2.0\nmax_evaluations = 30\nmax_draw_in_mm = 1.0\n'))
+    assert int(ds["feasible"].sum()) == 0
+    assert float(ds.attrs["optimum"]) >= 300.0 - 2.0  # the least draw-in: the largest force, to xatol
+    assert ds.attrs["summary"].endswith("limit 1 mm on its estimate: BROKEN on the validation sample; "
+                                        "no evaluated design keeps it.")
+
+
 def test_design_report_shows_the_draw_in_limit(tmp_path):
     from PIL import Image
 

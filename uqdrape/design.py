@@ -86,8 +86,8 @@ import xarray as xr
 from scipy import optimize
 
 from .drape import max_shear_lines
-from .export import flat_positions
 from .ensemble import Progress, compute_tasks, drape_inputs, local_pool, run_lock, sampled_inputs, write_atomic
+from .export import flat_positions
 from .stats import line_means, mean_statistics, wilson_interval
 from .stats.summary import quantile_statistics
 from .study.spec import DESIGN_OBJECTIVES
@@ -266,7 +266,8 @@ class Evaluator:
 
     def key(self, sample: str, x) -> str:
         study = self.prob.study if sample == "design" else self.prob.validation
-        text = f"{RECORD_VERSION}|{self.identity}|{sample}|{study.seed}|{study.realizations}|{np.asarray(x, float).tobytes().hex()}"
+        text = (f"{RECORD_VERSION}|{self.identity}|{sample}|{study.seed}|{study.realizations}|"
+                f"{np.asarray(x, float).tobytes().hex()}")
         return hashlib.sha1(text.encode()).hexdigest()[:16]
 
     def __call__(self, X, sample: str = "design") -> list[xr.Dataset]:
@@ -588,7 +589,7 @@ def summary_text(ds: xr.Dataset) -> str:
     if limit != "none":
         d = val["optimum"]["draw_in"]
         kept = (d[2] if ds.attrs["statistic"] == "upper" else d[0]) <= limit
-        none_kept = not ds["feasible"].where(ds["sample"] == "design").any()
+        none_kept = not ds["feasible"].values[ds["sample"].values == "design"].any()
         text += (f" Draw-in at the optimum (95 % quantile of the largest, mm): {stat(d)}, limit {limit:g} mm on its "
                  f"{ds.attrs['statistic']}: {'kept' if kept else 'BROKEN'} on the validation sample"
                  + ("; no evaluated design keeps it." if none_kept else "."))
