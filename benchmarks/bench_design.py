@@ -4,9 +4,9 @@
 as shipped (8 sector forces, 64 realisations per design, its ``max_evaluations``
 designs, 64 validation drapes for each of 3 roles) from scratch with 2 local workers,
 writes its report, and ends with one summary line: designs, drapes, wall time of the
-design run (the report not included), drapes/s, workers and the load average. ``--evaluations N`` and ``--realizations R``
-shrink it (a smaller run of the same study, into ``<output>-N-R``); ``--keep`` resumes
-an earlier run instead of starting over.
+design run (the report not included), drapes/s, workers and the load average.
+``--evaluations N`` and ``--realizations R`` shrink it (a smaller run of the same study,
+into ``<output>-N-R``); ``--keep`` resumes an earlier run instead of starting over.
 """
 
 from __future__ import annotations
