@@ -165,6 +165,10 @@ def test_design_report_shows_the_draw_in_limit(tmp_path):
             heights[bool(limit)] = im.size[1]
         page = index.read_text()
         assert ("<th>draw-in limit (mm)</th><td>12 on the estimate" in page) == bool(limit)
+        # provenance like every report page: the design run's own wall time
+        prov = record["provenance"]
+        assert prov["wall_time_s"] == ds.attrs["wall_time_s"] >= 0 and prov["uqdrape_version"] == "0.1.0"
+        assert f"Report of {prov['date']}, uqdrape 0.1.0" in page and f"{prov['wall_time_s']:.1f} s." in page
     assert heights[True] > 1.5 * heights[False]  # the draw-in panel under the objective's
 
 

@@ -312,7 +312,7 @@ def _hostile_study(tmp_path: Path, case: str) -> Path:
 
 
 @pytest.mark.slow
-def test_every_hostile_study_that_validates_also_runs(tmp_path, capsys):
+def test_every_hostile_study_that_validates_also_runs(tmp_path, capsys, unrasterised):
     """What validate accepts, run does not refuse after draping (tiny geodesic ensembles)."""
     accepted = []
     for k, (case, (kind, *_)) in enumerate(CASES.items()):
@@ -365,9 +365,10 @@ def test_a_killed_run_leaves_no_process_and_resumes_to_the_same_ensemble(tmp_pat
     time.sleep(3)
     assert _chunks(out) == after  # no chunk written by an orphan
     assert list((out / "chunks").glob("*.part")) == [] or sig == signal.SIGKILL  # SIGKILL: the next run clears it
-    resumed = run_study(path, workers=2, progress=False)
+    # in this process: equal to the worker processes' numbers bitwise (test_ensemble), and no pool to start
+    resumed = run_study(path, scheduler="synchronous", progress=False)
     whole = run_study(study_file(tmp_path, "whole", realizations=40, chunk_size=4, mode="energy", rings=10),
-                      workers=2, progress=False)
+                      scheduler="synchronous", progress=False)
     with open_ensemble(resumed) as a, open_ensemble(whole) as b:
         xr.testing.assert_identical(a.drop_attrs(deep=False), b.drop_attrs(deep=False))
 

@@ -77,6 +77,7 @@ import dataclasses
 import hashlib
 import json
 import sys
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -600,6 +601,7 @@ def run_design(study, *, output_dir=None, scheduler=None, workers=None, progress
     """Run the design of a study with a [design] section; write ``design.nc`` into the
     output folder (default the study's) and return the folder. Resumes from the records
     of an earlier run of the same study."""
+    start = time.perf_counter()
     prob = problem(study)
     out = Path(study.output_dir if output_dir is None else output_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -611,6 +613,8 @@ def run_design(study, *, output_dir=None, scheduler=None, workers=None, progress
                              pool=pool)
         result = optimise(prob, evaluate)
         ds = result_dataset(result, evaluate)
+        # this run's own time: a resumed run replays earlier designs from their records
+        ds.attrs["wall_time_s"] = round(time.perf_counter() - start, 1)
         write_atomic(ds, out / DESIGN_FILE)
     if progress:
         print(f"{study.name}: {ds.attrs['summary']}", file=sys.stderr)

@@ -19,7 +19,9 @@ import xarray as xr
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-_RC = {"font.size": 10, "axes.titlesize": 11, "axes.labelsize": 10, "legend.fontsize": 9}
+from .figures import save, styled
+from .html import provenance, provenance_line
+
 _LABELS = {"p_locked": "P(any node locked)", "q95_max_abs_shear": "95 % quantile of max |shear| (deg)",
            "abs_mean_asymmetry": "|mean asymmetry| (deg)", "q95_max_draw_in": "95 % quantile of max draw-in (mm)"}
 DRAW_IN = "q95_max_draw_in"
@@ -78,28 +80,27 @@ def _statistic_panel(ax, ds: xr.Dataset, name: str, validation_key: str):
     ax.grid(alpha=0.3)
 
 
+@styled
 def plot_objective(ds: xr.Dataset, path) -> Path:
     """The objective's statistic (estimate, confidence band) against the total force (N),
     design sample, the baseline and optimum on the validation sample marked; with a
     draw-in limit, a second panel of the draw-in statistic and the limit."""
     name = ds.attrs["objective"]
     limit = ds.attrs["max_draw_in_mm"]
-    with mpl.rc_context(_RC):
-        fig = _figure((7.0, 4.4 if limit == "none" else 7.6))
-        ax = fig.add_subplot(1 if limit == "none" else 2, 1, 1)
-        _statistic_panel(ax, ds, name, "estimate")
-        if ds.attrs["target"] != "none":
-            ax.axhline(float(ds.attrs["target"]), color="k", ls=":", lw=1, label=f"target {ds.attrs['target']:g}")
-        ax.set_title(f"{ds.attrs['study_name']}: {_LABELS[name]} against force")
-        ax.legend(loc="best")
-        if limit != "none":
-            ax2 = fig.add_subplot(2, 1, 2, sharex=ax)
-            _statistic_panel(ax2, ds, DRAW_IN, "draw_in")
-            ax2.axhline(float(limit), color="k", ls="--", lw=1,
-                        label=f"draw-in limit {float(limit):g} mm (on the {ds.attrs['statistic']})")
-            ax2.legend(loc="best", fontsize=8)
-        fig.savefig(path, dpi=110)
-    return Path(path)
+    fig = _figure((7.0, 4.4 if limit == "none" else 7.6))
+    ax = fig.add_subplot(1 if limit == "none" else 2, 1, 1)
+    _statistic_panel(ax, ds, name, "estimate")
+    if ds.attrs["target"] != "none":
+        ax.axhline(float(ds.attrs["target"]), color="k", ls=":", lw=1, label=f"target {ds.attrs['target']:g}")
+    ax.set_title(f"{ds.attrs['study_name']}: {_LABELS[name]} against force")
+    ax.legend(loc="best")
+    if limit != "none":
+        ax2 = fig.add_subplot(2, 1, 2, sharex=ax)
+        _statistic_panel(ax2, ds, DRAW_IN, "draw_in")
+        ax2.axhline(float(limit), color="k", ls="--", lw=1,
+                    label=f"draw-in limit {float(limit):g} mm (on the {ds.attrs['statistic']})")
+        ax2.legend(loc="best", fontsize=8)
+    return save(fig, path)
 
 
 def _log_if_wide(ax, values):
@@ -110,25 +111,24 @@ def _log_if_wide(ax, values):
         ax.set_yscale("log")
 
 
+@styled
 def plot_convergence(ds: xr.Dataset, path) -> Path:
     """The objective of each design in the order evaluated, and the best so far."""
     d = _design(ds)
     f = d["objective"].values
-    with mpl.rc_context(_RC):
-        fig = _figure((7.0, 3.8))
-        ax = fig.add_subplot()
-        k = np.arange(1, f.size + 1)
-        ax.plot(k, f, "o", color="tab:blue", ms=4, alpha=0.6, label="design evaluated")
-        ax.plot(k, np.minimum.accumulate(f), "-", color="tab:green", lw=2, label="best so far")
-        _log_if_wide(ax, f)
-        ax.set_xlabel("evaluation (design sample)")
-        ax.set_ylabel("objective")
-        ax.set_title("\n".join(textwrap.wrap(f"{d['objective'].attrs['long_name']}; {ds.attrs['optimiser']}", 90)),
-                     fontsize=9)
-        ax.legend()
-        ax.grid(alpha=0.3)
-        fig.savefig(path, dpi=110)
-    return Path(path)
+    fig = _figure((7.0, 3.8))
+    ax = fig.add_subplot()
+    k = np.arange(1, f.size + 1)
+    ax.plot(k, f, "o", color="tab:blue", ms=4, alpha=0.6, label="design evaluated")
+    ax.plot(k, np.minimum.accumulate(f), "-", color="tab:green", lw=2, label="best so far")
+    _log_if_wide(ax, f)
+    ax.set_xlabel("evaluation (design sample)")
+    ax.set_ylabel("objective")
+    ax.set_title("\n".join(textwrap.wrap(f"{d['objective'].attrs['long_name']}; {ds.attrs['optimiser']}", 90)),
+                 fontsize=9)
+    ax.legend()
+    ax.grid(alpha=0.3)
+    return save(fig, path)
 
 
 def _outline(ax, surface, extent: float):
@@ -140,6 +140,7 @@ def _outline(ax, surface, extent: float):
     ax.contour(X, Y, Z, levels=[level], colors="0.3", linewidths=1.2)
 
 
+@styled
 def plot_sectors(ds: xr.Dataset, path, surface) -> Path:
     """Sector forces (N) at the optimum as polar bars on the part outline, with the
     uniform force at the same total as a dashed circle."""
@@ -151,61 +152,58 @@ def plot_sectors(ds: xr.Dataset, path, surface) -> Path:
     width = 2 * np.pi / n
     theta = (np.arange(n) + 0.5) * width
     top = float(np.max(hi))
-    with mpl.rc_context(_RC):
-        fig = Figure(figsize=(6.4, 6.4))  # fixed axes: the polar bars share the plan's centre
-        FigureCanvasAgg(fig)
-        rect = [0.12, 0.08, 0.8, 0.8]
-        ax = fig.add_axes(rect)
-        _outline(ax, surface, extent)
-        ax.set_aspect("equal")
-        ax.set_xlim(-extent, extent)
-        ax.set_ylim(-extent, extent)
-        ax.set_xlabel("x (mm)")
-        ax.set_ylabel("y (mm)")
-        polar = fig.add_axes(rect, projection="polar", frameon=False)
-        polar.bar(theta, opt, width=0.9 * width, color="tab:green", alpha=0.45, edgecolor="tab:green",
-                  label="sector force at the optimum")
-        polar.errorbar(theta, opt, yerr=[opt - lo, hi - opt], fmt="none", ecolor="k", capsize=3, lw=1)
-        polar.plot(np.linspace(0, 2 * np.pi, 181), np.full(181, opt.sum() / n), "--", color="tab:orange",
-                   label=f"uniform, same total ({opt.sum():.0f} N)")
-        for t, f in zip(theta, opt):
-            polar.text(t, f + 0.06 * top, f"{f:.0f} N", ha="center", va="center", fontsize=9)
-        polar.set_ylim(0, 1.2 * top)
-        polar.set_yticklabels([])
-        polar.set_xticks(np.arange(n) * width)
-        polar.set_xticklabels([])
-        polar.grid(alpha=0.3)
-        polar.legend(loc="lower left", bbox_to_anchor=(0.0, 0.0), fontsize=8, framealpha=0.9)
-        fig.suptitle(f"{ds.attrs['study_name']}: sector forces at the optimum on the part outline\n"
-                     f"(bar radius: force, 0-{1.2 * top:.0f} N; error bars: the optimum's "
-                     "resampling interval)", fontsize=9, x=0.12, ha="left")
-        fig.savefig(path, dpi=110)
-    return Path(path)
+    fig = Figure(figsize=(6.4, 6.4))  # fixed axes: the polar bars share the plan's centre
+    FigureCanvasAgg(fig)
+    rect = [0.12, 0.08, 0.8, 0.8]
+    ax = fig.add_axes(rect)
+    _outline(ax, surface, extent)
+    ax.set_aspect("equal")
+    ax.set_xlim(-extent, extent)
+    ax.set_ylim(-extent, extent)
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    polar = fig.add_axes(rect, projection="polar", frameon=False)
+    polar.bar(theta, opt, width=0.9 * width, color="tab:green", alpha=0.45, edgecolor="tab:green",
+              label="sector force at the optimum")
+    polar.errorbar(theta, opt, yerr=[opt - lo, hi - opt], fmt="none", ecolor="k", capsize=3, lw=1)
+    polar.plot(np.linspace(0, 2 * np.pi, 181), np.full(181, opt.sum() / n), "--", color="tab:orange",
+               label=f"uniform, same total ({opt.sum():.0f} N)")
+    for t, f in zip(theta, opt):
+        polar.text(t, f + 0.06 * top, f"{f:.0f} N", ha="center", va="center", fontsize=9)
+    polar.set_ylim(0, 1.2 * top)
+    polar.set_yticklabels([])
+    polar.set_xticks(np.arange(n) * width)
+    polar.set_xticklabels([])
+    polar.grid(alpha=0.3)
+    polar.legend(loc="lower left", bbox_to_anchor=(0.0, 0.0), fontsize=8, framealpha=0.9)
+    fig.suptitle(f"{ds.attrs['study_name']}: sector forces at the optimum on the part outline\n"
+                 f"(bar radius: force, 0-{1.2 * top:.0f} N; error bars: the optimum's "
+                 "resampling interval)", fontsize=9, x=0.12, ha="left")
+    return save(fig, path)
 
 
+@styled
 def plot_risk_maps(ds: xr.Dataset, path) -> Path:
     """P(node locked) of the baseline and the optimum design (validation sample), in plan."""
     roles = ("baseline", "optimum")
     n = _n_forces(ds)
     val = _validation(ds)
-    with mpl.rc_context(_RC):
-        fig = _figure((11.0, 4.8))
-        axes = [fig.add_subplot(1, 2, k + 1) for k in range(2)]
-        for ax, role in zip(axes, roles):
-            p = ds[f"{role}_node_p_locked"].values.ravel()
-            x, y = ds[f"{role}_node_x"].values.ravel(), ds[f"{role}_node_y"].values.ravel()
-            ax.scatter(x[p == 0], y[p == 0], s=3, color="0.8", label="P = 0")
-            hot = p > 0
-            im = ax.scatter(x[hot], y[hot], c=p[hot], s=10, cmap="Reds", vmin=0, vmax=1)
-            if not hot.any():
-                ax.legend(loc="upper right")
-            ax.set_aspect("equal")
-            ax.set_title(f"{role}: total {sum(val[role]['x'][:n]):.0f} N, max P = {float(p.max()):.2f}")
-            ax.set_xlabel("x (mm)")
-            ax.set_ylabel("y (mm)")
-        fig.colorbar(im, ax=axes, label="P(node next to a locked cell), validation sample")
-        fig.savefig(path, dpi=110)
-    return Path(path)
+    fig = _figure((11.0, 4.8))
+    axes = [fig.add_subplot(1, 2, k + 1) for k in range(2)]
+    for ax, role in zip(axes, roles):
+        p = ds[f"{role}_node_p_locked"].values.ravel()
+        x, y = ds[f"{role}_node_x"].values.ravel(), ds[f"{role}_node_y"].values.ravel()
+        ax.scatter(x[p == 0], y[p == 0], s=3, color="0.8", label="P = 0")
+        hot = p > 0
+        im = ax.scatter(x[hot], y[hot], c=p[hot], s=10, cmap="Reds", vmin=0, vmax=1)
+        if not hot.any():
+            ax.legend(loc="upper right")
+        ax.set_aspect("equal")
+        ax.set_title(f"{role}: total {sum(val[role]['x'][:n]):.0f} N, max P = {float(p.max()):.2f}")
+        ax.set_xlabel("x (mm)")
+        ax.set_ylabel("y (mm)")
+    fig.colorbar(im, ax=axes, label="P(node next to a locked cell), validation sample")
+    return save(fig, path)
 
 
 def _table(ds: xr.Dataset) -> str:
@@ -242,8 +240,9 @@ def write_design_report(ds: xr.Dataset, out_dir, *, surface) -> Path:
     figures.append((plot_risk_maps(ds, out / "risk_map.png"),
                     "Risk before (the study's own force) and after (the optimum), validation sample."))
     figures.append((plot_convergence(ds, out / "convergence.png"), "The optimiser's history."))
-    summary = {k: v for k, v in ds.attrs.items() if k != "study_json"}
+    summary = {k: v for k, v in ds.attrs.items() if k not in ("study_json", "wall_time_s")}
     summary["figures"] = [p.name for p, _ in figures]
+    summary["provenance"] = prov = provenance(ds.attrs.get("wall_time_s"))
     for key in ("validation", "margin", "bounds"):
         if key in summary:
             summary[key] = json.loads(summary[key])
@@ -256,6 +255,7 @@ def write_design_report(ds: xr.Dataset, out_dir, *, surface) -> Path:
             "td,th{border:1px solid #ccc;padding:.3em .6em;text-align:left}table{border-collapse:collapse}"
             "figure img{max-width:100%;border:1px solid #ddd}</style></head><body>"
             f"<h1>{html.escape(ds.attrs['study_name'])}: blank-holder design</h1>"
+            f"<p>{html.escape(provenance_line(prov))}</p>"
             f"<p><b>{html.escape(ds.attrs['summary'])}</b></p>{_table(ds)}{figs}</body></html>")
     index = out / "index.html"
     index.write_text(page, encoding="utf-8")

@@ -45,13 +45,22 @@ _RC = {"font.size": 11, "axes.titlesize": 12, "axes.labelsize": 11, "legend.font
 DPI = 100
 
 
+def styled(func):
+    """Run a figure function under the report's font sizes (a local rc context)."""
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        with mpl.rc_context(_RC):
+            return func(*args, **kwargs)
+    return wrapper
+
+
 def report_figure(func):
-    """A figure function ``func(ds, ...)``: run under the report's font sizes (a local rc
-    context), with ``ds`` in the ensemble layout (``uqdrape.schema.by_force``)."""
+    """A figure function ``func(ds, ...)`` of an ensemble: :func:`styled`, with ``ds`` in
+    the ensemble layout (``uqdrape.schema.by_force``)."""
+    @styled
     @functools.wraps(func)
     def wrapper(ds, *args, **kwargs):
-        with mpl.rc_context(_RC):
-            return func(by_force(ds), *args, **kwargs)
+        return func(by_force(ds), *args, **kwargs)
     return wrapper
 
 

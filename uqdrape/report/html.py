@@ -81,6 +81,13 @@ def provenance(wall_time_s: float | None = None) -> dict:
             "uqdrape_version": __version__, "git_commit": commit, "wall_time_s": wall_time_s}
 
 
+def provenance_line(prov: Mapping) -> str:
+    """The provenance as the sentence heading every report page."""
+    wall = "not recorded" if prov["wall_time_s"] is None else f"{prov['wall_time_s']:.1f} s"
+    return (f"Report of {prov['date']}, uqdrape {prov['uqdrape_version']}, git commit\n"
+            f"{prov['git_commit'] or 'n/a (not a git checkout)'}; wall time of the run: {wall}.")
+
+
 def _fmt(value, digits: int = 3) -> str:
     if value is None:
         return "n/a"
@@ -269,8 +276,6 @@ def _page(record, ds, rows, items, study_text, summary_name, sensitivity_html=""
         f"<tr><th>{esc(q)}</th><td class=\"num\">{esc(v)}</td><td>{esc(w)}</td></tr>" for q, v, w in rows)
     attrs = "\n".join(f"<tr><th>{esc(str(k))}</th><td>{esc(_fmt(_json_attr(v)))}</td></tr>"
                       for k, v in ds.attrs.items() if k not in _HIDDEN_ATTRS)
-    prov = record["provenance"]
-    wall = "not recorded" if prov["wall_time_s"] is None else f"{prov['wall_time_s']:.1f} s"
     study = (f"<h2>Study file</h2>\n<pre>{esc(study_text)}</pre>" if study_text
              else "<p class=\"note\">No study file was given.</p>")
     description = f"<p>{esc(record['description'])}</p>" if record["description"] else ""
@@ -285,8 +290,7 @@ def _page(record, ds, rows, items, study_text, summary_name, sensitivity_html=""
 <body>
 <h1>{esc(record['title'])}</h1>
 {description}
-<p class="note">Report of {esc(prov['date'])}, uqdrape {esc(prov['uqdrape_version'])}, git commit
-{esc(prov['git_commit'] or 'n/a (not a git checkout)')}; wall time of the run: {esc(wall)}.
+<p class="note">{esc(provenance_line(record["provenance"]))}
 Angles in degrees, lengths in mm, forces in N. Numbers also in <a href="{esc(summary_name)}">{esc(summary_name)}</a>.</p>
 <h2>Headline numbers</h2>
 <table>
