@@ -1,5 +1,6 @@
 """The CLI around a run: --version, run --out, progress counted in realisations (no
-carriage returns off a terminal), the report-phase line, -q / -v."""
+carriage returns off a terminal), the report-phase line, -q / -v; a single drape's ring
+counter."""
 
 import io
 import textwrap
@@ -91,3 +92,18 @@ def test_report_phase_has_its_line(study, tmp_path, capsys, monkeypatch):
     assert main(["run", str(study), "--out", str(tmp_path / "a"), "--scheduler", "synchronous"]) == 0
     err = capsys.readouterr().err
     assert "tiny: 2 of 2 chunks already done" in err and "tiny: writing the report" in err
+
+
+@pytest.mark.parametrize("quiet", [False, True])
+def test_single_drape_counts_its_rings_on_stderr(tmp_path, capsys, quiet):
+    """``uqdrape drape --mode energy`` prints a "ring k/n" counter on stderr (a plain line
+    off a terminal); -q hides it. stdout keeps only the summary."""
+    argv = ["drape", "--mode", "energy", "--material", "ebxhd936_like", "--geometry", "nose_cone",
+            "--rings", "4", "--blankholder-force", "126", "--out", str(tmp_path / "nose")]
+    assert main(argv + ["-q"] if quiet else argv) == 0
+    std = capsys.readouterr()
+    assert "ring" not in std.out and std.out.startswith("wrote ")
+    if quiet:
+        assert std.err == ""
+    else:
+        assert std.err.startswith("ring: 100%") and "4/4" in std.err and "\r" not in std.err

@@ -10,7 +10,7 @@ minimises the energy of the pattern so far. That energy splits into one term per
 and one per quadrant corner (the corner cell and its two blank-holder segments, coupling
 the quadrant's two arms). ``sides`` and ``corners`` evaluate them for candidate turn
 angles of one realisation, ``minimise`` finds the four angles by trust-region Newton
-on finite-difference stencils, and ``drape_block`` runs every ring of every realisation
+on finite-difference stencils, and ``drape_ring`` places one ring of every realisation
 of a block, each realisation to its own iteration count (a straggler holds no other).
 
 Arrays of one realisation r (mm unless stated): P (N, N, 3) the net, NaN where unplaced;
@@ -206,7 +206,7 @@ def corners(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, m
 
 @jit
 def minimise(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat, bh,
-             turn, tolerance, max_iterations, max_turn, S, St, X, Xs):
+             turn, tolerance, max_iterations, max_turn, S, St, X, Xs, best_ring):
     """Trust-region Newton on the four turn angles (rad) of ring k, from ``turn``.
 
     Gradient and Hessian come from three-point stencils per arm plus one diagonal stencil
@@ -215,8 +215,11 @@ def minimise(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, 
     eigenvalues. A trial that lowers the energy is accepted and widens the trust radius;
     one that raises it shrinks the radius, so kinks in the energy (an asymmetric card's
     branch change at gamma0) cost iterations, not cycles. Converged when the next step,
-    or the radius, is below ``tolerance`` (rad). Returns (turns, iterations, converged).
+    or the radius, is below ``tolerance`` (rad). Returns (turns, iterations, converged);
+    ``best_ring`` (chain nodes, their status, corner nodes, their status; the buffers of
+    one candidate) receives ring k at the returned turns, so it is not placed again.
     """
+    S_best, St_best, X_best, Xs_best = best_ring
     h = STENCIL
     pairs = np.array(_PAIRS)
     cand = np.empty((3, 4))
@@ -263,6 +266,10 @@ def minimise(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, 
         if better:
             best[:] = turn
             best_energy = total
+            S_best[0, :, :, :k] = S[1, :, :, :k]
+            St_best[0, :, :, :k] = St[1, :, :, :k]
+            X_best[0] = X[1]
+            Xs_best[0] = Xs[1]
             for a in range(4):
                 grad_best[a] = _finite0(grad[a])
                 for b in range(4):
@@ -285,40 +292,43 @@ def minimise(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, 
 
 
 @jit
-def drape_block(surf, tol, n, P, status, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat,
-                bh, tolerance, max_iterations, max_turn, turns, iterations, converged):
-    """Every ring of every realisation r of a block: P (R, N, N, 3) and status (R, N, N)
-    hold the placed crossover and are filled in place, as are turns (R, n, 4) rad,
-    iterations (R,) and converged (R,). The other arrays carry a leading axis R."""
+def drape_ring(surf, tol, n, k, P, status, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat,
+               bh, tolerance, max_iterations, max_turn, turns, iterations, converged):
+    """Ring k of every realisation r of a block, each from its own ring k - 1 and to its own
+    iteration count (a straggler holds no other): P (R, N, N, 3) and status (R, N, N), with
+    rings < k placed, are filled in place, as are turns (R, n, 4) rad, iterations (R,) and
+    converged (R,). The other arrays carry a leading axis R."""
     S = np.empty((3, 4, 2, n, 3))
     St = np.empty((3, 4, 2, n), np.int8)
     X = np.empty((6, 4, 3))
     Xs = np.empty((6, 4), np.int8)
-    e_arm = np.empty((1, 4))
-    e_corner = np.empty((1, 4))
-    one = np.zeros((1, 2), np.int64)
+    best_ring = (np.empty((1, 4, 2, n, 3)), np.empty((1, 4, 2, n), np.int8), np.empty((1, 4, 3)),
+                 np.empty((1, 4), np.int8))
+    S_best, St_best, X_best, Xs_best = best_ring
     for r in range(P.shape[0]):
         args = (P[r], flat[r], seg_i[r], seg_j[r], s1[r], s2[r], g0[r], centre[r], force[r], mu[r])
-        turn = np.zeros(4)
-        for k in range(1, n + 1):
-            if k > 1:
-                turn, its, ok = minimise(surf, tol, n, k, *args, first_dir[r], bend, mat, bh, turn, tolerance,
-                                         max_iterations, max_turn, S, St, X, Xs)
-                iterations[r] += its
-                converged[r] &= ok
-            turns[r, k - 1] = turn
-            sides(surf, tol, n, k, *args, first_dir[r], bend, mat, bh, turn.reshape(1, 4), S, St, e_arm)
-            corners(surf, tol, n, k, *args, mat, bh, S, one, X, Xs, e_corner)
-            for a in range(4):
-                di, dj = ARMS[a]
-                for side in range(2):
-                    sgn = 1 - 2 * side
-                    ei, ej = (0, sgn) if di != 0 else (sgn, 0)
-                    for m in range(k):
-                        i, j = n + k * di + m * ei, n + k * dj + m * ej
-                        P[r, i, j] = S[0, a, side, m]
-                        status[r, i, j] = St[0, a, side, m]
-            for q in range(4):
-                si, sj = CORNERS[q][4], CORNERS[q][5]
-                P[r, n + si * k, n + sj * k] = X[0, q]
-                status[r, n + si * k, n + sj * k] = Xs[0, q]
+        if k > 1:
+            turn, its, ok = minimise(surf, tol, n, k, *args, first_dir[r], bend, mat, bh, turns[r, k - 2].copy(),
+                                     tolerance, max_iterations, max_turn, S, St, X, Xs, best_ring)
+            iterations[r] += its
+            converged[r] &= ok
+        else:  # ring 1 leaves at the fabric angles
+            turn = np.zeros(4)
+            sides(surf, tol, n, k, *args, first_dir[r], bend, mat, bh, turn.reshape(1, 4), S_best, St_best,
+                  np.empty((1, 4)))
+            corners(surf, tol, n, k, *args, mat, bh, S_best, np.zeros((1, 2), np.int64), X_best, Xs_best,
+                    np.empty((1, 4)))
+        turns[r, k - 1] = turn
+        for a in range(4):
+            di, dj = ARMS[a]
+            for side in range(2):
+                sgn = 1 - 2 * side
+                ei, ej = (0, sgn) if di != 0 else (sgn, 0)
+                for m in range(k):
+                    i, j = n + k * di + m * ei, n + k * dj + m * ej
+                    P[r, i, j] = S_best[0, a, side, m]
+                    status[r, i, j] = St_best[0, a, side, m]
+        for q in range(4):
+            si, sj = CORNERS[q][4], CORNERS[q][5]
+            P[r, n + si * k, n + sj * k] = X_best[0, q]
+            status[r, n + si * k, n + sj * k] = Xs_best[0, q]
