@@ -205,6 +205,30 @@ def corners(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, m
 
 
 @jit
+def _stencil(e_arm, e_corner, h, grad, hess):
+    """Gradient (4,) and Hessian (4, 4) of the step energy from the stencil energies: per arm
+    e_arm (3, 4) at turn - h, turn, turn + h, per corner e_corner (6, 4) at the ``_PAIRS``
+    (NaN energies count as +inf; non-finite results are clamped by ``_finite0``)."""
+    per_arm = np.empty((3, 4))
+    for a in range(4):
+        for c in range(3):
+            if math.isnan(e_arm[c, a]):
+                e_arm[c, a] = math.inf
+            per_arm[c, a] = e_arm[c, a]
+    hess[:] = 0.0
+    for q in range(4):
+        qa, _, qb, _, _, _ = CORNERS[q]
+        for c in range(3):
+            per_arm[c, qa] += e_corner[c, q]
+            per_arm[c, qb] += e_corner[(3, 1, 4)[c], q]
+        hess[qa, qb] = hess[qb, qa] = _finite0((e_corner[5, q] - e_corner[2, q] - e_corner[4, q] + e_corner[1, q])
+                                               / h**2)
+    for a in range(4):
+        grad[a] = _finite0((per_arm[2, a] - per_arm[0, a]) / (2 * h))
+        hess[a, a] = _finite0((per_arm[2, a] - 2 * per_arm[1, a] + per_arm[0, a]) / h**2)
+
+
+@jit
 def minimise(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat, bh,
              turn, tolerance, max_iterations, max_turn, S, St, X, Xs, best_ring):
     """Trust-region Newton on the four turn angles (rad) of ring k, from ``turn``.
@@ -225,9 +249,6 @@ def minimise(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, 
     cand = np.empty((3, 4))
     e_arm = np.empty((3, 4))
     e_corner = np.empty((6, 4))
-    per_arm = np.empty((3, 4))
-    grad = np.empty(4)
-    hess = np.empty((4, 4))
     best = turn.copy()
     best_energy = math.inf
     grad_best = np.zeros(4)
@@ -236,44 +257,34 @@ def minimise(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, 
     last = 0.0
     its = 0
     for _ in range(max_iterations):
-        for c in range(3):
-            for a in range(4):
+        for a in range(4):
+            for c in range(3):
                 cand[c, a] = turn[a] + (c - 1) * h
+        # the trial's own ring first: its stencil neighbours only if it is accepted
         sides(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat, bh,
-              cand, S, St, e_arm)
-        corners(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S, pairs,
-                X, Xs, e_corner)
+              cand[1:2], S[1:2], St[1:2], e_arm[1:2])
+        corners(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S, pairs[1:2],
+                X[1:2], Xs[1:2], e_corner[1:2])
         total = 0.0
         for a in range(4):
-            for c in range(3):
-                if math.isnan(e_arm[c, a]):
-                    e_arm[c, a] = math.inf
-                per_arm[c, a] = e_arm[c, a]
+            if math.isnan(e_arm[1, a]):
+                e_arm[1, a] = math.inf
             total += e_arm[1, a]
         total += e_corner[1, 0] + e_corner[1, 1] + e_corner[1, 2] + e_corner[1, 3]
-        hess[:] = 0.0
-        for q in range(4):
-            qa, _, qb, _, _, _ = CORNERS[q]
-            for c in range(3):
-                per_arm[c, qa] += e_corner[c, q]
-                per_arm[c, qb] += e_corner[(3, 1, 4)[c], q]
-            hess[qa, qb] = hess[qb, qa] = (e_corner[5, q] - e_corner[2, q] - e_corner[4, q] + e_corner[1, q]) / h**2
-        for a in range(4):
-            grad[a] = (per_arm[2, a] - per_arm[0, a]) / (2 * h)
-            hess[a, a] = (per_arm[2, a] - 2 * per_arm[1, a] + per_arm[0, a]) / h**2
         its += 1
-        better = total <= best_energy
-        if better:
+        if total <= best_energy:
+            for c in (0, 2):
+                sides(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat,
+                      bh, cand[c:c + 1], S[c:c + 1], St[c:c + 1], e_arm[c:c + 1])
+            corners(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S, pairs,
+                    X, Xs, e_corner)
+            _stencil(e_arm, e_corner, h, grad_best, hess_best)
             best[:] = turn
             best_energy = total
             S_best[0, :, :, :k] = S[1, :, :, :k]
             St_best[0, :, :, :k] = St[1, :, :, :k]
             X_best[0] = X[1]
             Xs_best[0] = Xs[1]
-            for a in range(4):
-                grad_best[a] = _finite0(grad[a])
-                for b in range(4):
-                    hess_best[a, b] = _finite0(hess[a, b])
             radius = min(max(radius, 2 * last), 0.1)
         else:
             radius = 0.25 * last
