@@ -15,11 +15,15 @@ local process pool, as ``bench_energy.py``), in realisations per minute; the sin
 41 x 41 geodesic hemisphere drape (R = 100 mm, median of 20) and one call of 1,000
 such drapes with random orientations (median of 3).
 
-Run: python benchmarks/bench_compiled.py [--previous PYTHON] [--batch N]
+Run: python benchmarks/bench_compiled.py [--previous PYTHON] [--batch N]; a checkout put first
+by PYTHONPATH is what "compiled" measures (the previous interpreter runs without it), so
+``PYTHONPATH=$PWD /work/main/.venv/bin/python benchmarks/bench_compiled.py --previous
+/work/main/.venv/bin/python`` compares a worktree with the main checkout's install.
 """
 
 import argparse
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -85,11 +89,15 @@ LABELS = {
 }
 
 
-def measure(python, batch):
+def measure(python, batch, own_path):
     """The child's figures (dict) under interpreter ``python``, run outside the checkout so
-    that each interpreter imports its own installed uqdrape."""
+    that each interpreter imports its own installed uqdrape; ``own_path`` False drops this
+    process's PYTHONPATH (which may put a checkout first) from the child's environment."""
+    env = dict(os.environ)
+    if not own_path:
+        env.pop("PYTHONPATH", None)
     done = subprocess.run([python, "-c", CHILD, str(batch)], capture_output=True, text=True, check=True,
-                          cwd=tempfile.gettempdir())
+                          cwd=tempfile.gettempdir(), env=env)
     out = json.loads(done.stdout.strip().splitlines()[-1])
     print(python, json.dumps(out), flush=True)
     return out
@@ -104,8 +112,8 @@ def main():
     with open("/proc/loadavg") as f:
         load = f.read().split()[:3]
     t = time.perf_counter()
-    new = measure(sys.executable, args.batch)
-    old = measure(args.previous, args.batch)
+    new = measure(sys.executable, args.batch, True)
+    old = measure(args.previous, args.batch, False)
     print(f"N = {args.batch}; load average before the run {' '.join(load)}; run took {time.perf_counter() - t:.0f} s")
     print(f"{'figure':62s} {'previous':>10s} {'compiled':>10s} {'speed-up':>9s}")
     for key, (label, is_time) in LABELS.items():

@@ -10,8 +10,9 @@ minimises the energy of the pattern so far. That energy splits into one term per
 and one per quadrant corner (the corner cell and its two blank-holder segments, coupling
 the quadrant's two arms). ``sides`` and ``corners`` evaluate them for candidate turn
 angles of one realisation, ``minimise`` finds the four angles by trust-region Newton
-on finite-difference stencils, and ``drape_ring`` places one ring of every realisation
-of a block, each realisation to its own iteration count (a straggler holds no other).
+on finite-difference stencils (placed only around accepted trials), and ``drape_ring``
+places one ring of every realisation of a block, each realisation to its own iteration
+count (a straggler holds no other).
 
 Arrays of one realisation r (mm unless stated): P (N, N, 3) the net, NaN where unplaced;
 flat (N, N, 2) the flat blank; seg_i (2n, 2n+1), seg_j (2n+1, 2n) segment lengths;
@@ -234,11 +235,12 @@ def minimise(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, 
     """Trust-region Newton on the four turn angles (rad) of ring k, from ``turn``.
 
     Gradient and Hessian come from three-point stencils per arm plus one diagonal stencil
-    point per quadrant corner (the only coupling between arms): three candidate rings
-    per iteration. Non-positive curvature is lifted by clamping the Hessian's
-    eigenvalues. A trial that lowers the energy is accepted and widens the trust radius;
-    one that raises it shrinks the radius, so kinks in the energy (an asymmetric card's
-    branch change at gamma0) cost iterations, not cycles. Converged when the next step,
+    point per quadrant corner (the only coupling between arms). Non-positive curvature is
+    lifted by clamping the Hessian's eigenvalues. Each iteration places the trial's own
+    ring; a trial that lowers the energy is accepted, gets its two stencil rings and
+    widens the trust radius; one that raises it costs that one ring and shrinks the
+    radius, so kinks in the energy (an asymmetric card's branch change at gamma0) cost
+    iterations, not cycles. Converged when the next step,
     or the radius, is below ``tolerance`` (rad). Returns (turns, iterations, converged);
     ``best_ring`` (chain nodes, their status, corner nodes, their status; the buffers of
     one candidate) receives ring k at the returned turns, so it is not placed again.
