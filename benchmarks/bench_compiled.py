@@ -16,9 +16,10 @@ per minute; the single
 41 x 41 geodesic hemisphere drape (R = 100 mm, median of 20) and one call of 1,000
 such drapes with random orientations (median of 3).
 
-Run: python benchmarks/bench_compiled.py [--previous PYTHON] [--batch N]; a checkout put first
-by PYTHONPATH is what "compiled" measures (the previous interpreter runs without it), so
-``PYTHONPATH=$PWD /work/main/.venv/bin/python benchmarks/bench_compiled.py --previous
+Run: python benchmarks/bench_compiled.py [--previous PYTHON] [--batch N] [--repeats K]
+(K alternating runs of both, medians). A checkout put first by PYTHONPATH is what
+"compiled" measures (the previous interpreter runs without it), so ``PYTHONPATH=$PWD
+/work/main/.venv/bin/python benchmarks/bench_compiled.py --previous
 /work/main/.venv/bin/python`` compares a worktree with the main checkout's install.
 """
 
@@ -111,17 +112,21 @@ def main():
     parser.add_argument("--previous", default="/tmp/uqdrape-prev/.venv/bin/python",
                         help="python of the previous implementation's environment")
     parser.add_argument("--batch", type=int, default=128, help="energy drapes per batch and per process (N)")
+    parser.add_argument("--repeats", type=int, default=1,
+                        help="measure both this many times, alternating; each figure is the median")
     args = parser.parse_args()
     with open("/proc/loadavg") as f:
         load = f.read().split()[:3]
     t = time.perf_counter()
-    new = measure(sys.executable, args.batch, True)
-    old = measure(args.previous, args.batch, False)
-    print(f"N = {args.batch}; load average before the run {' '.join(load)}; run took {time.perf_counter() - t:.0f} s")
+    runs = [(measure(sys.executable, args.batch, True), measure(args.previous, args.batch, False))
+            for _ in range(args.repeats)]
+    new, old = ({key: statistics.median(run[side][key] for run in runs) for key in LABELS} for side in (0, 1))
+    print(f"N = {args.batch}, {args.repeats} run(s) each; load average before the run {' '.join(load)}; "
+          f"run took {time.perf_counter() - t:.0f} s")
     print(f"{'figure':62s} {'previous':>10s} {'compiled':>10s} {'speed-up':>9s}")
     for key, (label, is_time) in LABELS.items():
         ratio = old[key] / new[key] if is_time else new[key] / old[key]
-        print(f"{label:62s} {old[key]:10.4g} {new[key]:10.4g} {ratio:8.1f}x")
+        print(f"{label:62s} {old[key]:10.4g} {new[key]:10.4g} {ratio:8.2f}x")
     print(json.dumps({"previous": old, "compiled": new}))
 
 
