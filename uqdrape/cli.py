@@ -60,7 +60,8 @@ def cmd_drape(args) -> int:
 
     surface = build(args.geometry, **_parse_params(args.param))
     material = load_material(args.material) if args.material else None
-    bar = Progress(args.rings, enabled=args.verbosity > 0, desc="ring", unit="ring")  # a ring k/n counter
+    # a ring k/n counter: a bar on a terminal, elsewhere a line every PLAIN_EVERY s of a long drape
+    bar = Progress(args.rings, enabled=args.verbosity > 0, desc="ring", unit="ring", last_line=False)
     ds = drape(surface, args.spacing, args.rings, orientation=args.orientation, pre_shear=args.pre_shear,
                skew=args.skew, crossover=tuple(args.crossover), mode=args.mode, material=material,
                blankholder_force=args.blankholder_force, friction=args.friction,

@@ -19,13 +19,15 @@ class Progress:
     """Realisations drawn ``total`` (``done`` of them already finished by an earlier run).
 
     ``update(n, name)`` counts n more; with ``verbose`` the finished chunk ``name`` gets a
-    line of its own. Nothing is written when ``enabled`` is False."""
+    line of its own. Nothing is written when ``enabled`` is False. Off a terminal the
+    last line (at ``total``) is written only with ``last_line``, so that a short count
+    (a single drape's rings) leaves stderr to the command's one-line errors."""
 
     def __init__(self, total: int, done: int = 0, *, enabled: bool = True, verbose: bool = False,
-                 desc: str = "realisations", unit: str = "real", file=None):
+                 desc: str = "realisations", unit: str = "real", last_line: bool = True, file=None):
         self.file = file or sys.stderr
         self.tty = self.file.isatty()
-        self.enabled, self.verbose, self.desc, self.unit = enabled, verbose, desc, unit
+        self.enabled, self.verbose, self.desc, self.unit, self.last_line = enabled, verbose, desc, unit, last_line
         self.total, self.n, self.start_n = total, done, done
         self.start = self.last = time.monotonic()
         self.bar = tqdm(total=total, initial=done, desc=desc, unit=unit, file=self.file, mininterval=0.5,
@@ -41,7 +43,7 @@ class Progress:
             self.bar.update(n)
             return
         now = time.monotonic()
-        if now - self.last >= PLAIN_EVERY or self.n >= self.total:
+        if now - self.last >= PLAIN_EVERY or (self.last_line and self.n >= self.total):
             self.last = now
             rate = (self.n - self.start_n) / max(now - self.start, 1e-9)
             line = tqdm.format_meter(self.n, self.total, now - self.start, prefix=self.desc, unit=self.unit, rate=rate,
