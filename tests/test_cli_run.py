@@ -1,5 +1,6 @@
 """The CLI around a run: --version, run --out, progress counted in realisations (no
-carriage returns off a terminal), the report-phase line, -q / -v."""
+carriage returns off a terminal), the report-phase line, -q / -v; a single drape's ring
+counter."""
 
 import io
 import textwrap
@@ -91,3 +92,37 @@ def test_report_phase_has_its_line(study, tmp_path, capsys, monkeypatch):
     assert main(["run", str(study), "--out", str(tmp_path / "a"), "--scheduler", "synchronous"]) == 0
     err = capsys.readouterr().err
     assert "tiny: 2 of 2 chunks already done" in err and "tiny: writing the report" in err
+
+
+@pytest.mark.parametrize("terminal", [False, True])
+@pytest.mark.parametrize("quiet", [False, True])
+def test_single_drape_counts_its_rings_on_stderr(tmp_path, capsys, monkeypatch, quiet, terminal):
+    """``uqdrape drape --mode energy`` counts "ring k/n" on stderr: a bar on a terminal,
+    elsewhere a plain line every PLAIN_EVERY s (here 0: every ring); -q hides it. stdout
+    keeps only the summary."""
+    import uqdrape.ensemble.progress
+
+    monkeypatch.setattr(uqdrape.ensemble.progress, "PLAIN_EVERY", 0.0)
+    tty = Terminal()
+    if terminal:
+        monkeypatch.setattr("sys.stderr", tty)
+    argv = ["drape", "--mode", "energy", "--material", "ebxhd936_like", "--geometry", "nose_cone",
+            "--rings", "4", "--blankholder-force", "126", "--out", str(tmp_path / "nose")]
+    assert main(argv + ["-q"] if quiet else argv) == 0
+    std = capsys.readouterr()
+    err = tty.getvalue() if terminal else std.err
+    assert "ring" not in std.out and std.out.startswith("wrote ")
+    if quiet:
+        assert err == ""
+    elif terminal:
+        assert "\r" in err and "ring:" in err and "4/4" in err
+    else:
+        assert [line.split("|")[-1].split()[0] for line in err.splitlines()] == ["1/4", "2/4", "3/4", "4/4"]
+        assert all(line.startswith("ring: ") for line in err.splitlines()) and "\r" not in err
+
+
+def test_a_short_drape_off_a_terminal_leaves_stderr_to_errors(tmp_path, capsys):
+    """Off a terminal a drape shorter than PLAIN_EVERY writes no counter line, so a failure
+    after the drape is still one line on stderr."""
+    assert main(["drape", "--rings", "3", "--out", str(tmp_path / "d")]) == 0
+    assert capsys.readouterr().err == ""

@@ -396,6 +396,20 @@ def test_energy_bookkeeping():
     assert ds.energy_blankholder.values[0] == 0.0
 
 
+def test_progress_is_called_after_every_ring_and_changes_nothing():
+    """``drape(progress=)`` hears rings 1..n of an energy drape in order (once, n, for a
+    geodesic one); the drape is bitwise the silent one."""
+    nose, material, n = build("nose_cone"), load_material("ebxhd936_like"), 6
+    heard = []
+    loud = drape(nose, 5.0, n, mode="energy", material=material, blankholder_force=126.0, progress=heard.append)
+    silent = drape(nose, 5.0, n, mode="energy", material=material, blankholder_force=126.0)
+    assert heard == list(range(1, n + 1))
+    assert loud.identical(silent)
+    heard.clear()
+    drape(nose, 5.0, n, progress=heard.append)
+    assert heard == [n]
+
+
 # -- flags -------------------------------------------------------------------------------
 def test_non_convergence_is_flagged_not_raised():
     nose = build("nose_cone")

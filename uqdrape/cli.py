@@ -53,17 +53,21 @@ def cmd_drape(args) -> int:
 
     from .conventions import cf_encode
     from .drape import drape
+    from .ensemble.progress import Progress
     from .geometry import build
     from .material import load_material
     from .report import plot_lines, plot_net
 
     surface = build(args.geometry, **_parse_params(args.param))
     material = load_material(args.material) if args.material else None
+    # a ring k/n counter: a bar on a terminal, elsewhere a line every PLAIN_EVERY s of a long drape
+    bar = Progress(args.rings, enabled=args.verbosity > 0, desc="ring", unit="ring", last_line=False)
     ds = drape(surface, args.spacing, args.rings, orientation=args.orientation, pre_shear=args.pre_shear,
                skew=args.skew, crossover=tuple(args.crossover), mode=args.mode, material=material,
                blankholder_force=args.blankholder_force, friction=args.friction,
-               blankholder_model=args.blankholder_model,
-               tolerance=args.tolerance)
+               blankholder_model=args.blankholder_model, tolerance=args.tolerance,
+               progress=lambda k: bar.update(k - bar.n))
+    bar.close()
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     nc = out.with_suffix(".nc")

@@ -161,18 +161,22 @@ class EnergyRings:
                          np.ascontiguousarray(S[r]), pairs, X[r], Xs[r], energy[r])
         return X, Xs, energy
 
-    def run(self):
-        """Drape ring by ring. Returns P, status, turn angles (R, n, 4) rad, bending energy
-        (R,) J, total iterations (R,) and converged (R,)."""
+    def run(self, progress=None):
+        """Drape ring by ring (one compiled call per ring for the whole block; ``progress``,
+        if given, is called with the number of rings placed after each). Returns P, status,
+        turn angles (R, n, 4) rad, bending energy (R,) J, total iterations (R,) and converged (R,)."""
         prob = self.prob
         P, status = prob.start()
         turns = np.zeros((prob.R, prob.n, 4))
         iterations = np.zeros(prob.R, np.int32)
         converged = np.ones(prob.R, bool)
-        ring.drape_block(prob.surface.kernel, prob.tol, prob.n, P, status, prob.flat, prob.seg_i, prob.seg_j,
-                         prob.cell_s1, prob.cell_s2, prob.gamma0, prob.crossover, prob.blankholder.force,
-                         prob.blankholder.friction, self.first_dir, self.bend, prob.material.kernel,
-                         prob.blankholder.kernel, self.tol, self.max_iterations, self.max_turn, turns, iterations,
-                         converged)
+        for k in range(1, prob.n + 1):
+            ring.drape_ring(prob.surface.kernel, prob.tol, prob.n, k, P, status, prob.flat, prob.seg_i, prob.seg_j,
+                            prob.cell_s1, prob.cell_s2, prob.gamma0, prob.crossover, prob.blankholder.force,
+                            prob.blankholder.friction, self.first_dir, self.bend, prob.material.kernel,
+                            prob.blankholder.kernel, self.tol, self.max_iterations, self.max_turn, turns, iterations,
+                            converged)
+            if progress is not None:
+                progress(k)
         bending = bending_energy(turns, self.B, prob.s).sum(axis=(1, 2))
         return P, status, turns, bending, iterations, converged

@@ -10,8 +10,9 @@ minimises the energy of the pattern so far. That energy splits into one term per
 and one per quadrant corner (the corner cell and its two blank-holder segments, coupling
 the quadrant's two arms). ``sides`` and ``corners`` evaluate them for candidate turn
 angles of one realisation, ``minimise`` finds the four angles by trust-region Newton
-on finite-difference stencils, and ``drape_block`` runs every ring of every realisation
-of a block, each realisation to its own iteration count (a straggler holds no other).
+on finite-difference stencils (placed only around accepted trials), and ``drape_ring``
+places one ring of every realisation of a block, each realisation to its own iteration
+count (a straggler holds no other).
 
 Arrays of one realisation r (mm unless stated): P (N, N, 3) the net, NaN where unplaced;
 flat (N, N, 2) the flat blank; seg_i (2n, 2n+1), seg_j (2n+1, 2n) segment lengths;
@@ -205,26 +206,51 @@ def corners(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, m
 
 
 @jit
+def _stencil(e_arm, e_corner, h, grad, hess):
+    """Gradient (4,) and Hessian (4, 4) of the step energy from the stencil energies: per arm
+    e_arm (3, 4) at turn - h, turn, turn + h, per corner e_corner (6, 4) at the ``_PAIRS``
+    (NaN energies count as +inf; non-finite results are clamped by ``_finite0``)."""
+    per_arm = np.empty((3, 4))
+    for a in range(4):
+        for c in range(3):
+            if math.isnan(e_arm[c, a]):
+                e_arm[c, a] = math.inf
+            per_arm[c, a] = e_arm[c, a]
+    hess[:] = 0.0
+    for q in range(4):
+        qa, _, qb, _, _, _ = CORNERS[q]
+        for c in range(3):
+            per_arm[c, qa] += e_corner[c, q]
+            per_arm[c, qb] += e_corner[(3, 1, 4)[c], q]
+        hess[qa, qb] = hess[qb, qa] = _finite0((e_corner[5, q] - e_corner[2, q] - e_corner[4, q] + e_corner[1, q])
+                                               / h**2)
+    for a in range(4):
+        grad[a] = _finite0((per_arm[2, a] - per_arm[0, a]) / (2 * h))
+        hess[a, a] = _finite0((per_arm[2, a] - 2 * per_arm[1, a] + per_arm[0, a]) / h**2)
+
+
+@jit
 def minimise(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat, bh,
-             turn, tolerance, max_iterations, max_turn, S, St, X, Xs):
+             turn, tolerance, max_iterations, max_turn, S, St, X, Xs, best_ring):
     """Trust-region Newton on the four turn angles (rad) of ring k, from ``turn``.
 
     Gradient and Hessian come from three-point stencils per arm plus one diagonal stencil
-    point per quadrant corner (the only coupling between arms): three candidate rings
-    per iteration. Non-positive curvature is lifted by clamping the Hessian's
-    eigenvalues. A trial that lowers the energy is accepted and widens the trust radius;
-    one that raises it shrinks the radius, so kinks in the energy (an asymmetric card's
-    branch change at gamma0) cost iterations, not cycles. Converged when the next step,
-    or the radius, is below ``tolerance`` (rad). Returns (turns, iterations, converged).
+    point per quadrant corner (the only coupling between arms). Non-positive curvature is
+    lifted by clamping the Hessian's eigenvalues. Each iteration places the trial's own
+    ring; a trial that lowers the energy is accepted, gets its two stencil rings and
+    widens the trust radius; one that raises it costs that one ring and shrinks the
+    radius, so kinks in the energy (an asymmetric card's branch change at gamma0) cost
+    iterations, not cycles. Converged when the next step,
+    or the radius, is below ``tolerance`` (rad). Returns (turns, iterations, converged);
+    ``best_ring`` (chain nodes, their status, corner nodes, their status; the buffers of
+    one candidate) receives ring k at the returned turns, so it is not placed again.
     """
+    S_best, St_best, X_best, Xs_best = best_ring
     h = STENCIL
     pairs = np.array(_PAIRS)
     cand = np.empty((3, 4))
     e_arm = np.empty((3, 4))
     e_corner = np.empty((6, 4))
-    per_arm = np.empty((3, 4))
-    grad = np.empty(4)
-    hess = np.empty((4, 4))
     best = turn.copy()
     best_energy = math.inf
     grad_best = np.zeros(4)
@@ -233,40 +259,34 @@ def minimise(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, 
     last = 0.0
     its = 0
     for _ in range(max_iterations):
-        for c in range(3):
-            for a in range(4):
+        for a in range(4):
+            for c in range(3):
                 cand[c, a] = turn[a] + (c - 1) * h
+        # the trial's own ring first: its stencil neighbours only if it is accepted
         sides(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat, bh,
-              cand, S, St, e_arm)
-        corners(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S, pairs,
-                X, Xs, e_corner)
+              cand[1:2], S[1:2], St[1:2], e_arm[1:2])
+        corners(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S, pairs[1:2],
+                X[1:2], Xs[1:2], e_corner[1:2])
         total = 0.0
         for a in range(4):
-            for c in range(3):
-                if math.isnan(e_arm[c, a]):
-                    e_arm[c, a] = math.inf
-                per_arm[c, a] = e_arm[c, a]
+            if math.isnan(e_arm[1, a]):
+                e_arm[1, a] = math.inf
             total += e_arm[1, a]
         total += e_corner[1, 0] + e_corner[1, 1] + e_corner[1, 2] + e_corner[1, 3]
-        hess[:] = 0.0
-        for q in range(4):
-            qa, _, qb, _, _, _ = CORNERS[q]
-            for c in range(3):
-                per_arm[c, qa] += e_corner[c, q]
-                per_arm[c, qb] += e_corner[(3, 1, 4)[c], q]
-            hess[qa, qb] = hess[qb, qa] = (e_corner[5, q] - e_corner[2, q] - e_corner[4, q] + e_corner[1, q]) / h**2
-        for a in range(4):
-            grad[a] = (per_arm[2, a] - per_arm[0, a]) / (2 * h)
-            hess[a, a] = (per_arm[2, a] - 2 * per_arm[1, a] + per_arm[0, a]) / h**2
         its += 1
-        better = total <= best_energy
-        if better:
+        if total <= best_energy:
+            for c in (0, 2):
+                sides(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat,
+                      bh, cand[c:c + 1], S[c:c + 1], St[c:c + 1], e_arm[c:c + 1])
+            corners(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S, pairs,
+                    X, Xs, e_corner)
+            _stencil(e_arm, e_corner, h, grad_best, hess_best)
             best[:] = turn
             best_energy = total
-            for a in range(4):
-                grad_best[a] = _finite0(grad[a])
-                for b in range(4):
-                    hess_best[a, b] = _finite0(hess[a, b])
+            S_best[0, :, :, :k] = S[1, :, :, :k]
+            St_best[0, :, :, :k] = St[1, :, :, :k]
+            X_best[0] = X[1]
+            Xs_best[0] = Xs[1]
             radius = min(max(radius, 2 * last), 0.1)
         else:
             radius = 0.25 * last
@@ -285,40 +305,43 @@ def minimise(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, 
 
 
 @jit
-def drape_block(surf, tol, n, P, status, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat,
-                bh, tolerance, max_iterations, max_turn, turns, iterations, converged):
-    """Every ring of every realisation r of a block: P (R, N, N, 3) and status (R, N, N)
-    hold the placed crossover and are filled in place, as are turns (R, n, 4) rad,
-    iterations (R,) and converged (R,). The other arrays carry a leading axis R."""
+def drape_ring(surf, tol, n, k, P, status, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat,
+               bh, tolerance, max_iterations, max_turn, turns, iterations, converged):
+    """Ring k of every realisation r of a block, each from its own ring k - 1 and to its own
+    iteration count (a straggler holds no other): P (R, N, N, 3) and status (R, N, N), with
+    rings < k placed, are filled in place, as are turns (R, n, 4) rad, iterations (R,) and
+    converged (R,). The other arrays carry a leading axis R."""
     S = np.empty((3, 4, 2, n, 3))
     St = np.empty((3, 4, 2, n), np.int8)
     X = np.empty((6, 4, 3))
     Xs = np.empty((6, 4), np.int8)
-    e_arm = np.empty((1, 4))
-    e_corner = np.empty((1, 4))
-    one = np.zeros((1, 2), np.int64)
+    best_ring = (np.empty((1, 4, 2, n, 3)), np.empty((1, 4, 2, n), np.int8), np.empty((1, 4, 3)),
+                 np.empty((1, 4), np.int8))
+    S_best, St_best, X_best, Xs_best = best_ring
     for r in range(P.shape[0]):
         args = (P[r], flat[r], seg_i[r], seg_j[r], s1[r], s2[r], g0[r], centre[r], force[r], mu[r])
-        turn = np.zeros(4)
-        for k in range(1, n + 1):
-            if k > 1:
-                turn, its, ok = minimise(surf, tol, n, k, *args, first_dir[r], bend, mat, bh, turn, tolerance,
-                                         max_iterations, max_turn, S, St, X, Xs)
-                iterations[r] += its
-                converged[r] &= ok
-            turns[r, k - 1] = turn
-            sides(surf, tol, n, k, *args, first_dir[r], bend, mat, bh, turn.reshape(1, 4), S, St, e_arm)
-            corners(surf, tol, n, k, *args, mat, bh, S, one, X, Xs, e_corner)
-            for a in range(4):
-                di, dj = ARMS[a]
-                for side in range(2):
-                    sgn = 1 - 2 * side
-                    ei, ej = (0, sgn) if di != 0 else (sgn, 0)
-                    for m in range(k):
-                        i, j = n + k * di + m * ei, n + k * dj + m * ej
-                        P[r, i, j] = S[0, a, side, m]
-                        status[r, i, j] = St[0, a, side, m]
-            for q in range(4):
-                si, sj = CORNERS[q][4], CORNERS[q][5]
-                P[r, n + si * k, n + sj * k] = X[0, q]
-                status[r, n + si * k, n + sj * k] = Xs[0, q]
+        if k > 1:
+            turn, its, ok = minimise(surf, tol, n, k, *args, first_dir[r], bend, mat, bh, turns[r, k - 2].copy(),
+                                     tolerance, max_iterations, max_turn, S, St, X, Xs, best_ring)
+            iterations[r] += its
+            converged[r] &= ok
+        else:  # ring 1 leaves at the fabric angles
+            turn = np.zeros(4)
+            sides(surf, tol, n, k, *args, first_dir[r], bend, mat, bh, turn.reshape(1, 4), S_best, St_best,
+                  np.empty((1, 4)))
+            corners(surf, tol, n, k, *args, mat, bh, S_best, np.zeros((1, 2), np.int64), X_best, Xs_best,
+                    np.empty((1, 4)))
+        turns[r, k - 1] = turn
+        for a in range(4):
+            di, dj = ARMS[a]
+            for side in range(2):
+                sgn = 1 - 2 * side
+                ei, ej = (0, sgn) if di != 0 else (sgn, 0)
+                for m in range(k):
+                    i, j = n + k * di + m * ei, n + k * dj + m * ej
+                    P[r, i, j] = S_best[0, a, side, m]
+                    status[r, i, j] = St_best[0, a, side, m]
+        for q in range(4):
+            si, sj = CORNERS[q][4], CORNERS[q][5]
+            P[r, n + si * k, n + sj * k] = X_best[0, q]
+            status[r, n + si * k, n + sj * k] = Xs_best[0, q]

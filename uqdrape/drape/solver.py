@@ -44,7 +44,8 @@ def _batch_size(**arrays):
 def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
           crossover=(0.0, 0.0), seg_i=None, seg_j=None, gamma0=None, mode="geodesic",
           material=None, blankholder_force=0.0, friction=0.2, sectors=None,
-          blankholder_model="slip", tolerance=1e-3, max_iterations=30, max_turn=10.0, factors=None) -> xr.Dataset:
+          blankholder_model="slip", tolerance=1e-3, max_iterations=30, max_turn=10.0, factors=None,
+          progress=None) -> xr.Dataset:
     """Drape a batch of pin-jointed nets over ``surface``; one Python loop for the batch.
 
     Arguments that may differ per realisation take a scalar (or base shape) or an array
@@ -68,6 +69,9 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     tolerance          minimiser tolerance on the turn angles (deg)
     max_iterations     minimiser iterations per step; max_turn: bound on a turn (deg)
     factors            dict of extra per-realisation values stored along ``realization``
+    progress           None (silent), or a callable given the number of rings placed so far in
+                       the current block of realisations (BLOCK of them): after each ring of an
+                       energy drape, once with ``rings`` when a geodesic block is done
 
     Nodes that cannot be placed are NaN with a ``status`` code (``Status``); the call
     does not raise for them. Impossible arguments raise ValueError naming the argument.
@@ -135,11 +139,13 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
                           material, tol)
         if mode == "geodesic":
             P, status = build_geodesic(prob)
+            if progress is not None:
+                progress(n)
             r = prob.R
             solved = (P, status, np.zeros((r, n, 4)), np.zeros(r), np.zeros(r, np.int32), np.ones(r, bool))
         else:
             solved = EnergyRings(prob, material.bending_stiffness, np.deg2rad(tolerance),
-                                 int(max_iterations), np.deg2rad(max_turn)).run()
+                                 int(max_iterations), np.deg2rad(max_turn)).run(progress)
         blocks.append(_dataset(prob, *solved, mode, {k: v[b] for k, v in stored.items()}))
     ds = blocks[0] if len(blocks) == 1 else xr.concat(blocks, dim="realization", data_vars="minimal",
                                                        coords="minimal", compat="override", join="override")

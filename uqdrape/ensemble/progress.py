@@ -1,4 +1,4 @@
-"""Progress of a run counted in realisations, with an ETA.
+"""Progress of a run counted in realisations (or a single drape's rings), with an ETA.
 
 On a terminal a tqdm bar; anywhere else (a log file, CI) a plain line in tqdm's format
 every ``PLAIN_EVERY`` seconds and at the end, so logs hold no carriage returns.
@@ -19,16 +19,18 @@ class Progress:
     """Realisations drawn ``total`` (``done`` of them already finished by an earlier run).
 
     ``update(n, name)`` counts n more; with ``verbose`` the finished chunk ``name`` gets a
-    line of its own. Nothing is written when ``enabled`` is False."""
+    line of its own. Nothing is written when ``enabled`` is False. Off a terminal the
+    last line (at ``total``) is written only with ``last_line``, so that a short count
+    (a single drape's rings) leaves stderr to the command's one-line errors."""
 
     def __init__(self, total: int, done: int = 0, *, enabled: bool = True, verbose: bool = False,
-                 desc: str = "realisations", file=None):
+                 desc: str = "realisations", unit: str = "real", last_line: bool = True, file=None):
         self.file = file or sys.stderr
         self.tty = self.file.isatty()
-        self.enabled, self.verbose, self.desc = enabled, verbose, desc
+        self.enabled, self.verbose, self.desc, self.unit, self.last_line = enabled, verbose, desc, unit, last_line
         self.total, self.n, self.start_n = total, done, done
         self.start = self.last = time.monotonic()
-        self.bar = tqdm(total=total, initial=done, desc=desc, unit="real", file=self.file, mininterval=0.5,
+        self.bar = tqdm(total=total, initial=done, desc=desc, unit=unit, file=self.file, mininterval=0.5,
                         disable=not (enabled and self.tty))
 
     def update(self, n: int, name: str | None = None) -> None:
@@ -41,10 +43,10 @@ class Progress:
             self.bar.update(n)
             return
         now = time.monotonic()
-        if now - self.last >= PLAIN_EVERY or self.n >= self.total:
+        if now - self.last >= PLAIN_EVERY or (self.last_line and self.n >= self.total):
             self.last = now
             rate = (self.n - self.start_n) / max(now - self.start, 1e-9)
-            line = tqdm.format_meter(self.n, self.total, now - self.start, prefix=self.desc, unit="real", rate=rate,
+            line = tqdm.format_meter(self.n, self.total, now - self.start, prefix=self.desc, unit=self.unit, rate=rate,
                                      initial=self.start_n)
             print(line, file=self.file, flush=True)
 
