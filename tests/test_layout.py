@@ -93,9 +93,15 @@ def test_the_flow_points_down_from_the_cli():
     graph = _graph()
     for part, targets in graph.items():
         assert "cli" not in targets, part
-        if part not in ("cli", "gallery"):  # the gallery is an application too
+        if part != "cli":
             assert "workflow" not in targets, part
     assert not graph.get("drape", set()) & {"study", "ensemble", "stats", "sensitivity", "report", "workflow"}
+    # the study file's specification and validator know nothing of running or reporting a
+    # study (they ask sensitivity only for its design-size rule, to refuse a bad one at validation)
+    assert not graph["study"] & {"ensemble", "report", "design", "workflow"}
+    # the names, the netCDF conventions and the measured points sit below every part
+    for bottom in ("schema", "conventions", "experimental"):
+        assert graph.get(bottom, set()) == set(), bottom
     for part in ("sensitivity", "report"):
         assert "ensemble" not in graph.get(part, set()), part
 

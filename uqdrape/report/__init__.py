@@ -21,7 +21,7 @@ from .ensemble_figures import (
     plot_wrinkle_map,
 )
 from .design import write_design_report
-from .experimental import ExperimentalPoints, read_experimental
+from ..experimental import ExperimentalPoints, read_experimental
 from .figures import plot_lines, plot_net
 from .html import write_report
 from .sensitivity_figures import plot_sensitivity_bars, plot_sensitivity_map, plot_sensitivity_vs_force

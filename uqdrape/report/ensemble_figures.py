@@ -34,7 +34,7 @@ from uqdrape.stats import (
 )
 from uqdrape.stats.headline import argmax_site
 
-from .experimental import as_experimental
+from ..experimental import as_experimental
 from .figures import (
     DISTANCE_LABEL,
     MINUS_COLOR,

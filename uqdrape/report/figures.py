@@ -26,7 +26,7 @@ from PIL import Image
 from uqdrape.drape.lines import max_shear_lines
 from uqdrape.schema import FORCE, QUADRANTS, REALIZATION, by_force
 
-from .experimental import as_experimental
+from ..experimental import as_experimental
 
 #: Line style per max-shear quadrant: i*j > 0 (positive-shear) quadrants red, the others blue.
 QUADRANT_STYLE = {
@@ -254,7 +254,7 @@ def plot_lines(ds: xr.Dataset, path, realization: int | None = 0, experimental=N
     blank-holder force level (a drape batch of several forces: one per distinct force, as
     in the thesis). ``realization`` is the position of the drape drawn within each panel's
     realisations (None: all of them, thin). ``experimental`` (a CSV path, see
-    ``uqdrape.report.experimental``) overlays measured points. Returns the path.
+    ``uqdrape.experimental``) overlays measured points. Returns the path.
     """
     points = as_experimental(experimental)
     groups = _line_panels(ds, realization)

@@ -26,7 +26,7 @@ from uqdrape.schema import FORCE, REALIZATION, by_force
 from uqdrape.stats import dominant_factors, headline_numbers, node_statistics, study_kind, wrinkle_risk
 from uqdrape.stats.headline import DESIGN, DETERMINISTIC, RANDOM, SWEPT
 
-from .experimental import read_experimental
+from ..experimental import read_experimental
 from .plan import PLAN, SENSITIVITY_PLAN, Context, render
 from .sensitivity_figures import INDICES
 

@@ -73,6 +73,7 @@ from .. import geometry as _geometry
 from .. import material as _material
 from .. import stochastic as _stochastic
 from ..drape import BLANKHOLDER_MODELS, MODES, drape, placement_failures
+from ..experimental import read_experimental
 from ..schema import SOLVER_INPUTS
 from ..stats import QOIS
 from .spec import (DESIGN_OBJECTIVES, DESIGN_STATISTICS, DESIGN_VARIABLES, DIST_KEYS, FACTOR_SETTINGS, FIELD_KEYS,
@@ -613,8 +614,6 @@ def _report(src: _Source, doc: dict, rings: int) -> Report:
         t.invalid("histogram_nodes", hint)
     csv = None
     if t.has("experimental_csv"):
-        from ..report.experimental import read_experimental  # matplotlib comes with report: only when needed
-
         csv = src.relative_file("report.experimental_csv", t.data["experimental_csv"])
         try:
             read_experimental(csv)  # a run must not find a bad CSV only when it writes the report
