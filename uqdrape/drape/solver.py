@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import numbers
 
@@ -11,7 +12,7 @@ import xarray as xr
 from .. import __version__
 from ..schema import SOLVER_INPUTS
 from .energy import BlankHolder
-from .kernels import net_shear
+from .kernels import net_node_mean, net_shear
 from .net import QUADRANTS, EnergyRings, NetProblem, build_geodesic
 from .status import Status
 
@@ -141,8 +142,10 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
             solved = EnergyRings(prob, material.bending_stiffness, np.deg2rad(tolerance),
                                  int(max_iterations), np.deg2rad(max_turn)).run()
         blocks.append(_dataset(prob, *solved, mode, {k: v[b] for k, v in stored.items()}))
-    ds = blocks[0] if len(blocks) == 1 else xr.concat(blocks, dim="realization", data_vars="minimal",
-                                                       coords="minimal", compat="override", join="override")
+    if len(blocks) == 1:
+        return blocks[0]
+    ds = xr.concat(blocks, dim="realization", data_vars="minimal", coords="minimal", compat="override",
+                   join="override")
     return ds.assign_coords(realization=np.arange(R))
 
 
@@ -162,16 +165,18 @@ def node_mean(cells):
     """Mean of the valid (finite) cells around each node; cells (R, 2n, 2n) -> (R, N, N), NaN
     where a node has no valid cell. Node shear is this mean of the cell shears."""
     R, m, _ = cells.shape
-    total = np.zeros((R, m + 1, m + 1))
-    count = np.zeros((R, m + 1, m + 1))
-    valid = np.isfinite(cells)
-    c = np.where(valid, cells, 0.0)
-    for da in (0, 1):
-        for db in (0, 1):
-            total[:, da:da + m, db:db + m] += c
-            count[:, da:da + m, db:db + m] += valid
-    with np.errstate(invalid="ignore"):
-        return np.where(count > 0, total / np.maximum(count, 1), np.nan)
+    out = np.empty((R, m + 1, m + 1))
+    net_node_mean(np.ascontiguousarray(cells, float), out)
+    return out
+
+
+@functools.lru_cache(maxsize=8)
+def _coords(R, n):
+    """The coordinates of a drape Dataset of R realisations of an n-ring net, with their
+    indexes built once per shape (building them was most of a single drape's time)."""
+    return xr.Coordinates({"realization": np.arange(R), "i": np.arange(-n, n + 1), "j": np.arange(-n, n + 1),
+                           "cell_i": np.arange(-n, n) + 0.5, "cell_j": np.arange(-n, n) + 0.5,
+                           "ring": np.arange(1, n + 1), "arm": ["+i", "+j", "-i", "-j"], "quadrant": list(QUADRANTS)})
 
 
 def _dataset(prob, P, status, turns, bending, iterations, converged, mode, factors):
@@ -189,44 +194,43 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
     near = node_mean(np.where(np.isfinite(gamma), locked, np.nan))
     node_locked = np.where(np.isnan(near), np.nan, near > 0) if material is not None else np.full(near.shape, np.nan)
     bh = prob.ring_blankholder(P, n)
-    idx = np.arange(-n, n + 1)
-    cidx = np.arange(-n, n) + 0.5
     node = ("realization", "i", "j")
     cell = ("realization", "cell_i", "cell_j")
     total = np.nan_to_num(shear_energy) + bending + bh.sum(-1)
-    inputs = {}  # the per-realisation inputs, built with the Dataset (one alignment, not one per input)
-    for name, value in factors.items():
+    variables = {
+        "x": (node, P[..., 0], {"units": "mm", "long_name": "node x"}),
+        "y": (node, P[..., 1], {"units": "mm", "long_name": "node y"}),
+        "z": (node, P[..., 2], {"units": "mm", "long_name": "node z (height)"}),
+        "shear": (node, np.rad2deg(node_mean(gamma)),
+                  {"units": "degree", "long_name": "node shear angle (mean of adjacent cells)"}),
+        "status": (node, status, {"long_name": "node status", "units": "1", "flag_values": [s.value for s in Status],
+                                  "flag_meanings": " ".join(s.name.lower() for s in Status)}),
+        "cell_shear": (cell, np.rad2deg(gamma), {"units": "degree", "long_name": "signed cell shear angle"}),
+        "cell_locked": (cell, locked, {"long_name": "cell sheared beyond the locking angle", "units": "1"}),
+        "locked": (node, node_locked, {"units": "1", "long_name": "node next to a cell sheared beyond "
+                                       "its branch's locking angle (1) or not (0); NaN: invalid node"}),
+        "gamma0": (cell, np.rad2deg(prob.gamma0), {"units": "degree", "long_name": "zero-energy shear angle"}),
+        "turn": (("realization", "ring", "arm"), np.rad2deg(turns),
+                 {"units": "degree", "long_name": "generator-arm turn angle about the surface normal"}),
+        "energy_shear": ("realization", shear_energy, {"units": "J", "long_name": "shear energy"}),
+        "energy_bending": ("realization", bending, {"units": "J", "long_name": "generator-path bending energy"}),
+        "energy_blankholder": ("realization", bh.sum(-1), {"units": "J", "long_name": "blank-holder friction energy"}),
+        "energy_blankholder_quadrant": (("realization", "quadrant"), bh,
+                                        {"units": "J", "long_name": "blank-holder energy per quadrant"}),
+        "energy_total": ("realization", total, {"units": "J", "long_name": "total forming energy"}),
+        "iterations": ("realization", iterations, {"long_name": "minimiser iterations, all steps", "units": "1"}),
+        "converged": ("realization", converged, {"long_name": "minimiser converged at every step", "units": "1"}),
+    }
+    for name, value in factors.items():  # the per-realisation inputs
         inp = SOLVER_INPUTS.get(name)
         attrs = {"units": inp.units, "long_name": inp.long_name} if inp else {"units": "1", "long_name": f"sampled input {name}"}
-        inputs[name] = ("realization", np.asarray(value, dtype=float), attrs)
-    ds = xr.Dataset(
-        {
-            "x": (node, P[..., 0], {"units": "mm", "long_name": "node x"}),
-            "y": (node, P[..., 1], {"units": "mm", "long_name": "node y"}),
-            "z": (node, P[..., 2], {"units": "mm", "long_name": "node z (height)"}),
-            "shear": (node, np.rad2deg(node_mean(gamma)),
-                      {"units": "degree", "long_name": "node shear angle (mean of adjacent cells)"}),
-            "status": (node, status, {"long_name": "node status", "units": "1", "flag_values": [s.value for s in Status],
-                                      "flag_meanings": " ".join(s.name.lower() for s in Status)}),
-            "cell_shear": (cell, np.rad2deg(gamma), {"units": "degree", "long_name": "signed cell shear angle"}),
-            "cell_locked": (cell, locked, {"long_name": "cell sheared beyond the locking angle", "units": "1"}),
-            "locked": (node, node_locked, {"units": "1", "long_name": "node next to a cell sheared beyond "
-                                           "its branch's locking angle (1) or not (0); NaN: invalid node"}),
-            "gamma0": (cell, np.rad2deg(prob.gamma0), {"units": "degree", "long_name": "zero-energy shear angle"}),
-            "turn": (("realization", "ring", "arm"), np.rad2deg(turns),
-                     {"units": "degree", "long_name": "generator-arm turn angle about the surface normal"}),
-            "energy_shear": ("realization", shear_energy, {"units": "J", "long_name": "shear energy"}),
-            "energy_bending": ("realization", bending, {"units": "J", "long_name": "generator-path bending energy"}),
-            "energy_blankholder": ("realization", bh.sum(-1), {"units": "J", "long_name": "blank-holder friction energy"}),
-            "energy_blankholder_quadrant": (("realization", "quadrant"), bh,
-                                            {"units": "J", "long_name": "blank-holder energy per quadrant"}),
-            "energy_total": ("realization", total, {"units": "J", "long_name": "total forming energy"}),
-            "iterations": ("realization", iterations, {"long_name": "minimiser iterations, all steps", "units": "1"}),
-            "converged": ("realization", converged, {"long_name": "minimiser converged at every step", "units": "1"}),
-            **inputs,
-        },
-        coords={"realization": np.arange(prob.R), "i": idx, "j": idx, "cell_i": cidx, "cell_j": cidx,
-                "ring": np.arange(1, n + 1), "arm": ["+i", "+j", "-i", "-j"], "quadrant": list(QUADRANTS)},
+        variables[name] = ("realization", np.asarray(value, dtype=float), attrs)
+    coords = _coords(prob.R, n)
+    variables = {name: xr.Variable(*v) for name, v in variables.items()} | dict(coords.variables)
+    # the variables are consistent by construction: skip xarray's merge and alignment, a
+    # millisecond per call, the bulk of a single geodesic drape
+    return xr.Dataset._construct_direct(
+        variables, set(coords), indexes=dict(coords.xindexes),
         attrs={"spacing_mm": prob.s, "rings": n, "mode": mode, "geometry": prob.surface.describe(),
                "material": getattr(material, "name", "none"),
                "locking_angle_deg": float(getattr(material, "locking_angle_deg", np.nan) or np.nan),
@@ -236,4 +240,3 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
                "status_codes": Status.describe(), "uqdrape_version": __version__,
                "Conventions": "CF-1.8"},
     )
-    return ds
