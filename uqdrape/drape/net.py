@@ -15,6 +15,7 @@ Node (i, j) is stored at array index (i + n, j + n). Arms are ordered +i, +j, -i
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from . import ring
@@ -98,10 +99,14 @@ class NetProblem:
         return both[..., 0] + both[..., 1]
 
 
-def build_geodesic(prob: NetProblem):
-    """Geodesic net: arms first, then anti-diagonal fill (``ring.geodesic_block``). Returns P, status."""
+def build_geodesic(prob: NetProblem, threads=1):
+    """Geodesic net: arms first, then anti-diagonal fill (``ring.geodesic_block``), the
+    realisations on ``threads`` of numba's threads. Returns P, status."""
     P, status = prob.start()
-    ring.geodesic_block(prob.surface.kernel, prob.tol, prob.n, P, status, prob.seg_i, prob.seg_j,
+    if threads > 1:
+        numba.set_num_threads(threads)
+    block = ring.geodesic_block_threads if threads > 1 else ring.geodesic_block
+    block(prob.surface.kernel, prob.tol, prob.n, P, status, prob.seg_i, prob.seg_j,
                         np.ascontiguousarray(prob.first_directions()))
     return P, status
 

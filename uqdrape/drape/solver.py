@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import functools
 import json
+import multiprocessing
 import numbers
+import threading
 
+import numba
 import numpy as np
 import xarray as xr
 
@@ -42,10 +45,20 @@ def _batch_size(**arrays):
     return distinct.pop() if distinct else 1
 
 
+def default_threads():
+    """Threads for a batch of geodesic nets: all of numba's for a call from the main thread
+    of the main process, else 1, because ensemble workers (one process per core) and the
+    threads of a thread pool already share the cores among themselves."""
+    if multiprocessing.parent_process() is None and threading.current_thread() is threading.main_thread():
+        return numba.config.NUMBA_NUM_THREADS
+    return 1
+
+
 def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
           crossover=(0.0, 0.0), seg_i=None, seg_j=None, gamma0=None, mode="geodesic",
           material=None, blankholder_force=0.0, friction=0.2, sectors=None,
-          blankholder_model="slip", tolerance=1e-3, max_iterations=30, max_turn=10.0, factors=None) -> xr.Dataset:
+          blankholder_model="slip", tolerance=1e-3, max_iterations=30, max_turn=10.0, factors=None,
+          threads=None) -> xr.Dataset:
     """Drape a batch of pin-jointed nets over ``surface``; one Python loop for the batch.
 
     Arguments that may differ per realisation take a scalar (or base shape) or an array
@@ -69,6 +82,8 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     tolerance          minimiser tolerance on the turn angles (deg)
     max_iterations     minimiser iterations per step; max_turn: bound on a turn (deg)
     factors            dict of extra per-realisation values stored along ``realization``
+    threads            numba threads sharing a batch's geodesic nets (None: ``default_threads()``);
+                       the nets are the same whatever the count
 
     Nodes that cannot be placed are NaN with a ``status`` code (``Status``); the call
     does not raise for them. Impossible arguments raise ValueError naming the argument.
@@ -86,6 +101,11 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     for name, v in (("tolerance", tolerance), ("max_turn", max_turn)):
         if not np.isfinite(v) or v <= 0:
             raise ValueError(f"{name} must be > 0 (deg), got {v!r}")
+    if threads is None:
+        threads = default_threads()
+    if not isinstance(threads, numbers.Integral) or not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
+        raise ValueError(f"threads must be an integer from 1 to {numba.config.NUMBA_NUM_THREADS} "
+                         f"(numba's threads), got {threads!r}")
     n = int(rings)
     shapes = dict(orientation=(orientation, 0), pre_shear=(pre_shear, 0), skew=(skew, 0),
                   crossover=(crossover, 1), seg_i=(seg_i, 2), seg_j=(seg_j, 2), gamma0=(gamma0, 2),
@@ -135,7 +155,7 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
                           np.deg2rad(gamma0[b]), e1[b], e2[b], BlankHolder(force[b], mu[b], sectors, blankholder_model),
                           material, tol)
         if mode == "geodesic":
-            P, status = build_geodesic(prob)
+            P, status = build_geodesic(prob, min(threads, prob.R))
             r = prob.R
             solved = (P, status, np.zeros((r, n, 4)), np.zeros(r), np.zeros(r, np.int32), np.ones(r, bool))
         else:
