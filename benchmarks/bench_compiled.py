@@ -1,8 +1,9 @@
 """Compiled drape against the previous (numpy) implementation, measured in one run (issue 12).
 
 Both implementations are timed by the same code in child processes, one after the other:
-this checkout's (the Python running this script) and a previous release installed in its
-own virtual environment, given by ``--previous`` (its ``python``). Set that up once,
+this checkout's (the Python running this script, with the checkout holding the script
+first on its path) and a previous release installed in its own virtual environment, given
+by ``--previous`` (its ``python``, run without PYTHONPATH). Set that up once,
 outside the repository, from the last numpy commit::
 
     mkdir /tmp/uqdrape-prev && git archive 36beba2 | tar -x -C /tmp/uqdrape-prev
@@ -20,11 +21,13 @@ Run: python benchmarks/bench_compiled.py [--previous PYTHON] [--batch N]
 
 import argparse
 import json
+import os
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
+from pathlib import Path
 
 CHILD = r'''
 import json, statistics, sys, time
@@ -85,11 +88,15 @@ LABELS = {
 }
 
 
-def measure(python, batch):
-    """The child's figures (dict) under interpreter ``python``, run outside the checkout so
-    that each interpreter imports its own installed uqdrape."""
+def measure(python, batch, checkout=None):
+    """The child's figures (dict) under interpreter ``python``, run outside the checkout:
+    with ``checkout`` first on its path (this checkout's uqdrape), else with its own
+    installed uqdrape (no PYTHONPATH)."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    if checkout:
+        env["PYTHONPATH"] = str(checkout)
     done = subprocess.run([python, "-c", CHILD, str(batch)], capture_output=True, text=True, check=True,
-                          cwd=tempfile.gettempdir())
+                          cwd=tempfile.gettempdir(), env=env)
     out = json.loads(done.stdout.strip().splitlines()[-1])
     print(python, json.dumps(out), flush=True)
     return out
@@ -104,7 +111,7 @@ def main():
     with open("/proc/loadavg") as f:
         load = f.read().split()[:3]
     t = time.perf_counter()
-    new = measure(sys.executable, args.batch)
+    new = measure(sys.executable, args.batch, Path(__file__).resolve().parents[1])
     old = measure(args.previous, args.batch)
     print(f"N = {args.batch}; load average before the run {' '.join(load)}; run took {time.perf_counter() - t:.0f} s")
     print(f"{'figure':62s} {'previous':>10s} {'compiled':>10s} {'speed-up':>9s}")

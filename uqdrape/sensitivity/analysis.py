@@ -3,8 +3,8 @@
 Sobol' indices of all output columns (scalar QoIs, net nodes) are computed at once by
 SALib's estimators (``first_order``, ``total_order``) on 2-D arrays, with the steps of
 ``SALib.analyze.sobol.analyze`` (per-column standardisation, the same bootstrap rows for
-every column): equal to a call of that function per column to round-off, and a 61 x 61
-node map in seconds instead of minutes. Morris indices call SALib once per column. The
+every column): equal to a call of that function per column to round-off, without a
+Python call per node. Morris indices call SALib once per column. The
 ``factor`` dimension holds SALib's labels: group names when the problem has groups (a
 random field is one label), otherwise variable names.
 
@@ -61,8 +61,8 @@ def _sobol_columns(problem, Y, conf_level, seed, num_resamples):
     As ``sobol_analyze.analyze`` per column: each column standardised, A, B and AB_j
     rows split from the design, bootstrap rows drawn once from ``seed`` (SALib draws the
     same ones for every column), half-widths Z * sd of the bootstrap estimates (0 where
-    the resampled outputs do not vary). Columns go in blocks of about 2 MB of resamples:
-    cache-sized, 2-3x faster than 32 MB blocks.
+    the resampled outputs do not vary). Columns go in cache-sized blocks (about 2 MB of
+    resamples each).
     """
     D = len(set(problem.get("groups") or problem["names"]))
     step = D + 2
