@@ -107,7 +107,7 @@ def build_geodesic(prob: NetProblem, threads=1):
         numba.set_num_threads(threads)
     block = ring.geodesic_block_threads if threads > 1 else ring.geodesic_block
     block(prob.surface.kernel, prob.tol, prob.n, P, status, prob.seg_i, prob.seg_j,
-                        np.ascontiguousarray(prob.first_directions()))
+          np.ascontiguousarray(prob.first_directions()))
     return P, status
 
 
