@@ -52,13 +52,16 @@ def write(tmp_path, design_text: str, name="d.toml") -> Path:
 CENTRE = 290.0
 #: ... and the friction coefficient (the study's own is 0.2).
 FRICTION = 0.2
+#: Synthetic draw-in (mm) of realisation r: DRAW_IN_0 - total force / DRAW_IN_RATE + noise_r / 2.
+DRAW_IN_0, DRAW_IN_RATE = 30.0, 20.0
 
 
 def synthetic_drape(study, realizations, force, sectors, friction):
     """A drape stand-in with a known optimum: max |shear| of realisation r is
     30 + ((f_k - CENTRE) / 100)^2 summed over the sector forces f_k
     + ((friction - FRICTION) / 0.05)^2 + noise_r, so every quantile of it, and its CRN
-    estimate, is least at f_k = CENTRE, friction = FRICTION (deg)."""
+    estimate, is least at f_k = CENTRE, friction = FRICTION (deg). The largest draw-in
+    falls with the total force (DRAW_IN_0, DRAW_IN_RATE)."""
     r = np.asarray(realizations)
     n = 1 if sectors is None else len(sectors)
     forces = np.full(n, force / n) if sectors is None else force * np.asarray(sectors)
@@ -69,6 +72,7 @@ def synthetic_drape(study, realizations, force, sectors, friction):
     return xr.Dataset({
         "any_locked": ("realization", (noise > 1.0).astype(float)),
         "max_abs_shear": ("realization", shear),
+        "max_draw_in": ("realization", DRAW_IN_0 - force / DRAW_IN_RATE + 0.5 * noise),
         "line_shear": (("quadrant", "realization", "k"), line),
         "node_locked": (("i", "j"), np.zeros((3, 3))),
         "node_valid": (("i", "j"), np.full((3, 3), float(r.size))),
@@ -116,6 +120,74 @@ def test_force_and_friction_find_the_known_minimum(tmp_path):
     assert list(ds["variable"].values) == ["force", "friction"]
 
 
+def test_draw_in_limit_moves_the_optimum_to_the_least_force_that_keeps_it(tmp_path):
+    # unconstrained the optimum is CENTRE = 290 N (test above); the synthetic draw-in's 95 %
+    # quantile DRAW_IN_0 - F / DRAW_IN_RATE + q95(noise) / 2 falls to the 12 mm limit at F_min
+    ds = run(write(tmp_path, 'variables = "force"\nforce_bounds_N = [0.0, 1000.0]\nobjective = "q95_max_abs_shear"\n'
+                             'statistic = "estimate"\ntolerance_N = 2.0\nmax_evaluations = 30\nmax_draw_in_mm = 12.0\n'))
+    noise = [np.random.default_rng([7, k]).normal() for k in range(32)]
+    f_min = DRAW_IN_RATE * (DRAW_IN_0 - 12.0 + 0.5 * np.quantile(noise, 0.95))
+    assert f_min > CENTRE + 50
+    optimum = float(ds.attrs["optimum"])
+    assert f_min <= optimum <= f_min + 2.0  # feasible, within xatol of the limit
+    design_sample = ds.isel(evaluation=np.flatnonzero(ds["sample"].values == "design"))
+    below = design_sample["total_force"] < f_min
+    assert (design_sample["feasible"] == ~below).all()  # the limit is a floor on the force
+    assert ds.attrs["max_draw_in_mm"] == 12.0
+    assert "Draw-in at the optimum (95 % quantile of the largest, mm)" in ds.attrs["summary"]
+
+
+def test_a_draw_in_limit_no_design_keeps_gives_the_least_infeasible_design_and_says_so(tmp_path):
+    # the synthetic draw-in's 95 % quantile is above 15 mm at every force up to 300 N
+    ds = run(write(tmp_path, 'variables = "force"\nforce_bounds_N = [0.0, 300.0]\nobjective = "q95_max_abs_shear"\n'
+                             'statistic = "estimate"\ntolerance_N = 2.0\nmax_evaluations = 30\nmax_draw_in_mm = 1.0\n'))
+    assert int(ds["feasible"].sum()) == 0
+    assert float(ds.attrs["optimum"]) >= 300.0 - 2.0  # the least draw-in: the largest force, to xatol
+    assert ds.attrs["summary"].endswith("limit 1 mm on its estimate: BROKEN on the validation sample; "
+                                        "no evaluated design keeps it.")
+
+
+def test_design_report_shows_the_draw_in_limit(tmp_path):
+    from PIL import Image
+
+    from uqdrape.geometry import build
+    from uqdrape.report import write_design_report
+
+    text = ('variables = "force"\nforce_bounds_N = [0.0, 1000.0]\nobjective = "q95_max_abs_shear"\n'
+            'statistic = "estimate"\ntolerance_N = 2.0\nmax_evaluations = 12\n')
+    heights = {}
+    for limit in ("", "max_draw_in_mm = 12.0\n"):
+        ds = run(write(tmp_path, text + limit), out=tmp_path / f"run{bool(limit)}")
+        index = write_design_report(ds, tmp_path / f"report{bool(limit)}", surface=build("hemisphere", radius=100.0))
+        record = json.loads((index.parent / "summary.json").read_text())
+        assert record["figures"] == ["objective.png", "risk_map.png", "convergence.png"]
+        with Image.open(index.parent / "objective.png") as im:
+            heights[bool(limit)] = im.size[1]
+        page = index.read_text()
+        assert ("<th>draw-in limit (mm)</th><td>12 on the estimate" in page) == bool(limit)
+    assert heights[True] > 1.5 * heights[False]  # the draw-in panel under the objective's
+
+
+def test_draw_in_is_zero_on_a_plate_and_the_arc_deficit_on_a_hemisphere():
+    """Radial draw-in of the held edge: a plate keeps the flat blank (0); on a hemisphere of
+    radius R draped geodesically from the pole the arm node (n, 0) sits at plan radius
+    R sin(n a), a = 2 asin(s / 2R) per chord, so it is drawn in by n s - R sin(n a); every
+    edge node of a convex mould is drawn in."""
+    from uqdrape.drape import drape
+    from uqdrape.geometry import build
+
+    n, s, R = 6, 5.0, 100.0
+    plate = drape(build("plate"), s, n, orientation=[0.0, 30.0])
+    assert float(abs(design.draw_in(plate)).max()) < 1e-12
+    dome = drape(build("hemisphere", radius=R), s, n)
+    d = design.draw_in(dome).isel(realization=0)
+    a = 2 * np.arcsin(s / (2 * R))
+    np.testing.assert_allclose(float(d.sel(i=n, j=0)), n * s - R * np.sin(n * a), rtol=1e-9)
+    edge = d.where(np.isfinite(d), drop=True)
+    assert int(np.isfinite(d).sum()) == 8 * n and float(edge.min()) > 0
+    assert bool(d.sel(i=slice(-n + 1, n - 1), j=slice(-n + 1, n - 1)).isnull().all())
+
+
 def test_interrupted_design_resumes_to_the_same_result(tmp_path):
     text = ('variables = "force"\nforce_bounds_N = [0.0, 1000.0]\nobjective = "q95_max_abs_shear"\nstatistic = "estimate"\n'
             'tolerance_N = 2.0\nmax_evaluations = 30\n')
@@ -146,9 +218,16 @@ def test_interrupted_design_resumes_to_the_same_result(tmp_path):
      "design.budget_N = 300.0 is invalid: budget_N must be >= the smallest total force the bounds allow, 4 x 100 = 400 N"),
     ('variables = "force"\nforce_bounds_N = [0.0, 100.0]\nobjective = "p_wrinkle"',
      'design.objective = "p_wrinkle" is invalid: objective must be one of "p_locked", "q95_max_abs_shear", '
-     '"abs_mean_asymmetry"'),
+     '"abs_mean_asymmetry", "q95_max_draw_in"'),
     ('variables = "sectors"\nsectors = 1\nforce_bounds_N = [0.0, 100.0]\nobjective = "p_locked"',
      "design.sectors = 1 is invalid: sectors must be an integer >= 2"),
+    ('variables = "force"\nforce_bounds_N = [0.0, 100.0]\nobjective = "p_locked"\nmax_draw_in_mm = -5.0',
+     "design.max_draw_in_mm = -5.0 is invalid: max_draw_in_mm must be a number > 0"),
+    ('variables = "force"\nforce_bounds_N = [0.0, 100.0]\nobjective = "p_locked"\nmax_draw_in_mm = "20 mm"',
+     'design.max_draw_in_mm = "20 mm" is invalid: max_draw_in_mm must be a number > 0'),
+    ('variables = "force"\nforce_bounds_N = [0.0, 100.0]\nobjective = "p_locked"\nmax_draw_in_mm = 20.0',
+     'study.realizations = 32 is invalid: the upper 0.95 confidence limit of a 95 % quantile needs at least 72 '
+     'realisations; use more, or statistic = "estimate"'),
 ])
 def test_bad_design_is_refused_in_one_line(tmp_path, capsys, text, expected):
     path = write(tmp_path, text)

@@ -24,6 +24,7 @@ from uqdrape.ensemble import (
     design_variables, drape_inputs, inputs_from_design, open_ensemble, sampled_inputs,
 )
 from uqdrape.ensemble.store import read_manifest
+from uqdrape.stats import varying_factors
 from uqdrape.study import FACTOR_SETTINGS, load_study
 from uqdrape.workflow import run_study
 
@@ -183,6 +184,7 @@ def test_realisation_indices_are_checked(tmp_path):
 # ----------------------------------------------------------------------------- runs
 
 
+@pytest.mark.slow  # ~8 s: starts two worker processes
 def test_same_numbers_for_another_chunk_size_and_two_local_processes(tmp_path, reference):
     # the reference ran in one chunk of 64 in this process; one worker process and
     # chunks of 1 are covered by test_interrupted_run_resumes_to_the_same_ensemble
@@ -191,7 +193,7 @@ def test_same_numbers_for_another_chunk_size_and_two_local_processes(tmp_path, r
     np.testing.assert_array_equal(ref.realization, np.arange(N))
     out = run_study(moved(study, tmp_path), chunk_size=7, workers=2, progress=False)
     with open_ensemble(out) as ds:
-        assert ds.x.chunks[0] == (7, 7, 6)  # lazily opened, one dask chunk per file
+        assert ds.x.chunks[1] == (7, 7, 6)  # lazily opened, one dask chunk per file (along realization)
         assert_same_numbers(ds, ref)
 
 
@@ -207,7 +209,12 @@ def test_same_numbers_on_a_distributed_cluster(tmp_path, reference):
 
 
 def test_ensemble_holds_inputs_provenance_and_units(reference):
-    study, ds = reference
+    study, ensemble = reference
+    # the force is a dimension of length 1 without a sweep; each drape keeps the force it was run with
+    assert ensemble.x.dims == ("blankholder_force", "realization", "i", "j")
+    np.testing.assert_array_equal(ensemble.blankholder_force, study.force_levels)
+    np.testing.assert_array_equal(ensemble.applied_blankholder_force, np.full((1, N), study.force_levels[0]))
+    ds = ensemble.isel(blankholder_force=0)
     inputs = sampled_inputs(study, range(N))
     np.testing.assert_array_equal(ds.seg_i, inputs["seg_i"])
     np.testing.assert_array_equal(ds.seg_j, inputs["seg_j"])
@@ -237,6 +244,23 @@ def test_chunk_file_opens_with_plain_xarray(tmp_path, reference):
                          "energy_total": "J", "friction": "1", "seg_i": "mm", "gamma0": "degree"}
         assert {"x", "y", "z"} <= set(ds.coords)  # CF 'coordinates': plain xarray places the nodes
         xr.testing.assert_identical(ds.x.reset_coords(drop=True), ref.x.sel(realization=slice(7, 13)))
+
+
+def test_a_sampled_force_is_stored_per_drape_beside_its_nominal_level(tmp_path):
+    path = study_file(tmp_path, name="sampled")
+    path.write_text(path.read_text() + '\n[uncertainty.blankholder_force]\ndist = "uniform"\nbounds = [50.0, 150.0]\n')
+    study = load_study(path)
+    out = run_study(study, scheduler="synchronous", progress=False)
+    with open_ensemble(out) as ds:
+        ds = ds.load()
+    # the dimension holds the study's fixed setting (the nominal force the factor replaces) ...
+    np.testing.assert_array_equal(ds.blankholder_force, [100.0])
+    assert ds.applied_blankholder_force.dims == ("blankholder_force", "realization")
+    # ... and each drape the force it was run with: the sampled one
+    applied = ds.applied_blankholder_force.isel(blankholder_force=0).values
+    np.testing.assert_array_equal(applied, sampled_inputs(study, range(N))["blankholder_force"])
+    assert 50.0 <= applied.min() < applied.max() <= 150.0
+    assert varying_factors(ds) == ["blankholder_force", "friction"]
 
 
 def test_energy_sweep_uses_common_random_numbers(tmp_path):
@@ -281,6 +305,7 @@ def test_the_studys_blankholder_model_reaches_every_drape(tmp_path, reference):
 # ----------------------------------------------------------------------------- store and resume
 
 
+@pytest.mark.slow  # ~14 s: a run in a child process, killed, then resumed
 def test_interrupted_run_resumes_to_the_same_ensemble(tmp_path, reference):
     study, ref = reference
     path = study_file(tmp_path, chunk_size=1)
@@ -358,7 +383,7 @@ def test_bad_run_arguments(tmp_path, reference):
         run_study(study, scheduler="tcp://127.0.0.1:1", workers=2)
     with pytest.raises(ValueError, match="chunk_size must be a positive integer, got 0"):
         run_study(study, chunk_size=0)
-    with pytest.raises(ValueError, match="force=10.0: study .tiny. is not a blank-holder-force sweep"):
+    with pytest.raises(ValueError, match=r"force=10.0: pass one of study .tiny.'s blank-holder levels \[100.0\] N"):
         drape_inputs(study, [0], sampled_inputs(study, [0]), force=10.0)
     assert not tmp_path.joinpath("run.json").exists()  # nothing written for bad arguments
 

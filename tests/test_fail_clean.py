@@ -178,6 +178,23 @@ def test_a_study_whose_net_leaves_the_mould_is_refused_before_draping(tmp_path, 
     assert list((tmp_path / "ok" / "chunks").glob("*")) == []
 
 
+def test_a_run_within_its_failure_budget_reports_the_status_counts_instead_of_failing(tmp_path, capsys, unrasterised):
+    # 2 x 34 x 5 mm of net on a 50 mm dome with a 100 mm flange: most nodes fall off the mould
+    path = study_file(tmp_path, rings=34, realizations=2)
+    path.write_text(path.read_text().replace("rings = 34", "rings = 34\nfailure_budget = 0.99"))
+    assert cli(["run", str(path), "--scheduler", "synchronous", "--quiet"]) == 0
+    assert capsys.readouterr().err == ""  # no warning from a plot of the degenerate ensemble
+    report = tmp_path / "tiny" / "report"
+    status = json.loads((report / "summary.json").read_text())["node_status"]
+    assert sum(status.values()) == 2 * 69 * 69 and status["off_mould"] > 0 and status["dependent"] > 0
+    assert 0 < status["ok"] < 0.5 * 2 * 69 * 69
+    page = (report / "index.html").read_text()
+    assert f"not placed: dependent {status['dependent']:,}, off_mould {status['off_mould']:,}" in page
+    # the geodesic drape ignores the zero-angle field: no spread, so no histogram or convergence plot
+    assert "No histograms or convergence plot" in page
+    assert not (report / "histograms.png").exists() and not (report / "convergence.png").exists()
+
+
 # ----------------------------------------------------------------------------- hostile inputs
 
 #: (section, key, value as TOML) replacements or additions to the base study.

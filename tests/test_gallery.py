@@ -16,6 +16,7 @@ from PIL import Image
 from uqdrape.drape import drape
 from uqdrape.geometry import build
 from uqdrape.report import plot_scalar_vs_factor, write_report
+from uqdrape.schema import by_force
 from uqdrape.stats import inner_outer_sd, ring_sd, varying_factors
 from uqdrape.study import load_study
 
@@ -67,12 +68,12 @@ def test_plot_scalar_vs_factor_writes_a_png_and_checks_its_input(skewed, tmp_pat
         assert im.size[0] > 800 and im.size[1] > 300
     with pytest.raises(ValueError, match="factor='orientation' is not a variable along 'realization'; valid: .*skew"):
         plot_scalar_vs_factor(skewed.drop_vars("orientation", errors="ignore"), tmp_path / "x.png", "orientation")
-    sweep = skewed.drop_vars("blankholder_force").expand_dims(blankholder_force=[200.0])
+    sweep = by_force(skewed).reindex(blankholder_force=[200.0, 300.0])  # two levels
     with pytest.raises(ValueError, match="takes one blank-holder level"):
         plot_scalar_vs_factor(sweep, tmp_path / "x.png", "skew")
 
 
-def test_report_of_a_varying_skew_has_the_factor_figure(skewed, tmp_path):
+def test_report_of_a_varying_skew_has_the_factor_figure(skewed, tmp_path, unrasterised):
     write_report(skewed, tmp_path, title="skew")
     record = json.loads((tmp_path / "summary.json").read_text())
     assert "vs_skew.png" in record["figures"]

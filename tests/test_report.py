@@ -40,6 +40,7 @@ from uqdrape.report import (
 from uqdrape.report.figures import DPI, _line_panels, panels, save
 from uqdrape.report.html import default_histogram_nodes
 from uqdrape.report.plan import PLAN
+from uqdrape.schema import by_force
 from uqdrape.stats import KINDS, convergence, exceedance_probability, node_statistics, samples_needed, study_kind
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -175,10 +176,10 @@ def test_plot_lines_one_panel_per_force(material, tmp_path):
     single = png_shape(plot_lines(one, tmp_path / "one.png"))
     grid = png_shape(plot_lines(four, tmp_path / "four.png"))
     assert grid == (2 * single[0], 2 * single[1])  # 2 x 2 panels of the single-panel size
-    groups = _line_panels(four, 0)
+    groups = _line_panels(by_force(four), 0)
     assert [f for f, _ in groups] == [0.0, 126.0, 252.0, 378.0]
     for force, sub in groups:
-        assert sub["blankholder_force"].values.tolist() == [force]
+        assert sub["applied_blankholder_force"].values.tolist() == [force]
 
 
 def test_plot_lines_sweep_dim_and_all_realisations(sweep, tmp_path):
@@ -251,7 +252,7 @@ def test_ensemble_figures_draw_their_statistics(ensemble, exp_csv, tmp_path, dra
     for ax, node in zip(hist.axes, [(3, 3), (-3, 3)]):
         values = ensemble["shear"].sel(i=node[0], j=node[1]).values
         np.testing.assert_allclose(ax.patches[0].get_data().edges, np.histogram_bin_edges(values, 20), rtol=1e-12)
-        assert ax.get_title() == f"node {node}, {'+' if node[0] * node[1] > 0 else '−'} quadrant"
+        assert ax.get_title() == f"node {node}, {'+' if node[0] * node[1] > 0 else '−'} quadrant, F_BH = 0 N"
     ax_h = conv.axes[1]
     final_sd = float(convergence(ensemble, (2, 2))["running_sd"][-1])
     marks = [line.get_xdata()[0] for line in ax_h.get_lines() if line.get_linestyle() == ":"]
@@ -285,7 +286,7 @@ def test_sweep_figures_share_scales_name_levels_and_bin_each_level(sweep, tmp_pa
 
 
 def test_ensemble_figure_errors(ensemble, geodesic, tmp_path):
-    with pytest.raises(ValueError, match="plot_sweep needs a 'blankholder_force' dim"):
+    with pytest.raises(ValueError, match="plot_sweep needs two or more 'blankholder_force' levels"):
         plot_sweep(ensemble, tmp_path / "s.png")
     with pytest.raises(ValueError, match="no 'locking_angle_deg'|threshold_deg"):
         plot_wrinkle_map(geodesic.drop_attrs(), tmp_path / "w.png")
@@ -341,7 +342,7 @@ def test_write_report_links_and_summary_numbers(ensemble, exp_csv, tmp_path):
     assert f"{summary['samples_needed']['value']}</td>" in html_text
 
 
-def test_wrinkle_risk_comes_from_the_locked_flag_when_the_drape_has_it(ensemble, tmp_path):
+def test_wrinkle_risk_comes_from_the_locked_flag_when_the_drape_has_it(ensemble, tmp_path, unrasterised):
     ds = ensemble.copy()
     ds["locked"] = (abs(ds["shear"]) > 8.0).astype(float).where(ds["shear"].notnull())
     index = write_report(ds, tmp_path, title="locked")
@@ -353,7 +354,7 @@ def test_wrinkle_risk_comes_from_the_locked_flag_when_the_drape_has_it(ensemble,
     assert "wrinkle_risk.png" in summary["figures"] and "P(next to a locked cell)" in index.read_text()
 
 
-def test_write_report_sweep(sweep, tmp_path):
+def test_write_report_sweep(sweep, tmp_path, unrasterised):
     index = write_report(sweep, tmp_path, title="sweep")
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert {"net.png", "sweep.png", "histograms.png"} <= set(summary["figures"])
@@ -366,7 +367,7 @@ def test_write_report_sweep(sweep, tmp_path):
                                          j=site["node"][1]))
 
 
-def test_write_report_without_locking_angle(geodesic, tmp_path):
+def test_write_report_without_locking_angle(geodesic, tmp_path, unrasterised):
     index = write_report(geodesic, tmp_path, title="geodesic")
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["max_wrinkle_probability"] is None
@@ -390,7 +391,8 @@ def test_write_report_bad_input_writes_nothing(ensemble, tmp_path):
 
 
 def test_default_histogram_nodes_follow_the_thesis(ensemble):
-    assert default_histogram_nodes(ensemble, node_statistics(ensemble)) == [(6, 6), (-6, 6)]
+    ds = by_force(ensemble)
+    assert default_histogram_nodes(ds, node_statistics(ds)) == [(6, 6), (-6, 6)]
 
 
 # ---------------------------------------------------------------- the plan of each study kind
@@ -419,7 +421,7 @@ def test_study_kind_rules(ensemble, sweep):
     assert study_kind(skewed.assign_attrs(study_json=field)) == "random sample"
 
 
-def test_each_kind_s_report_leaves_out_what_does_not_apply(ensemble, sweep, tmp_path):
+def test_each_kind_s_report_leaves_out_what_does_not_apply(ensemble, sweep, tmp_path, unrasterised):
     assert not bool(ensemble["locked"].any())  # nothing locks in the 12 hemisphere drapes
     random, page = _record(ensemble, tmp_path / "random")
     assert random["figures"] == ["net.png", "lines.png", "mean_shear.png", "sd_shear.png", "line_statistics.png",
@@ -453,7 +455,7 @@ def test_each_kind_s_report_leaves_out_what_does_not_apply(ensemble, sweep, tmp_
     assert {kind for spec in PLAN for kind in spec.kinds} == set(KINDS)
 
 
-def test_every_page_states_its_provenance_and_the_study_once(ensemble, tmp_path):
+def test_every_page_states_its_provenance_and_the_study_once(ensemble, tmp_path, unrasterised):
     study = '[study]\nname = "plate"\n'
     record, page = _record(ensemble.assign_attrs(study_toml=study), tmp_path, study_text=study, wall_time_s=12.34)
     prov = record["provenance"]
@@ -465,14 +467,12 @@ def test_every_page_states_its_provenance_and_the_study_once(ensemble, tmp_path)
     assert page.count("name = &quot;plate&quot;") == 1
 
 
-def _indices(forces=None):
-    """Sobol' indices of two factors for two QoIs (and per force level): ST = S1 + 0.1."""
-    s1 = np.array([[0.6, 0.1], [0.2, 0.5]])  # factor x qoi
-    dims, shape, coords = ("factor", "qoi"), s1.shape, {"factor": ["friction", "zero_angle"],
-                                                         "qoi": ["asymmetry", "blankholder_energy"]}
-    if forces is not None:
-        s1 = s1[..., None] * np.linspace(1.0, 0.5, len(forces))
-        dims, coords = (*dims, "blankholder_force"), {**coords, "blankholder_force": forces}
+def _indices(forces=(0.0,)):
+    """Sobol' indices of two factors for two QoIs per force level: ST = S1 + 0.1."""
+    s1 = np.array([[0.6, 0.1], [0.2, 0.5]])[..., None] * np.linspace(1.0, 0.5, len(forces))  # factor x qoi x force
+    dims, coords = ("factor", "qoi", "blankholder_force"), {"factor": ["friction", "zero_angle"],
+                                                            "qoi": ["asymmetry", "blankholder_energy"],
+                                                            "blankholder_force": list(forces)}
     conf = np.full(s1.shape, 0.05)
     return xr.Dataset({"S1": (dims, s1), "S1_conf": (dims, conf), "ST": (dims, s1 + 0.1), "ST_conf": (dims, conf),
                        "output_constant": (dims[1:], np.zeros(s1.shape[1:], bool))}, coords=coords,
@@ -493,11 +493,11 @@ def test_sensitivity_legend_tells_st_solid_from_s1_dashed(tmp_path, drawn):
     np.testing.assert_allclose(lines["--"], [0.6, 0.3], rtol=1e-12)
 
 
-def test_sensitivity_page_starts_with_the_indices_and_their_largest_st(ensemble, tmp_path):
+def test_sensitivity_page_starts_with_the_indices_and_their_largest_st(ensemble, tmp_path, unrasterised):
     record, page = _record(ensemble.assign_attrs(design_method="sobol"), tmp_path, sensitivity=_indices())
-    assert record["sensitivity"]["largest_ST"] == [{"blankholder_force_N": None, "factor": "friction",
+    assert record["sensitivity"]["largest_ST"] == [{"blankholder_force_N": 0.0, "factor": "friction",
                                                     "qoi": "asymmetry", "ST": 0.7, "ST_conf": 0.05}]
-    assert ("largest total-order Sobol&#x27; index ST</th><td class=\"num\">friction 0.70 ± 0.05</td>"
+    assert ("largest total-order Sobol&#x27; index ST, F_BH = 0 N</th><td class=\"num\">friction 0.70 ± 0.05</td>"
             "<td>of asymmetry, the largest") in page
     assert page.index("<h2>Sensitivity</h2>") < page.index("<h2>Figures</h2>")
     assert record["figures"][0] == "sensitivity_bars.png"

@@ -208,9 +208,9 @@ def test_ishigami_through_the_study_design_path_reproduces_salib(tmp_path):
     design = study_design(study)
     inputs = inputs_from_design(study, design.standard)
     x = np.stack([inputs["orientation"], inputs["pre_shear"], inputs["skew"]], axis=1)
-    qois = xr.Dataset({"y": ("realization", Ishigami.evaluate(x))},
-                      coords={"realization": np.arange(design.n_evaluations)})
-    ours = qoi_indices(design, qois, seed=study.seed)
+    qois = xr.Dataset({"y": (("blankholder_force", "realization"), Ishigami.evaluate(x)[None])},
+                      coords={"blankholder_force": [0.0], "realization": np.arange(design.n_evaluations)})
+    ours = qoi_indices(design, qois, seed=study.seed).squeeze("blankholder_force")
 
     physical = {"num_vars": 3, "names": ["x1", "x2", "x3"], "bounds": [[-np.pi, np.pi]] * 3}
     X = salib_sobol_sample.sample(physical, 1024, calc_second_order=False, seed=study.seed)
@@ -274,6 +274,7 @@ def test_one_group_and_huge_sobol_designs_are_refused(tmp_path):
 # ----------------------------------------------------------------------------- command line
 
 
+@pytest.mark.slow  # ~25 s: 640 energy drapes in a worker process, two analyses and a report
 def test_uqdrape_run_writes_indices_and_a_report_with_the_sensitivity_figures(tmp_path, capsys):
     path = study_file(tmp_path, name="cli", rings=4, base=64)
     assert main(["run", str(path), "--quiet", "--workers", "1"]) == 0

@@ -3,7 +3,8 @@
 ``python tools/gallery.py [--only NAME ...] [--workers N]`` runs each study of
 :data:`GALLERY` from the checkout's ``studies/`` (ensemble under ``results/<name>/``, as
 ``uqdrape run`` would), writes its report and copies the report -- PNGs, ``index.html``,
-``summary.json``, not the netCDF chunks -- into ``results/gallery/<name>/``, plus the
+``summary.json``, not the netCDF chunks; a design study's ``design.nc`` too -- into
+``results/gallery/<name>/``, plus the
 entry's headline numbers in ``headline.json`` and, for entries with ``exports``, its
 VTK and flat-pattern export in ``export/``. ``results/gallery/README.md`` is then
 rebuilt from the headline files of all entries present, so ``--only`` refreshes one entry.
@@ -49,8 +50,8 @@ def _round(value: float, digits: int = 3) -> float:
 
 
 def _skew_headline(ds: xr.Dataset) -> dict:
-    skew = ds["skew"].values
-    energy = ds["energy_blankholder"].values
+    skew = ds["skew"].values.ravel()  # one force level
+    energy = ds["energy_blankholder"].values.ravel()
     lo, hi = int(np.argmin(skew)), int(np.argmax(skew))
     return {f"E_BH total at skew {skew[lo]:.1f} deg (J)": _round(energy[lo]),
             f"E_BH total at skew {skew[hi]:.1f} deg (J)": _round(energy[hi]),
@@ -100,7 +101,7 @@ def _sweep_scatter_headline(ds: xr.Dataset) -> dict:
 
 
 def _node6_headline(ds: xr.Dataset) -> dict:
-    st = line_statistics(ds).sel(k=6)
+    st = line_statistics(ds).sel(k=6).isel(blankholder_force=0)  # one force level
     out = {}
     for q, text in (("++", "+"), ("-+", "-")):
         s = st.sel(quadrant=q)
@@ -128,6 +129,40 @@ def _wrinkle_headline(ds: xr.Dataset) -> dict:
                 f"{float(top['probability']):.2f} [{float(top['probability_lower']):.2f}, "
                 f"{float(top['probability_upper']):.2f}] at node ({int(top['i'])}, {int(top['j'])})"),
             "nodes with P > 0.05": int((p > 0.05).sum())}
+
+
+def _design_headline(ds: xr.Dataset) -> dict:
+    """The design's optimum and its objective on the validation sample against the
+    baseline (and, for sectors, the uniform force at the same total), from design.nc."""
+    val = json.loads(ds.attrs["validation"])
+    name, statistic = ds.attrs["objective"], ds.attrs["statistic"]
+    n = sum(v != "friction" for v in np.atleast_1d(ds.attrs["variables"]))
+
+    def triple(e):
+        return f"{e[0]:.3g} [{e[1]:.3g}, {e[2]:.3g}]"
+
+    optimum = np.atleast_1d(ds.attrs["optimum"])
+    if n > 1:
+        forces = " / ".join(f"{f:.0f}" for f in optimum[:n]) + f" (total {optimum[:n].sum():.0f})"
+    else:
+        lo, hi = (float(np.atleast_1d(ds.attrs[k])[0]) for k in ("optimum_lower", "optimum_upper"))
+        forces = f"{optimum[0]:.0f} [{lo:.0f}, {hi:.0f}]"
+    out = {"optimum force(s) (N)": forces}
+    for role in ("optimum", "uniform", "baseline"):
+        if role in val:
+            total = sum(val[role]["x"][:n])
+            out[f"{name} of the {role} ({total:.0f} N), validation"] = triple(val[role]["estimate"])
+    out["validation estimate within the optimisation estimate's limits"] = "yes" if ds.attrs["validated"] else "no"
+    if "margin" in ds.attrs:
+        m = json.loads(ds.attrs["margin"])["validation"]
+        out["uniform minus sector, validation (paired bootstrap)"] = (
+            f"{triple(m)}: the sector design {'beats' if m[1] > 0 else 'does not beat'} the uniform force")
+    designs = int((ds["sample"] == "design").sum())
+    out["designs x drapes (+ validation)"] = (f"{designs} x {ds.attrs['design_realizations']} "
+                                             f"(+ {len(val)} x {ds.attrs['validation_realizations']})")
+    out["objective"] = f"{statistic} of {name}" + (f", target {ds.attrs['target']:g}" if ds.attrs["target"] != "none"
+                                                   else "")
+    return out
 
 
 def _sensitivity_headline(ds: xr.Dataset, out: Path) -> dict:
@@ -194,6 +229,12 @@ GALLERY = (
           "sensitivity_vs_force.png", _sensitivity_headline, "scatter fell as blank-holder force rose, cause not "
           "modelled; here Sobol' indices per force level over the full 61 x 61 net (fields correlated over 20 mm, "
           "95 % of their variance kept; 896 drapes per level)", reads_folder=True),
+    Entry("design-nosecone-symmetrise", "beyond the thesis (its closing question: which pressure)", "objective.png",
+          _design_headline, "'almost symmetric at 252 N, entirely symmetric at 378 N' (measured); here the least "
+          "force whose upper 95 % limit of |mean asymmetry| is 1 deg under gamma0 scatter (EBXhd-936, derived card)"),
+    Entry("design-doubledome-sectors", "beyond the thesis (its next step: segment-wise pressure)", "sectors.png",
+          _design_headline, "segmented blank-holder pressure named as future work; here eight sector forces "
+          "minimising P(lock) under an 800 N budget against the uniform force of the same total"),
 )
 ENTRIES = {e.name: e for e in GALLERY}
 
@@ -204,12 +245,17 @@ ENTRIES = {e.name: e for e in GALLERY}
 def build_entry(entry: Entry, *, workers: int | None = None, resume: bool = False, progress: bool = True) -> Path:
     """Run ``entry``'s study, write its report and copy it into the gallery; returns the
     gallery folder. Call with the checkout root as the current directory (``main`` does)."""
+    from uqdrape.design import DESIGN_FILE, EVALUATIONS
     from uqdrape.ensemble import open_ensemble
+    from uqdrape.study import load_study
     from uqdrape.workflow import run_report, run_study
 
-    out = run_study(entry.study, workers=workers, resume=resume, progress=progress)
+    study = load_study(entry.study)
+    if study.design is not None and not resume:  # a design resumes from its records: recompute them
+        shutil.rmtree(study.output_dir / EVALUATIONS, ignore_errors=True)
+    out = run_study(study, workers=workers, resume=resume, progress=progress)
     report = run_report(out).parent
-    ds = open_ensemble(out)
+    ds = xr.load_dataset(out / DESIGN_FILE) if study.design is not None else open_ensemble(out)
     headline = entry.headline(ds, out) if entry.reads_folder else entry.headline(ds)
     target = GALLERY_DIR / entry.name
     if target.exists():
@@ -218,6 +264,8 @@ def build_entry(entry: Entry, *, workers: int | None = None, resume: bool = Fals
     for pattern in KEPT:
         for path in sorted(report.glob(pattern)):
             shutil.copy2(path, target / path.name)
+    if study.design is not None:
+        shutil.copy2(out / DESIGN_FILE, target / DESIGN_FILE)
     if entry.exports:
         export_entry(entry, out, target)
     record = {"study": entry.study.as_posix(), "thesis_figure": entry.figure, "thesis": entry.thesis,
@@ -323,7 +371,7 @@ def write_readme() -> Path:
     lines = [
         "# uqdrape reference gallery",
         "",
-        "Small reference reports of the thesis-figure studies (Wiggers 2007, ch. 5) and two beyond it.",
+        "Small reference reports of the thesis-figure studies (Wiggers 2007, ch. 5) and studies beyond it.",
         "Each folder holds the report of `uqdrape run studies/<name>.toml` (open its `index.html`),",
         "its `summary.json` and the headline numbers below (`headline.json`). The ensembles",
         "themselves (netCDF chunks) are not kept.",

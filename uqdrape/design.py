@@ -21,11 +21,21 @@ by sampling noise. A design's statistics, with ``confidence`` limits:
   distribution-free order-statistic interval;
 - ``abs_mean_asymmetry``: |mean asymmetry| (deg) of ``uqdrape.stats.line_means`` over
   line nodes 1..k_max, k_max fixed by the baseline design's realisations; Student-t
-  interval of the mean, folded at 0.
+  interval of the mean, folded at 0;
+- ``q95_max_draw_in``: the 95 % quantile of the largest :func:`draw_in` of the held edge
+  (mm), order-statistic interval.
 
 The design minimises the statistic's upper limit (``statistic = "upper"``, the default)
 or its estimate, or with ``target`` the distance |value - target| (e.g. the force where
 the upper limit of |mean asymmetry| falls to 1 deg).
+
+Draw-in limit. With ``max_draw_in_mm`` a design is feasible when the same statistic
+(upper limit or estimate) of ``q95_max_draw_in`` is at most the limit. Both optimisers
+see an infeasible design's value as ``INFEASIBLE`` + its excess (mm), above every
+feasible value, so they rank it after every feasible design and, among infeasible
+ones, by how far they miss; the optimum is the best feasible design evaluated (the
+least infeasible if none is). More force holds the edge, so the limit is a floor on the
+force where the held edge would otherwise be pulled in too far.
 
 Optimisers (deterministic: scipy, fixed seed, a deterministic objective):
 
@@ -77,6 +87,7 @@ from scipy import optimize
 
 from .drape import max_shear_lines
 from .ensemble import Progress, compute_tasks, drape_inputs, local_pool, run_lock, sampled_inputs, write_atomic
+from .export import flat_positions
 from .stats import line_means, mean_statistics, wilson_interval
 from .stats.summary import quantile_statistics
 from .study.spec import DESIGN_OBJECTIVES
@@ -92,6 +103,13 @@ DE_POPSIZE = 3
 BOOTSTRAP = 400
 #: The validation sample's seed is SeedSequence([study seed, VALIDATION_STREAM]).
 VALIDATION_STREAM = 13
+#: Statistic of the draw-in limit, and the value of a design that breaks it before its
+#: excess (mm) is added: above every feasible objective (probabilities, degrees, mm).
+DRAW_IN = "q95_max_draw_in"
+INFEASIBLE = 1.0e6
+#: Version of the records in evaluations/, part of their key: a record of another
+#: version (other per-drape quantities) is draped again, not read.
+RECORD_VERSION = 2
 STATISTICS = tuple(DESIGN_OBJECTIVES)
 
 
@@ -162,11 +180,26 @@ def problem(study) -> Problem:
 # ----------------------------------------------------------------------------- draping
 
 
+def draw_in(ds: xr.Dataset) -> xr.DataArray:
+    """Radial draw-in (mm) of the nodes of the net's outermost ring, the edge the
+    blank-holder holds (NaN elsewhere): the plan distance of a node from the crossover in
+    the realisation's flat blank (``uqdrape.export.flat_positions``) minus that on the
+    mould, how far the fabric's edge is pulled in towards the first contact point."""
+    n = int(ds.attrs["rings"])
+    flat = flat_positions(ds)
+    cx, cy = ds["crossover_x"], ds["crossover_y"]
+    inwards = (np.hypot(ds["x"].copy(data=flat[..., 0]) - cx, ds["y"].copy(data=flat[..., 1]) - cy)
+               - np.hypot(ds["x"] - cx, ds["y"] - cy))
+    edge = (abs(ds["i"]) == n) | (abs(ds["j"]) == n)
+    return inwards.where(edge).assign_attrs(units="mm", long_name="radial draw-in of the held edge")
+
+
 def drape_design(study, realizations, force: float, sectors, friction: float) -> xr.Dataset:
     """Dask task: drape ``realizations`` of ``study`` under one design (total force N,
     sector weights, friction) and keep what the statistics need: per realisation
-    ``any_locked``, ``max_abs_shear`` (deg), the max-shear-line shear (deg), and per node
-    the lock count, the valid count and the summed plan position (mm)."""
+    ``any_locked``, ``max_abs_shear`` (deg), ``max_draw_in`` (mm), the max-shear-line
+    shear (deg), and per node the lock count, the valid count and the summed plan
+    position (mm)."""
     variant = dataclasses.replace(study, process=dataclasses.replace(
         study.process, blankholder_force_N=(float(force),), sectors=sectors, friction=float(friction)))
     r = np.asarray(realizations)
@@ -176,6 +209,7 @@ def drape_design(study, realizations, force: float, sectors, friction: float) ->
     return xr.Dataset({
         "any_locked": locked.any(["i", "j"]).astype(float),
         "max_abs_shear": abs(ds["shear"]).max(["i", "j"]),
+        "max_draw_in": draw_in(ds).max(["i", "j"]),
         "line_shear": max_shear_lines(ds)["shear"],
         "node_locked": locked.sum("realization"),
         "node_valid": valid.sum("realization"),
@@ -186,7 +220,7 @@ def drape_design(study, realizations, force: float, sectors, friction: float) ->
 
 def _merge(parts: list) -> xr.Dataset:
     """One design's record from its chunks: realisations concatenated, node sums summed."""
-    per = [p[["any_locked", "max_abs_shear", "line_shear"]] for p in parts]
+    per = [p[["any_locked", "max_abs_shear", "max_draw_in", "line_shear"]] for p in parts]
     nodes = sum(p[["node_locked", "node_valid", "node_x", "node_y"]] for p in parts)
     return xr.merge([xr.concat(per, "realization"), nodes])
 
@@ -232,7 +266,8 @@ class Evaluator:
 
     def key(self, sample: str, x) -> str:
         study = self.prob.study if sample == "design" else self.prob.validation
-        text = f"{self.identity}|{sample}|{study.seed}|{study.realizations}|{np.asarray(x, float).tobytes().hex()}"
+        text = (f"{RECORD_VERSION}|{self.identity}|{sample}|{study.seed}|{study.realizations}|"
+                f"{np.asarray(x, float).tobytes().hex()}")
         return hashlib.sha1(text.encode()).hexdigest()[:16]
 
     def __call__(self, X, sample: str = "design") -> list[xr.Dataset]:
@@ -290,7 +325,7 @@ def per_realization(record: xr.Dataset, k_max: int) -> dict[str, np.ndarray]:
     """The per-drape quantity of each statistic (name -> (R,) array)."""
     asym = line_means(record["line_shear"], k_max)["asymmetry"]
     return {"p_locked": record["any_locked"].values, "q95_max_abs_shear": record["max_abs_shear"].values,
-            "abs_mean_asymmetry": asym.values}
+            "abs_mean_asymmetry": asym.values, DRAW_IN: record["max_draw_in"].values}
 
 
 
@@ -321,14 +356,33 @@ def statistics(values: dict, confidence: float) -> dict[str, tuple]:
     return out
 
 
-def objective_value(stats: dict, spec):
-    """What the design minimises of its statistics (a float, or an array for a stack)."""
-    estimate, _, upper = stats[spec.objective]
+def _statistic(stats: dict, name: str, spec):
+    """The spec's statistic (upper limit or estimate) of statistic ``name``."""
+    estimate, _, upper = stats[name]
     value = upper if spec.statistic == "upper" else estimate
     if not np.all(np.isfinite(value)):
-        raise ValueError(f"the {spec.statistic} of {spec.objective} is undefined (no valid realisation, or too few "
+        raise ValueError(f"the {spec.statistic} of {name} is undefined (no valid realisation, or too few "
                          "for its confidence limit)")
+    return value
+
+
+def excess(stats: dict, spec):
+    """How far (mm) a design breaks the draw-in limit, 0 if it keeps it or there is none."""
+    if spec.max_draw_in_mm is None:
+        return np.zeros(np.shape(stats[DRAW_IN][0]))
+    return np.maximum(_statistic(stats, DRAW_IN, spec) - spec.max_draw_in_mm, 0.0)
+
+
+def objective_value(stats: dict, spec):
+    """What the design minimises of its statistics (a float, or an array for a stack)."""
+    value = _statistic(stats, spec.objective, spec)
     return np.abs(value - spec.target) if spec.target is not None else value
+
+
+def penalised(stats: dict, spec):
+    """The objective, or ``INFEASIBLE`` + the excess (mm) of a design over the draw-in limit."""
+    over = excess(stats, spec)
+    return np.where(over > 0, INFEASIBLE + over, objective_value(stats, spec))
 
 
 # ----------------------------------------------------------------------------- optimise
@@ -361,7 +415,7 @@ def optimise(prob: Problem, evaluate: Evaluator) -> Result:
         # to 12 significant digits: numpy's sums can differ in the last bit with the memory
         # alignment of an array (a record just draped, or read back from its file), and the
         # optimiser's next design must not, or a resumed run would leave the cached path
-        return np.array([float(f"{objective_value(s, spec):.12g}") for s in evaluate.statistics(X)])
+        return np.array([float(f"{penalised(s, spec):.12g}") for s in evaluate.statistics(X)])
 
     if len(prob.names) == 1:
         lo, hi = prob.bounds[0]
@@ -432,9 +486,12 @@ def result_dataset(result: Result, evaluate: Evaluator) -> xr.Dataset:
         "objective": ("evaluation", [objective_value(s, spec) for s in stats],
                       {"long_name": f"objective: {spec.statistic} of {spec.objective}"
                                     + (f", distance from {spec.target:g}" if spec.target is not None else "")}),
+        "feasible": ("evaluation", [int(excess(s, spec) == 0) for s in stats],
+                     {"units": "1", "long_name": "keeps the draw-in limit (1) or not (0)"}),
     }
+    units_of = {"p_locked": "1", DRAW_IN: "mm"}
     for name in STATISTICS:
-        units = "1" if name == "p_locked" else "degree"
+        units = units_of.get(name, "degree")
         for i, part in enumerate(("", "_lower", "_upper")):
             data[name + part] = ("evaluation", [s[name][i] for s in stats],
                                  {"units": units, "long_name": f"{name}{part or ' estimate'} ({confidence:.0%})"})
@@ -449,7 +506,7 @@ def result_dataset(result: Result, evaluate: Evaluator) -> xr.Dataset:
         ds[f"{role}_node_y"] = (rec["node_y"] / nv).assign_attrs(units="mm")
     design_X = np.array([x for s, _, x in rows if s == "design"])
     resampled = _resampled(evaluate.values(design_X), BOOTSTRAP, prob.study.seed)
-    boot = objective_value(statistics({spec.objective: resampled[spec.objective]}, confidence), spec)
+    boot = penalised(statistics({k: resampled[k] for k in {spec.objective, DRAW_IN}}, confidence), spec)
     best = design_X[np.argmin(boot, axis=1)]
     opt_stats = evaluate.statistics([result.optimum])[0][spec.objective]
     val_stats = {role: evaluate.statistics([x], "validation")[0][spec.objective]
@@ -458,6 +515,7 @@ def result_dataset(result: Result, evaluate: Evaluator) -> xr.Dataset:
     ds.attrs.update(
         study_name=prob.study.name, objective=spec.objective, statistic=spec.statistic,
         target=spec.target if spec.target is not None else "none", confidence=confidence,
+        max_draw_in_mm=spec.max_draw_in_mm or "none",
         variables=list(prob.names), bounds=json.dumps(prob.bounds), budget_N=spec.budget_N or "none",
         k_max=result.k_max, optimiser=result.message, design_seed=prob.study.seed,
         design_realizations=prob.study.realizations, validation_seed=prob.validation.seed,
@@ -468,7 +526,8 @@ def result_dataset(result: Result, evaluate: Evaluator) -> xr.Dataset:
         optimum_upper=list(np.quantile(best, 0.975, axis=0)), optimum_interval=(
             f"2.5-97.5 % of the best evaluated design over {BOOTSTRAP} realisation resamples"),
         optimum_estimate=list(opt_stats), baseline=list(prob.baseline),
-        validation=json.dumps({role: {"x": list(x), "estimate": list(val_stats[role])}
+        validation=json.dumps({role: {"x": list(x), "estimate": list(val_stats[role]),
+                                      "draw_in": list(evaluate.statistics([x], "validation")[0][DRAW_IN])}
                                for role, x in result.validation.items()}),
         validated=int(inside), study_json=json.dumps(prob.study.to_dict()),
     )
@@ -515,13 +574,25 @@ def summary_text(ds: xr.Dataset) -> str:
             f"{base_total:.0f} N (validation sample, {ds.attrs['validation_realizations']} drapes, "
             f"{ds.attrs['confidence']:.0%} limits). ")
     opt_est = ds.attrs["optimum_estimate"]
-    text += (f"The validation estimate {'lies within' if ds.attrs['validated'] else 'lies OUTSIDE'} the optimisation "
-             f"estimate's limits {stat(opt_est)}.")
+    if np.all(np.isfinite(opt_est)):
+        text += (f"The validation estimate {'lies within' if ds.attrs['validated'] else 'lies OUTSIDE'} the "
+                 f"optimisation estimate's limits {stat(opt_est)}.")
+    else:
+        text += (f"The optimisation estimate {stat(opt_est)} has no limits at {ds.attrs['design_realizations']} "
+                 "drapes to check the validation estimate against.")
     if "margin" in ds.attrs:
         m = json.loads(ds.attrs["margin"])["validation"]
         beats = m[1] > 0
         text += (f" Uniform minus sector {name} at the same total {sum(opt[:n_forces]):.0f} N: {stat(m)}: the sector "
                  f"design {'beats' if beats else 'does NOT beat'} the uniform force by more than its limits.")
+    limit = ds.attrs["max_draw_in_mm"]
+    if limit != "none":
+        d = val["optimum"]["draw_in"]
+        kept = (d[2] if ds.attrs["statistic"] == "upper" else d[0]) <= limit
+        none_kept = not ds["feasible"].values[ds["sample"].values == "design"].any()
+        text += (f" Draw-in at the optimum (95 % quantile of the largest, mm): {stat(d)}, limit {limit:g} mm on its "
+                 f"{ds.attrs['statistic']}: {'kept' if kept else 'BROKEN'} on the validation sample"
+                 + ("; no evaluated design keeps it." if none_kept else "."))
     return text
 
 

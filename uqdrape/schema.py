@@ -1,9 +1,19 @@
-"""Names shared by every stage: ensemble dimensions, quadrant labels and the table of the
-solver's scalar inputs.
+"""Names shared by every stage: ensemble dimensions and variables, quadrant labels, the
+table of the solver's scalar inputs, and the ensemble layout of a drape Dataset.
 
 Everything that reads or writes a drape or ensemble Dataset takes its names from here, so
 that a dimension, a quadrant or an input is spelt once. The module imports nothing of
 uqdrape: it sits below the solver.
+
+The ensemble layout. An ensemble (as the ensemble engine writes it, ``open_ensemble``
+opens it and stats and report read it) has the dims (``blankholder_force``,
+``realization``, ...): ``blankholder_force`` is the set force level (N), always a
+dimension, of length 1 unless the study sweeps the force. Every drape also keeps the force
+it was run with in ``applied_blankholder_force`` (blankholder_force, realization; N): the
+level itself, or the sampled value when the force is an ``[uncertainty]`` factor (the
+level is then the study's fixed setting, the nominal force). The solver's own drape
+Dataset has the force per realisation under the input's name; :func:`by_force` puts it
+in the ensemble layout.
 """
 
 from __future__ import annotations
@@ -11,9 +21,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-#: Ensemble dimensions: realisations, and blank-holder force levels (N) of a sweep.
+import numpy as np
+import xarray as xr
+
+#: Ensemble dimensions: realisations, and the blank-holder force level (N; length 1 without a sweep).
 REALIZATION = "realization"
 FORCE = "blankholder_force"
+#: The per-realisation force (N) each drape of an ensemble was run with (see the module docstring).
+APPLIED_FORCE = "applied_blankholder_force"
 
 #: Net quadrants by the signs of (i, j). On a dome draped from its pole the quadrants with
 #: i*j > 0 shear positively ("+ quadrants"), the others negatively.
@@ -26,8 +41,8 @@ MINUS_QUADRANTS = ("-+", "+-")
 class SolverInput:
     """A scalar input of ``uqdrape.drape.drape`` that a study fixes or samples per realisation.
 
-    ``name`` is the drape argument, the stored variable and the ``[uncertainty.<name>]``
-    factor; ``section``/``key`` the study-file setting that fixes it (``index`` picks an
+    ``name`` is the drape argument, the drape Dataset's variable (an ensemble's is
+    ``variable``) and the ``[uncertainty.<name>]`` factor; ``section``/``key`` the study-file setting that fixes it (``index`` picks an
     element of a list setting); ``lower``/``upper`` its physical range, exclusive where
     ``open_range`` (a value at an open end would make the net degenerate).
     """
@@ -41,6 +56,11 @@ class SolverInput:
     upper: float = math.inf
     open_range: bool = False
     index: int | None = None
+
+    @property
+    def variable(self) -> str:
+        """The input's per-realisation variable in an ensemble (the force's name is the dimension's)."""
+        return APPLIED_FORCE if self.name == FORCE else self.name
 
     @property
     def setting(self) -> str:
@@ -73,3 +93,29 @@ SOLVER_INPUTS = {i.name: i for i in (
     SolverInput("pre_shear", "fabric", "pre_shear_deg", "degree", "shear of the flat blank", -90.0, 90.0, True),
     SolverInput("skew", "fabric", "skew_deg", "degree", "generator-path skew at the crossover", -90.0, 90.0, True),
 )}
+
+
+def at_level(ds: xr.Dataset, force: float) -> xr.Dataset:
+    """Drape Dataset ``ds`` (the force per realisation) as force level ``force`` (N) of an
+    ensemble: the force variable renamed ``applied_blankholder_force``, every variable
+    given the leading length-1 dimension ``blankholder_force``."""
+    out = ds.rename_vars({FORCE: APPLIED_FORCE}).expand_dims({FORCE: [float(force)]})
+    out[FORCE].attrs.update(units="N", long_name="blank-holder force level")
+    return out
+
+
+def by_force(ds: xr.Dataset) -> xr.Dataset:
+    """``ds`` in the ensemble layout: an ensemble as it is; a drape Dataset split by its
+    distinct forces into levels (one drape per level for a batch of forces, as
+    ``drape(blankholder_force=[0, 126, ...])`` gives), the realisations of each level
+    renumbered 0..n-1. ValueError if the levels have different numbers of drapes."""
+    if FORCE in ds.dims:
+        return ds
+    forces = ds[FORCE].values
+    parts = [ds.isel({REALIZATION: np.flatnonzero(forces == f)}) for f in np.unique(forces)]
+    sizes = sorted({p.sizes[REALIZATION] for p in parts})
+    if len(sizes) > 1:
+        raise ValueError(f"the drapes have blank-holder forces {np.unique(forces).tolist()} N in different numbers "
+                         f"({sizes} drapes per force); select drapes of one force first")
+    return xr.concat([at_level(p.assign_coords({REALIZATION: np.arange(sizes[0])}), p[FORCE].values[0])
+                      for p in parts], dim=FORCE)

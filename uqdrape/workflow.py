@@ -9,9 +9,9 @@ Sensitivity studies. ``uqdrape run`` of a study with ``[sensitivity] method = "s
 "morris"`` drapes the rows of :func:`study_design` as its realisations (same chunked,
 resumable engine, the same rows at every blank-holder level: common random numbers),
 then computes the scalar quantities of interest of every drape and their indices per
-force level into ``<output_dir>/sensitivity.nc`` (dims factor, qoi[, blankholder_force])
+force level into ``<output_dir>/sensitivity.nc`` (dims factor, qoi, blankholder_force)
 and the per-node shear index maps into ``<output_dir>/sensitivity_maps.nc`` (dims
-factor, i, j[, blankholder_force]).
+factor, i, j, blankholder_force).
 
 Sobol' indices are unchanged by a monotone map of each input, and the Morris screening
 order is too, so the SALib problem is posed in the standard variables the ensemble

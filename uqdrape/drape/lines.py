@@ -11,8 +11,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-#: Quadrant labels (sign of i, sign of j); quadrants with i*j > 0 shear positively on a dome.
-QUADRANTS = ("++", "-+", "--", "+-")
+from ..schema import QUADRANTS
 _SIGNS = {"++": (1, 1), "-+": (-1, 1), "--": (-1, -1), "+-": (1, -1)}
 #: Arm labels of the min-shear lines.
 ARMS = ("+i", "+j", "-i", "-j")

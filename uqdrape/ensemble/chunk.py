@@ -1,12 +1,12 @@
 """One chunk of an ensemble: one batched drape of some realisations, and its netCDF file.
 
-A chunk Dataset is the drape Dataset (notes/schema.md) with the global realisation
-indices as the ``realization`` coordinate, every sampled input along ``realization``
+A chunk Dataset is the solver's drape Dataset (``uqdrape.drape.drape``) with the global
+realisation indices as the ``realization`` coordinate, every sampled input along ``realization``
 (scalar factors are stored by ``drape`` itself; a random spacing adds the segment
 lengths ``seg_i`` (realization, cell_i, j) and ``seg_j`` (realization, i, cell_j), mm;
-a random zero angle is ``gamma0``), and for one level of a blank-holder-force sweep a
-leading length-1 dimension ``blankholder_force`` (N) instead of the per-realisation
-variable of that name.
+a random zero angle is ``gamma0``), in the ensemble layout of ``uqdrape.schema``: a
+leading length-1 dimension ``blankholder_force``, the chunk's force level (N), and the
+force each drape was run with in ``applied_blankholder_force``.
 """
 
 from __future__ import annotations
@@ -27,17 +27,14 @@ from ..schema import SOLVER_INPUTS
 def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None, material=None) -> xr.Dataset:
     """One batched drape of ``realizations`` (global indices) with ``inputs`` from
     ``sampled_inputs`` / ``inputs_from_design``; settings a factor does not vary are the
-    study's fixed ones. ``force`` (N) is required for a sweep study and must be one of its
-    levels, and must be None otherwise. ``surface`` / ``material`` may be passed to reuse
+    study's fixed ones. ``force`` (N) must be one of the study's blank-holder force
+    levels (None: the only level of a study without a sweep). Returns the solver's drape
+    Dataset (the force per realisation). ``surface`` / ``material`` may be passed to reuse
     them (default: built from the study)."""
     r = np.asarray(realizations, dtype=np.int64)
     levels = study.force_levels
-    if study.is_sweep:
-        if force is None or float(force) not in levels:
-            raise ValueError(f"force must be one of the sweep levels {list(levels)} N, got {force!r}")
-        force = float(force)
-    elif force is not None:
-        raise ValueError(f"force={force!r}: study {study.name!r} is not a blank-holder-force sweep; pass force=None")
+    if (force is None and study.is_sweep) or (force is not None and float(force) not in levels):
+        raise ValueError(f"force={force!r}: pass one of study {study.name!r}'s blank-holder levels {list(levels)} N")
     fabric, process, solver = study.fabric, study.process, study.solver
     settings = {name: study.setting(name, force) for name in SOLVER_INPUTS}
     unknown = sorted(set(inputs) - set(settings) - {"seg_i", "seg_j", "gamma0"})
@@ -63,9 +60,6 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
                        {"units": "mm", "long_name": "fibre-1 segment length (flat blank)"})
         ds["seg_j"] = (("realization", "i", "cell_j"), inputs["seg_j"],
                        {"units": "mm", "long_name": "fibre-2 segment length (flat blank)"})
-    if force is not None:
-        ds = ds.drop_vars("blankholder_force").expand_dims(blankholder_force=[force])
-        ds["blankholder_force"].attrs.update(units="N", long_name="total blank-holder force")
     return ds
 
 

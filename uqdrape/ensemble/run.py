@@ -32,6 +32,7 @@ from dask.callbacks import Callback
 
 from .. import __version__
 from ..conventions import cf_encode
+from ..schema import at_level
 from ..study import Study
 from ..drape import placement_failures
 from .chunk import drape_inputs, write_atomic
@@ -49,27 +50,27 @@ SCHEDULER_TIMEOUT = 10
 
 @dataclass(frozen=True)
 class Chunk:
-    """Realisations start..stop-1 at force level ``level`` (index into the sweep, else None)."""
+    """Realisations start..stop-1 at blank-holder force ``force`` (N); ``name`` its file's."""
 
     start: int
     stop: int
-    level: int | None = None
-    force: float | None = None
-
-    @property
-    def name(self) -> str:
-        prefix = "" if self.level is None else f"f{self.level:03d}-"
-        return f"{prefix}r{self.start:07d}-{self.stop - 1:07d}.nc"
+    force: float
+    name: str
 
 
 def plan_chunks(study: Study, chunk_size: int, realizations: int | None = None) -> list[Chunk]:
     """The chunks of a study: consecutive ranges of its realisations (default
-    ``study.realizations``; a sensitivity design's row count), for each force level of a sweep."""
+    ``study.realizations``; a sensitivity design's row count) at each force level, named
+    ``r<first>-<last>.nc``, prefixed ``f<level>-`` in a sweep."""
     n = study.realizations if realizations is None else realizations
-    ranges = [(a, min(a + chunk_size, n)) for a in range(0, n, chunk_size)]
-    if not study.is_sweep:
-        return [Chunk(a, b) for a, b in ranges]
-    return [Chunk(a, b, k, f) for k, f in enumerate(study.force_levels) for a, b in ranges]
+    levels = study.force_levels
+    chunks = []
+    for k, force in enumerate(levels):
+        prefix = f"f{k:03d}-" if len(levels) > 1 else ""
+        for a in range(0, n, chunk_size):
+            b = min(a + chunk_size, n)
+            chunks.append(Chunk(a, b, force, f"{prefix}r{a:07d}-{b - 1:07d}.nc"))
+    return chunks
 
 
 def _run_chunk(study: Study, chunk: Chunk, folder: str, attrs: dict, design_rows=None) -> str:
@@ -77,11 +78,10 @@ def _run_chunk(study: Study, chunk: Chunk, folder: str, attrs: dict, design_rows
     sensitivity design), write its file, return the file's path."""
     r = np.arange(chunk.start, chunk.stop)
     inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows)
-    ds = drape_inputs(study, r, inputs, force=chunk.force)
+    ds = at_level(drape_inputs(study, r, inputs, force=chunk.force), chunk.force)
     ds.attrs.update(attrs)
-    level = "" if chunk.force is None else f" at {chunk.force:g} N"
     ds, encoding = cf_encode(ds, title=f"uqdrape ensemble chunk: study {study.name}, realisations "
-                                       f"{chunk.start}-{chunk.stop - 1}{level}",
+                                       f"{chunk.start}-{chunk.stop - 1} at {chunk.force:g} N",
                              history=f"uqdrape run {Path(study.path).name}", float32=study.float32)
     return str(write_atomic(ds, Path(folder) / chunk.name, encoding, keep=lambda: not orphaned()))
 

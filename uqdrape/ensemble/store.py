@@ -21,6 +21,7 @@ from pathlib import Path
 import xarray as xr
 
 from ..conventions import cf_decode
+from ..schema import FORCE
 
 MANIFEST = "run.json"
 CHUNKS = "chunks"
@@ -43,26 +44,21 @@ def write_manifest(output_dir, manifest: dict) -> None:
     os.replace(part, path)
 
 
-def chunk_paths(output_dir, manifest: dict) -> list[Path]:
-    """Final paths of all chunk files of a run, in plan order."""
-    folder = Path(output_dir) / CHUNKS
-    return [folder / name for name in manifest["chunks"]]
-
-
 def open_ensemble(output_dir) -> xr.Dataset:
     """All chunks of a finished run as one lazy (dask-backed) Dataset.
 
-    Dims (realization, i, j, ...) or, for a blank-holder-force sweep,
-    (blankholder_force, realization, i, j, ...); one dask chunk per chunk file.
-    Raises FileNotFoundError if ``output_dir`` holds no run or some chunks are missing
-    (naming them: resume the run to compute them).
+    Dims (blankholder_force, realization, i, j, ...), the force dimension of length 1
+    without a sweep (``uqdrape.schema``); one dask chunk per chunk file. Raises
+    FileNotFoundError if ``output_dir`` holds no run or some chunks are missing (naming
+    them: resume the run to compute them), ValueError for a run written before the force
+    was always a dimension.
     """
     output_dir = Path(output_dir)
     manifest = read_manifest(output_dir)
     if manifest is None:
         raise FileNotFoundError(
             f"{output_dir} holds no uqdrape run (no {MANIFEST}); run the study first (uqdrape run STUDY)")
-    paths = chunk_paths(output_dir, manifest)
+    paths = [output_dir / CHUNKS / name for name in manifest["chunks"]]  # in plan order
     missing = [p.name for p in paths if not p.is_file()]
     if missing:
         shown = ", ".join(missing[:5]) + (", ..." if len(missing) > 5 else "")
@@ -82,6 +78,10 @@ def open_ensemble(output_dir) -> xr.Dataset:
                 raise OSError(errno.EIO, f"a corrupt chunk file ({err}); delete it and run the study again "
                               "to resume", str(path)) from None
         raise
+    if FORCE not in files.dims:
+        files.close()
+        raise ValueError(f"{output_dir} was written by an older uqdrape (no {FORCE!r} dimension); "
+                         "run its study again with --no-resume")
     ds = cf_decode(files)
     ds.set_close(files.close)  # closing the result closes the chunk files
     return ds

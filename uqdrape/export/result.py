@@ -15,6 +15,7 @@ import xarray as xr
 
 from ..conventions import cf_decode
 from ..geometry import Surface, build
+from ..schema import FORCE
 
 #: Quantiles of the node shear exported for an ensemble.
 QUANTILES = (0.05, 0.5, 0.95)
@@ -107,13 +108,11 @@ def levels(ds: xr.Dataset, is_ensemble: bool) -> list[Level]:
     """The levels to export: each force level of an ensemble sweep, each realisation of a
     drape file (a ``drape --blankholder-force`` list gives several), else one."""
     if is_ensemble:
-        if "blankholder_force" in ds.dims:
-            return [_ensemble_level(ds.sel(blankholder_force=f), f"{float(f):g}N")
-                    for f in ds.blankholder_force.values]
-        return [_ensemble_level(ds, "")]
+        named = ds.sizes[FORCE] > 1
+        return [_ensemble_level(ds.sel({FORCE: f}), f"{float(f):g}N" if named else "") for f in ds[FORCE].values]
     R = ds.sizes["realization"]
     if R == 1:
         return [_drape_level(ds, "")]
-    forces = ds.blankholder_force.values
+    forces = ds[FORCE].values
     named = len(set(forces.tolist())) == R
     return [_drape_level(ds.isel(realization=[r]), f"{forces[r]:g}N" if named else f"r{r}") for r in range(R)]

@@ -21,7 +21,8 @@ from matplotlib.figure import Figure
 
 _RC = {"font.size": 10, "axes.titlesize": 11, "axes.labelsize": 10, "legend.fontsize": 9}
 _LABELS = {"p_locked": "P(any node locked)", "q95_max_abs_shear": "95 % quantile of max |shear| (deg)",
-           "abs_mean_asymmetry": "|mean asymmetry| (deg)"}
+           "abs_mean_asymmetry": "|mean asymmetry| (deg)", "q95_max_draw_in": "95 % quantile of max draw-in (mm)"}
+DRAW_IN = "q95_max_draw_in"
 
 
 def _figure(size):
@@ -42,42 +43,61 @@ def _n_forces(ds: xr.Dataset) -> int:
     return sum(v != "friction" for v in np.atleast_1d(ds.attrs["variables"]))
 
 
-def plot_objective(ds: xr.Dataset, path) -> Path:
-    """The objective's statistic (estimate, confidence band) against the total force (N),
-    design sample; the baseline and optimum on the validation sample marked."""
-    name, c = ds.attrs["objective"], ds.attrs["confidence"]
+def _statistic_panel(ax, ds: xr.Dataset, name: str, validation_key: str):
+    """Statistic ``name`` of every design (estimate, confidence limits) against the total
+    force (N), designs that break the draw-in limit crossed; the baseline, uniform and
+    optimum designs on the validation sample (their ``validation_key`` triple) marked."""
+    c = ds.attrs["confidence"]
     d = _design(ds)
     order = np.argsort(d["total_force"].values, kind="stable")
     F = d["total_force"].values[order]
     est, lo, hi = (d[name + s].values[order] for s in ("", "_lower", "_upper"))
+    uniform = _n_forces(ds) == 1 and "friction" not in np.atleast_1d(ds.attrs["variables"])
+    if uniform:
+        ax.fill_between(F, lo, hi, color="tab:blue", alpha=0.25, lw=0, label=f"{c:.0%} confidence band")
+        ax.plot(F, est, "o-", color="tab:blue", ms=3.5, label="estimate (common random numbers)")
+    else:
+        ax.errorbar(F, est, yerr=[est - lo, hi - est], fmt="o", color="tab:blue", ms=3.5, alpha=0.7,
+                    elinewidth=0.8, label=f"each design: estimate, {c:.0%} limits")
+    broken = d["feasible"].values[order] == 0
+    if broken.any():
+        ax.plot(F[broken], est[broken], "x", color="0.3", ms=7, mew=1.5, label="breaks the draw-in limit")
+    n = _n_forces(ds)
+    for role, colour, marker, size in (("baseline", "tab:red", "s", 6), ("uniform", "tab:orange", "o", 6),
+                                       ("optimum", "tab:green", "D", 10)):
+        v = _validation(ds).get(role)
+        if v is None:
+            continue
+        e = v[validation_key]
+        ax.errorbar([sum(v["x"][:n])], [e[0]], yerr=[[e[0] - e[1]], [e[2] - e[0]]], fmt=marker, color=colour,
+                    ms=size, mfc="none" if role == "optimum" else colour, mew=2, capsize=3,
+                    label=f"{role if role != 'uniform' else 'uniform at the optimum total'}, validation sample")
+    _log_if_wide(ax, est)
+    ax.set_xlabel("total blank-holder force (N)")
+    ax.set_ylabel(_LABELS[name])
+    ax.grid(alpha=0.3)
+
+
+def plot_objective(ds: xr.Dataset, path) -> Path:
+    """The objective's statistic (estimate, confidence band) against the total force (N),
+    design sample, the baseline and optimum on the validation sample marked; with a
+    draw-in limit, a second panel of the draw-in statistic and the limit."""
+    name = ds.attrs["objective"]
+    limit = ds.attrs["max_draw_in_mm"]
     with mpl.rc_context(_RC):
-        fig = _figure((7.0, 4.4))
-        ax = fig.add_subplot()
-        uniform = _n_forces(ds) == 1 and "friction" not in np.atleast_1d(ds.attrs["variables"])
-        if uniform:
-            ax.fill_between(F, lo, hi, color="tab:blue", alpha=0.25, lw=0, label=f"{c:.0%} confidence band")
-            ax.plot(F, est, "o-", color="tab:blue", ms=3.5, label="estimate (common random numbers)")
-        else:
-            ax.errorbar(F, est, yerr=[est - lo, hi - est], fmt="o", color="tab:blue", ms=3.5, alpha=0.7,
-                        elinewidth=0.8, label=f"each design: estimate, {c:.0%} limits")
+        fig = _figure((7.0, 4.4 if limit == "none" else 7.6))
+        ax = fig.add_subplot(1 if limit == "none" else 2, 1, 1)
+        _statistic_panel(ax, ds, name, "estimate")
         if ds.attrs["target"] != "none":
             ax.axhline(float(ds.attrs["target"]), color="k", ls=":", lw=1, label=f"target {ds.attrs['target']:g}")
-        n = _n_forces(ds)
-        for role, colour, marker, size in (("baseline", "tab:red", "s", 6), ("uniform", "tab:orange", "o", 6),
-                                           ("optimum", "tab:green", "D", 10)):
-            v = _validation(ds).get(role)
-            if v is None:
-                continue
-            e = v["estimate"]
-            ax.errorbar([sum(v["x"][:n])], [e[0]], yerr=[[e[0] - e[1]], [e[2] - e[0]]], fmt=marker, color=colour,
-                        ms=size, mfc="none" if role == "optimum" else colour, mew=2, capsize=3,
-                        label=f"{role if role != 'uniform' else 'uniform at the optimum total'}, validation sample")
-        _log_if_wide(ax, est)
-        ax.set_xlabel("total blank-holder force (N)")
-        ax.set_ylabel(_LABELS[name])
         ax.set_title(f"{ds.attrs['study_name']}: {_LABELS[name]} against force")
         ax.legend(loc="best")
-        ax.grid(alpha=0.3)
+        if limit != "none":
+            ax2 = fig.add_subplot(2, 1, 2, sharex=ax)
+            _statistic_panel(ax2, ds, DRAW_IN, "draw_in")
+            ax2.axhline(float(limit), color="k", ls="--", lw=1,
+                        label=f"draw-in limit {float(limit):g} mm (on the {ds.attrs['statistic']})")
+            ax2.legend(loc="best", fontsize=8)
         fig.savefig(path, dpi=110)
     return Path(path)
 
@@ -192,7 +212,11 @@ def _table(ds: xr.Dataset) -> str:
     rows = [("study", ds.attrs["study_name"]), ("objective", f"{ds.attrs['statistic']} of {ds.attrs['objective']}"
              + (f", target {ds.attrs['target']}" if ds.attrs["target"] != "none" else "")),
             ("variables and bounds", f"{', '.join(np.atleast_1d(ds.attrs['variables']))}: {ds.attrs['bounds']}"),
-            ("total-force budget (N)", ds.attrs["budget_N"]), ("optimiser", ds.attrs["optimiser"]),
+            ("total-force budget (N)", ds.attrs["budget_N"]),
+            ("draw-in limit (mm)", ds.attrs["max_draw_in_mm"] if ds.attrs["max_draw_in_mm"] == "none" else
+             f"{ds.attrs['max_draw_in_mm']:g} on the {ds.attrs['statistic']} of the 95 % quantile of the largest "
+             "radial draw-in of the net's outermost ring"),
+            ("optimiser", ds.attrs["optimiser"]),
             ("designs evaluated", f"{int((ds['sample'] == 'design').sum())} x {ds.attrs['design_realizations']} "
                                   f"drapes (seed {ds.attrs['design_seed']})"),
             ("validation", f"{ds.attrs['validation_realizations']} fresh drapes (seed {ds.attrs['validation_seed']})"),
@@ -210,7 +234,8 @@ def write_design_report(ds: xr.Dataset, out_dir, *, surface) -> Path:
     figures = [(plot_objective(ds, out / "objective.png"),
                 "The objective's statistic of every design on the design sample (common random numbers) "
                 "against the total force (the band is hidden under the line where the limits are within a few "
-                "per cent), and the baseline and optimum re-draped on the validation sample.")]
+                "per cent), and the baseline and optimum re-draped on the validation sample"
+                + ("; below, the draw-in statistic and its limit." if ds.attrs["max_draw_in_mm"] != "none" else "."))]
     if _n_forces(ds) > 1:
         figures.append((plot_sectors(ds, out / "sectors.png", surface),
                         "Sector forces at the optimum; sectors are equal angles from +x, anticlockwise."))
@@ -218,6 +243,7 @@ def write_design_report(ds: xr.Dataset, out_dir, *, surface) -> Path:
                     "Risk before (the study's own force) and after (the optimum), validation sample."))
     figures.append((plot_convergence(ds, out / "convergence.png"), "The optimiser's history."))
     summary = {k: v for k, v in ds.attrs.items() if k != "study_json"}
+    summary["figures"] = [p.name for p, _ in figures]
     for key in ("validation", "margin", "bounds"):
         if key in summary:
             summary[key] = json.loads(summary[key])

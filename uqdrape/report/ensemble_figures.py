@@ -1,7 +1,7 @@
 """Figures of an ensemble: node maps, line statistics, histograms, convergence, force sweeps.
 
-Each function takes the ensemble Dataset (dims realization, i, j, optionally a leading
-``blankholder_force``), computes what it needs with ``uqdrape.stats`` unless the
+Each function takes the ensemble Dataset (dims blankholder_force, realization, i, j; a
+drape Dataset is put in that layout first, see ``figures``), computes what it needs with ``uqdrape.stats`` unless the
 statistics are passed in (``write_report`` computes them once), draws one panel per
 blank-holder level where that applies, writes a PNG and returns its path. Maps are
 drawn on the ensemble-mean node positions (x, y in mm).
@@ -19,7 +19,8 @@ import xarray as xr
 from matplotlib.tri import Triangulation
 from scipy import stats
 
-from uqdrape.drape.lines import QUADRANTS, max_shear_lines
+from uqdrape.drape.lines import max_shear_lines
+from uqdrape.schema import FORCE, QUADRANTS, REALIZATION, SOLVER_INPUTS
 from uqdrape.stats import (
     convergence,
     exceedance_probability,
@@ -36,20 +37,19 @@ from uqdrape.stats.headline import argmax_site
 from .experimental import as_experimental
 from .figures import (
     DISTANCE_LABEL,
-    FORCE,
     MINUS_COLOR,
     PLUS_COLOR,
     QUADRANT_STYLE,
-    REALIZATION,
     SHEAR_LABEL,
     describe,
     force_title,
+    label,
     levels,
     overlay_experimental,
     panels,
+    report_figure,
     save,
     shared_ylim,
-    styled,
     suptitle,
 )
 
@@ -77,7 +77,7 @@ def triangulation(x: np.ndarray, y: np.ndarray, valid: np.ndarray):
 
 def _map(ds: xr.Dataset, values: xr.DataArray, path, *, norm, cmap, cbar_label: str, title: str,
          mark=None) -> Path:
-    """Draw ``values`` (dims [blankholder_force,] i, j) on the mean node positions, one panel per level.
+    """Draw ``values`` (dims blankholder_force, i, j) on the mean node positions, one panel per level.
 
     ``mark(force) -> (i, j, text) | None`` annotates one node per panel.
     """
@@ -85,13 +85,11 @@ def _map(ds: xr.Dataset, values: xr.DataArray, path, *, norm, cmap, cbar_label: 
     groups = levels(pos)
     fig, axes = panels(len(groups), size=(5.4, 4.8))
     for ax, (force, xy) in zip(axes, groups):
-        v = (values.sel({FORCE: force}) if force is not None else values).transpose("i", "j").values
+        v = values.sel({FORCE: force}).transpose("i", "j").values
         x, y = xy["x"].transpose("i", "j").values, xy["y"].transpose("i", "j").values
         tri, used = triangulation(x, y, np.isfinite(x) & np.isfinite(y) & np.isfinite(v))
         ax.tripcolor(tri, v.flat[used], shading="gouraud", norm=norm, cmap=cmap)
-        ax.set(xlabel="x (mm)", ylabel="y (mm)", aspect="equal")
-        if force is not None:
-            ax.set_title(force_title(force))
+        ax.set(xlabel="x (mm)", ylabel="y (mm)", aspect="equal", title=force_title(force))
         if mark is not None and (m := mark(force)) is not None:
             i, j, text = m
             px, py = float(xy["x"].sel(i=i, j=j)), float(xy["y"].sel(i=i, j=j))
@@ -113,15 +111,15 @@ def _node_mark(da: xr.DataArray, fmt):
     ``site`` is {dim: value} of that entry, the level included.
     """
     def mark(force):
-        sub = da.sel({FORCE: force}) if force is not None else da
+        sub = da.sel({FORCE: force})
         site = argmax_site(sub)
         if site is None or float(sub.sel(site)) == 0.0:  # nothing to point at (e.g. no risk at this level)
             return None
-        return site["i"], site["j"], fmt(site if force is None else {**site, FORCE: force})
+        return site["i"], site["j"], fmt({**site, FORCE: force})
     return mark
 
 
-@styled
+@report_figure
 def plot_mean_map(ds: xr.Dataset, path, *, node_stats: xr.Dataset | None = None) -> Path:
     """Map of the ensemble-mean node shear (deg; the shear itself for one drape per level),
     diverging colours centred on 0, one shared scale for all levels. Returns the path."""
@@ -135,7 +133,7 @@ def plot_mean_map(ds: xr.Dataset, path, *, node_stats: xr.Dataset | None = None)
                 mark=_node_mark(abs(mean), lambda s: f"max |{what.strip() or 'shear'}| {float(abs(mean).sel(s)):.1f}°"))
 
 
-@styled
+@report_figure
 def plot_sd_map(ds: xr.Dataset, path, *, node_stats: xr.Dataset | None = None) -> Path:
     """Map of the ensemble standard deviation of node shear (deg). Returns the path."""
     node_stats = node_statistics(ds) if node_stats is None else node_stats
@@ -147,7 +145,7 @@ def plot_sd_map(ds: xr.Dataset, path, *, node_stats: xr.Dataset | None = None) -
                 mark=_node_mark(sd, lambda s: f"max sd {float(sd.sel(s)):.2f}°"))
 
 
-@styled
+@report_figure
 def plot_wrinkle_map(ds: xr.Dataset, path, *, threshold_deg: float | None = None,
                      exceedance: xr.Dataset | None = None) -> Path:
     """Map of the wrinkle risk per node: ``exceedance`` if given, else P(|shear| >
@@ -179,7 +177,7 @@ def plot_wrinkle_map(ds: xr.Dataset, path, *, threshold_deg: float | None = None
                 mark=_node_mark(p, text))
 
 
-@styled
+@report_figure
 def plot_line_statistics(ds: xr.Dataset, path, *, line_stats: xr.Dataset | None = None, experimental=None) -> Path:
     """Ensemble shear against mean distance from the crossover along the max-shear lines (thesis Figs 5.18/5.19).
 
@@ -197,7 +195,7 @@ def plot_line_statistics(ds: xr.Dataset, path, *, line_stats: xr.Dataset | None 
     groups = levels(st)
     fig, axes = panels(len(groups), size=(5.8, 4.6))
     for ax, (force, s) in zip(axes, groups):
-        b = band.sel({FORCE: force}) if force is not None else band
+        b = band.sel({FORCE: force})
         for q in QUADRANTS:
             style = QUADRANT_STYLE[q]
             sq = s.sel(quadrant=q)
@@ -212,9 +210,8 @@ def plot_line_statistics(ds: xr.Dataset, path, *, line_stats: xr.Dataset | None 
         overlay_experimental(ax, points, force)
         ax.axhline(0.0, color="0.6", linewidth=0.8)
         ax.set(xlabel="mean " + DISTANCE_LABEL, ylabel=SHEAR_LABEL)
+        ax.set_title(force_title(force))
         ax.grid(alpha=0.3)
-        if force is not None:
-            ax.set_title(force_title(force))
         ax.legend(loc="best", fontsize=8)
     shared_ylim(axes)
     suptitle(fig, f"max-shear lines, N = {ds.sizes[REALIZATION]}", describe(ds))
@@ -226,12 +223,12 @@ def _node_kind(node) -> str:
     return "+ quadrant" if i * j > 0 else "− quadrant" if i * j < 0 else "on an arm"
 
 
-@styled
+@report_figure
 def plot_histograms(ds: xr.Dataset, path, nodes: Sequence[Sequence[int]], *, bins: int = 20) -> Path:
     """Histograms of node shear at ``nodes`` [(i, j), ...] with the fitted Normal (thesis Fig 5.20).
 
-    One row per node and one column per blank-holder level (one row of nodes without a
-    sweep); each panel has its own bins over its own range, titled with node and force,
+    One row per node and one column per blank-holder level (one row of nodes for one
+    level); each panel has its own bins over its own range, titled with node and force,
     because the levels' distributions lie far apart compared with their widths. Returns
     the path.
     """
@@ -250,7 +247,7 @@ def plot_histograms(ds: xr.Dataset, path, nodes: Sequence[Sequence[int]], *, bin
             ax.plot(fine, stats.norm.pdf(fine, mu, sd), color="black", linewidth=1.5,
                     label=f"Normal μ = {mu:.1f}°, σ = {sd:.2f}°")
         ax.set(xlabel=SHEAR_LABEL, ylabel="density (1/deg)",
-               title=f"node {node}, {_node_kind(node)}" + ("" if force is None else f", {force_title(force)}"))
+               title=f"node {node}, {_node_kind(node)}, {force_title(force)}")
         ax.grid(alpha=0.3)
         ax.set_ylim(0.0, 1.35 * ax.get_ylim()[1])  # headroom: the legend sits above the bars
         ax.legend(loc="upper left", fontsize=8)
@@ -267,7 +264,7 @@ def most_variable_node(ds: xr.Dataset, node_stats: xr.Dataset | None = None) -> 
     return int(site["i"]), int(site["j"])
 
 
-@styled
+@report_figure
 def plot_convergence(ds: xr.Dataset, path, node: Sequence[int] | None = None, *, target_deg: float = 1.0,
                      confidence: float = 0.95, node_stats: xr.Dataset | None = None) -> Path:
     """Running mean (with its confidence band) and interval half-width of node shear against N.
@@ -284,18 +281,17 @@ def plot_convergence(ds: xr.Dataset, path, node: Sequence[int] | None = None, *,
     groups = levels(conv)
     cmap = mpl.colormaps["viridis"]
     for k, (force, c) in enumerate(groups):
-        color = "tab:purple" if force is None else cmap(k / max(len(groups) - 1, 1))
-        name = "" if force is None else f"{force:g} N"
+        color = cmap(k / max(len(groups) - 1, 1))
         n = c["n"].values
         m, h = c["running_mean"].values, c["half_width"].values
-        ax_m.plot(n, m, color=color, label=name or "running mean")
+        ax_m.plot(n, m, color=color, label=f"running mean, {force:g} N")
         ax_m.fill_between(n, m - h, m + h, color=color, alpha=0.2, linewidth=0)
-        ax_h.loglog(n, h, color=color, label=name or "half-width")
+        ax_h.loglog(n, h, color=color, label=f"half-width, {force:g} N")
         sd = float(c["running_sd"].values[-1])
         if np.isfinite(sd) and sd > 0:
             need = samples_needed(sd, target_deg, confidence)
             ax_h.axvline(need, color=color, linestyle=":", linewidth=1.2,
-                         label=f"{name + ': ' if name else ''}N = {need} for ±{target_deg:g}°")
+                         label=f"{force:g} N: N = {need} for ±{target_deg:g}°")
     ax_h.axhline(target_deg, color="0.3", linestyle="--", linewidth=1.0, label=f"target ±{target_deg:g}°")
     ax_m.set(xlabel="number of realisations N (-)", ylabel="running mean shear (deg)",
              title=f"running mean, {confidence:.0%} band")
@@ -311,16 +307,16 @@ def plot_convergence(ds: xr.Dataset, path, node: Sequence[int] | None = None, *,
     return save(fig, path)
 
 
-@styled
+@report_figure
 def plot_sweep(ds: xr.Dataset, path, *, scalars: xr.Dataset | None = None) -> Path:
     """Max-shear line means ± 1 sd against blank-holder force (N) for a sweep ensemble.
 
     Left: mean signed shear along the + quadrant (i*j > 0) and − quadrant lines; right:
     their asymmetry (plus + minus, 0 when mirrored), from ``uqdrape.stats.line_scalars``.
-    Needs a ``blankholder_force`` dim. Returns the path.
+    Needs two or more blank-holder levels. Returns the path.
     """
-    if FORCE not in ds.dims:
-        raise ValueError(f"plot_sweep needs a {FORCE!r} dim (a blank-holder force sweep); dims: {dict(ds.sizes)}")
+    if ds.sizes[FORCE] < 2:
+        raise ValueError(f"plot_sweep needs two or more {FORCE!r} levels (a force sweep); dims: {dict(ds.sizes)}")
     sc = line_scalars(ds) if scalars is None else scalars
     force = ds[FORCE].values.astype(float)
     n = ds.sizes[REALIZATION]
@@ -348,26 +344,26 @@ def plot_sweep(ds: xr.Dataset, path, *, scalars: xr.Dataset | None = None) -> Pa
 QUADRANT_NUMBER = {"++": 1, "-+": 2, "--": 3, "+-": 4}
 
 
-@styled
+@report_figure
 def plot_scalar_vs_factor(ds: xr.Dataset, path, factor: str) -> Path:
     """Per-realisation scalars against one sampled scalar factor (thesis Fig 5.6 style).
 
     Left: blank-holder friction energy (J) per quadrant Q1-Q4 (Q1 = ++, counter-clockwise)
     and in total; right: line-mean shear of the + and − quadrant max-shear lines and their
-    asymmetry (deg, ``uqdrape.stats.line_scalars``). ``factor`` is a variable along
-    ``realization`` (e.g. ``skew``, deg). Not for a blank-holder sweep (use ``plot_sweep``).
-    Returns the path.
+    asymmetry (deg, ``uqdrape.stats.line_scalars``). ``factor`` is a solver input
+    (``uqdrape.schema.SOLVER_INPUTS``, e.g. ``skew``, deg). Not for a blank-holder sweep
+    (use ``plot_sweep``). Returns the path.
     """
-    if FORCE in ds.dims:
-        raise ValueError(f"plot_scalar_vs_factor takes one blank-holder level; ds has a {FORCE!r} dim "
+    if ds.sizes[FORCE] > 1:
+        raise ValueError(f"plot_scalar_vs_factor takes one blank-holder level; ds has {ds.sizes[FORCE]} "
                          "(select a level first, or use plot_sweep)")
-    if factor not in ds.data_vars or ds[factor].dims != (REALIZATION,):
-        candidates = [v for v in ds.data_vars if ds[v].dims == (REALIZATION,)]
-        raise ValueError(f"factor={factor!r} is not a variable along {REALIZATION!r}; valid: {', '.join(candidates)}")
-    x = ds[factor].values.astype(float)
+    ds = ds.isel({FORCE: 0})
+    stored = [name for name, inp in SOLVER_INPUTS.items() if inp.variable in ds.data_vars]
+    if factor not in stored:
+        raise ValueError(f"factor={factor!r} is not a variable along {REALIZATION!r}; valid: {', '.join(stored)}")
+    x = ds[SOLVER_INPUTS[factor].variable].values.astype(float)
     order = np.argsort(x)
-    fa = ds[factor].attrs
-    xlabel = f"{fa.get('long_name', factor)} ({fa.get('units', '-')})".replace("(degree)", "(deg)").replace("(1)", "(-)")
+    xlabel = label(ds[SOLVER_INPUTS[factor].variable])
     fig, (ax_e, ax_s) = panels(2, size=(5.8, 4.4))
     if "energy_blankholder_quadrant" in ds.data_vars:
         eq = ds["energy_blankholder_quadrant"].transpose(REALIZATION, "quadrant").values

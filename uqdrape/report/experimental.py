@@ -33,10 +33,8 @@ class ExperimentalPoints:
     blankholder_force_N: np.ndarray
     source: str
 
-    def at_force(self, force: float | None) -> "ExperimentalPoints":
+    def at_force(self, force: float) -> "ExperimentalPoints":
         """The points measured at blank-holder force ``force`` (N) plus those with no force given."""
-        if force is None:
-            return self
         keep = np.isnan(self.blankholder_force_N) | np.isclose(self.blankholder_force_N, force)
         return ExperimentalPoints(self.distance_mm[keep], self.shear_deg[keep], self.quadrant_sign[keep],
                                   self.blankholder_force_N[keep], self.source)

@@ -1,8 +1,11 @@
 """Figures of single drapes: the draped net in 3-D and shear along the max-shear lines.
 
 Every figure is drawn on a ``matplotlib.figure.Figure`` with the Agg canvas (no pyplot,
-no screen, no global state), written as a PNG and its path returned. The helpers at the
-top (style, panels, labels, blank-holder levels) are shared with ``ensemble_figures``.
+no screen, no global state), written as a PNG and its path returned. Every figure
+function takes its Dataset in the ensemble layout (``uqdrape.schema.by_force``: one panel
+or line per blank-holder level, titled with its force), a drape Dataset being put in it
+first. The helpers at the top (style, panels, labels, levels) are shared with the other
+figure modules.
 """
 
 from __future__ import annotations
@@ -20,12 +23,11 @@ from matplotlib.figure import Figure
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 from PIL import Image
 
-from uqdrape.drape.lines import QUADRANTS, max_shear_lines
+from uqdrape.drape.lines import max_shear_lines
+from uqdrape.schema import FORCE, QUADRANTS, REALIZATION, by_force
 
 from .experimental import as_experimental
 
-FORCE = "blankholder_force"
-REALIZATION = "realization"
 #: Line style per max-shear quadrant: i*j > 0 (positive-shear) quadrants red, the others blue.
 QUADRANT_STYLE = {
     "++": dict(color="tab:red", marker="o", linestyle="-"),
@@ -43,12 +45,13 @@ _RC = {"font.size": 11, "axes.titlesize": 12, "axes.labelsize": 11, "legend.font
 DPI = 100
 
 
-def styled(func):
-    """Run a figure function under the report's font sizes (a local rc context)."""
+def report_figure(func):
+    """A figure function ``func(ds, ...)``: run under the report's font sizes (a local rc
+    context), with ``ds`` in the ensemble layout (``uqdrape.schema.by_force``)."""
     @functools.wraps(func)
-    def wrapper(*args, **kwargs):
+    def wrapper(ds, *args, **kwargs):
         with mpl.rc_context(_RC):
-            return func(*args, **kwargs)
+            return func(by_force(ds), *args, **kwargs)
     return wrapper
 
 
@@ -73,10 +76,10 @@ def shared_ylim(axes) -> None:
 def save(fig: Figure, path) -> Path:
     """Write ``fig`` as a lossless RGB PNG at ``path`` (parent folders created); return the Path.
 
-    The figure is opaque, so dropping matplotlib's alpha channel loses nothing, and
-    Pillow's ``optimize`` recompresses it: about 85 % of matplotlib's RGBA file (measured
-    on a line plot and a shaded map), with none of the banding a palette image gives
-    colour bars.
+    The figure is opaque, so dropping matplotlib's alpha channel loses nothing and makes
+    the file about 85 % of matplotlib's RGBA one, with none of the banding a palette image
+    gives colour bars. zlib's default level: Pillow's ``optimize`` made the gallery's PNGs
+    only 1-4 % smaller for 3-5 times the encoding time (measured on six report figures).
     """
     path = Path(path)
     if path.suffix.lower() != ".png":
@@ -85,7 +88,7 @@ def save(fig: Figure, path) -> Path:
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=DPI)
     with Image.open(buffer) as image:
-        image.convert("RGB").save(path, optimize=True)
+        image.convert("RGB").save(path)
     return path
 
 
@@ -105,10 +108,8 @@ def force_title(force) -> str:
 
 
 def levels(ds: xr.Dataset) -> list:
-    """[(force N or None, Dataset at that level)] over a leading ``blankholder_force`` dim, if any."""
-    if FORCE in ds.dims:
-        return [(float(f), ds.sel({FORCE: f})) for f in ds[FORCE].values]
-    return [(None, ds)]
+    """[(force N, Dataset at that level)] over the ``blankholder_force`` dim."""
+    return [(float(f), ds.sel({FORCE: f})) for f in ds[FORCE].values]
 
 
 def check_realization(ds: xr.Dataset, realization) -> int:
@@ -168,12 +169,11 @@ def _net_cells(one: xr.Dataset, var: str, site):
     return quads, values, np.isfinite(quads).all(axis=(2, 3)) & np.isfinite(values)
 
 
-@styled
+@report_figure
 def plot_net(ds: xr.Dataset, path, var: str = "shear", realization: int = 0, title: str | None = None) -> Path:
     """Draw a draped net in 3-D, cells coloured by ``var``, and write a PNG.
 
-    ``ds`` is a drape Dataset (dims [blankholder_force,] realization, i, j): one panel per
-    blank-holder level, titled with its force, on one shared colour scale, so levels
+    ``ds`` is a drape or ensemble Dataset: one panel per blank-holder level, titled with its force, on one shared colour scale, so levels
     compare at a glance. ``realization`` is a position along ``realization``. Cells are
     the quads between valid nodes (fibre lines are their edges); a node variable (e.g.
     shear) colours a cell by the mean of its four corners, a cell variable (e.g.
@@ -211,30 +211,17 @@ def plot_net(ds: xr.Dataset, path, var: str = "shear", realization: int = 0, tit
         ax.locator_params(nbins=4)  # more ticks run into each other on the slanted axes
         ax.view_init(elev=32, azim=-60)
         n_bad = int((~keep).sum())
-        ax.set_title(", ".join(t for t in (force_title(force) if force is not None else "",
-                                           f"{n_bad} cells not drawn" if n_bad else "") if t), fontsize=10)
+        ax.set_title(force_title(force) + (f", {n_bad} cells not drawn" if n_bad else ""), fontsize=10)
     fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=axes, shrink=0.6, pad=0.06, label=label(ds[var]))
     suptitle(fig, title or f"draped net, realisation {int(ds[REALIZATION][r])}", "" if title else describe(ds))
     return save(fig, path)
 
 
 def _line_panels(ds: xr.Dataset, realization):
-    """[(force or None, Dataset over the realisations drawn in that panel)]."""
-    groups = []
-    if FORCE in ds.dims:
-        groups = levels(ds)
-    elif FORCE in ds.data_vars and ds[FORCE].dims == (REALIZATION,):
-        forces = ds[FORCE].values
-        distinct = np.unique(forces[np.isfinite(forces)])
-        if distinct.size > 1:
-            groups = [(float(f), ds.isel({REALIZATION: np.flatnonzero(forces == f)})) for f in distinct]
-        else:
-            groups = [(float(distinct[0]) if distinct.size else None, ds)]
-    else:
-        groups = [(None, ds)]
+    """[(force, Dataset over the realisations drawn in that panel)] of an ensemble-layout ``ds``."""
     if realization is None:
-        return groups
-    return [(f, sub.isel({REALIZATION: [check_realization(sub, realization)]})) for f, sub in groups]
+        return levels(ds)
+    return [(f, sub.isel({REALIZATION: [check_realization(sub, realization)]})) for f, sub in levels(ds)]
 
 
 def overlay_experimental(ax, points, force) -> None:
@@ -250,14 +237,13 @@ def overlay_experimental(ax, points, force) -> None:
                        label=f"experiment, {text} quadrants ({pts.source})")
 
 
-@styled
+@report_figure
 def plot_lines(ds: xr.Dataset, path, realization: int | None = 0, experimental=None) -> Path:
     """Shear (deg) against distance from the crossover (mm) along the four max-shear lines (thesis Fig 5.9).
 
     Quadrants with i*j > 0 (++, --) are red, the others (-+, +-) blue. One panel per
-    blank-holder force: per level of a ``blankholder_force`` dim, or per distinct force
-    when realisations of one batch carry different forces (one drape per level, as in the
-    thesis). ``realization`` is the position of the drape drawn within each panel's
+    blank-holder force level (a drape batch of several forces: one per distinct force, as
+    in the thesis). ``realization`` is the position of the drape drawn within each panel's
     realisations (None: all of them, thin). ``experimental`` (a CSV path, see
     ``uqdrape.report.experimental``) overlays measured points. Returns the path.
     """
@@ -279,8 +265,7 @@ def plot_lines(ds: xr.Dataset, path, realization: int | None = 0, experimental=N
         ax.axhline(0.0, color="0.6", linewidth=0.8)
         ax.set(xlabel=DISTANCE_LABEL, ylabel=SHEAR_LABEL)
         ax.grid(alpha=0.3)
-        if force is not None:
-            ax.set_title(force_title(force))
+        ax.set_title(force_title(force))
         ax.legend(loc="best")
     shared_ylim(axes)
     suptitle(fig, "shear along the max-shear lines", describe(ds))

@@ -22,11 +22,11 @@ import xarray as xr
 from PIL import Image
 
 from uqdrape import __version__
+from uqdrape.schema import FORCE, REALIZATION, by_force
 from uqdrape.stats import dominant_factors, headline_numbers, node_statistics, study_kind, wrinkle_risk
 from uqdrape.stats.headline import DESIGN, DETERMINISTIC, RANDOM, SWEPT
 
 from .experimental import read_experimental
-from .figures import FORCE, REALIZATION
 from .plan import PLAN, SENSITIVITY_PLAN, Context, render
 from .sensitivity_figures import INDICES
 
@@ -61,9 +61,7 @@ def default_histogram_nodes(ds: xr.Dataset, node_stats: xr.Dataset) -> list[tupl
 
     k steps down from the thesis's node 6 until both nodes have a valid realisation.
     """
-    count = node_stats["count"]
-    if FORCE in count.dims:
-        count = count.min(FORCE)
+    count = node_stats["count"].min(FORCE)
     for k in range(min(THESIS_HISTOGRAM_NODE, int(ds["i"].max())), 0, -1):
         if int(count.sel(i=k, j=k)) > 0 and int(count.sel(i=-k, j=k)) > 0:
             return [(k, k), (-k, k)]
@@ -92,25 +90,23 @@ def _fmt(value, digits: int = 3) -> str:
 
 
 def _where(site: Mapping) -> str:
-    text = f"node (i, j) = ({site['node'][0]}, {site['node'][1]})"
-    if site.get("blankholder_force_N") is not None:
-        text += f", F_BH = {site['blankholder_force_N']:g} N"
-    return text
+    return f"node (i, j) = ({site['node'][0]}, {site['node'][1]}), F_BH = {site['blankholder_force_N']:g} N"
 
 
 def _rows(numbers: Mapping, extra: Mapping, dominant: list | None) -> list[tuple[str, str, str]]:
     """(quantity, value, where/how) rows of the headline table; only what applies to the kind."""
     kind, levels = numbers["kind"], numbers["blankholder_force_levels_N"]
     count = {DESIGN: "design evaluations", SWEPT: "drapes in the sweep"}.get(kind, "realisations N")
-    rows = [("study kind", kind, _KIND_TEXT[kind]), (count + (" per level" if levels else ""),
-                                                      str(numbers["realizations"]), "")]
-    if levels:
-        rows.append(("blank-holder force levels (N)", ", ".join(f"{f:g}" for f in levels), ""))
+    rows = [("study kind", kind, _KIND_TEXT[kind]), (count + (" per level" if len(levels) > 1 else ""),
+                                                      str(numbers["realizations"]), ""),
+            ("blank-holder force levels (N)", ", ".join(f"{f:g}" for f in levels), "")]
     model = numbers["blankholder_model"]
     rows.append(("blank-holder friction model", model,
                  "friction on the radial draw-in only (thesis Eq 5.1-5.5)" if model == "radial"
                  else "friction on the whole plan slip of the held fabric"))
-    rows.append(("valid fraction", f"{numbers['valid_fraction']:.4f}", "valid node values / all node values"))
+    failed = {name: k for name, k in numbers["node_status"].items() if name != "ok"}
+    rows.append(("valid fraction", f"{numbers['valid_fraction']:.4f}", "valid node values / all node values"
+                 + ("; not placed: " + ", ".join(f"{name} {k:,}" for name, k in failed.items()) if failed else "")))
     site = numbers["max_abs_mean_shear_deg"]
     rows.append(("max |shear| (deg)" if kind == DETERMINISTIC else "max |mean shear| (deg)", _fmt(site["value"]),
                  _where(site) if site["value"] is not None else ""))
@@ -130,8 +126,7 @@ def _rows(numbers: Mapping, extra: Mapping, dominant: list | None) -> list[tuple
                      str(sn["value"]), f"{_where(sn)}, sd = {sn['sd_deg']:.3g}° (Student t)") if sn else
                     ("N needed for ±1° at the most variable node", "n/a", "no spread in the ensemble"))
     for d in dominant or ():
-        at = "" if d["blankholder_force_N"] is None else f", F_BH = {d['blankholder_force_N']:g} N"
-        rows.append((f"largest total-order Sobol' index ST{at}", f"{d['factor']} {d['ST']:.2f} ± {d['ST_conf']:.2f}",
+        rows.append((f"largest total-order Sobol' index ST, F_BH = {d['blankholder_force_N']:g} N", f"{d['factor']} {d['ST']:.2f} ± {d['ST_conf']:.2f}",
                      f"of {d['qoi']}, the largest over all factors and quantities of interest"))
     rows.extend((str(k), _fmt(v), "supplied by the caller") for k, v in extra.items())
     return rows
@@ -156,7 +151,7 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None
     """Write the figures of ensemble ``ds``'s report plan, ``summary.json`` and ``index.html``
     into ``out_dir``; returns the index.html path.
 
-    ``ds``: ensemble Dataset (realization, i, j; optional leading ``blankholder_force``);
+    ``ds``: ensemble or drape Dataset (put in the ensemble layout, ``uqdrape.schema.by_force``);
     its kind (``uqdrape.stats.study_kind``) picks the figures (``uqdrape.report.plan``).
     ``title``: short page title; ``description``: a sentence under it. ``study_text``:
     the study TOML, shown once, verbatim. ``histogram_nodes``: [(i, j), ...] (default:
@@ -169,6 +164,7 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None
     """
     if REALIZATION not in ds.dims:
         raise ValueError(f"write_report needs an ensemble Dataset with a {REALIZATION!r} dim; dims: {dict(ds.sizes)}")
+    ds = by_force(ds)
     if not isinstance(title, str) or not title.strip():
         raise ValueError(f"title must be a non-empty string, got {title!r}")
     extra = _check_extra(summary)
@@ -242,14 +238,14 @@ def _sensitivity_section(indices: xr.Dataset, items) -> str:
     esc = html.escape
     method = indices.attrs["method"]
     pairs = INDICES[method]
-    forces = [float(f) for f in indices[FORCE].values] if FORCE in indices.dims else [None]
-    head = "".join(f"<th>{'value' if f is None else f'F_BH = {f:g} N'}</th>" for f in forces)
+    forces = [float(f) for f in indices[FORCE].values]
+    head = "".join(f"<th>F_BH = {f:g} N</th>" for f in forces)
     body = []
     for q in indices["qoi"].values:
         for factor in indices["factor"].values:
             cells = []
             for f in forces:
-                at = indices.sel(qoi=q, factor=factor, **({} if f is None else {FORCE: f}))
+                at = indices.sel({"qoi": q, "factor": factor, FORCE: f})
                 cells.append(" / ".join(f"{float(at[v]):.2f} ± {float(at[c]):.2f}" for v, c, _ in pairs))
             body.append(f"<tr><th>{esc(str(q))}</th><th>{esc(str(factor))}</th>"
                         + "".join(f"<td class=\"num\">{esc(c)}</td>" for c in cells) + "</tr>")

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import xarray as xr
 
+from uqdrape.schema import FORCE
 from uqdrape.stats import KINDS, line_statistics, varying_factors
 from uqdrape.stats.headline import DESIGN, DETERMINISTIC, RANDOM, SWEPT
 
@@ -34,13 +35,13 @@ from .ensemble_figures import (
     plot_sweep,
     plot_wrinkle_map,
 )
-from .figures import FORCE, plot_lines, plot_net
+from .figures import plot_lines, plot_net
 from .sensitivity_figures import INDICES, plot_sensitivity_bars, plot_sensitivity_map, plot_sensitivity_vs_force
 
 
 @dataclass(frozen=True)
 class Context:
-    """What the figures of one report are drawn from: the ensemble, its kind, the
+    """What the figures of one report are drawn from: the ensemble (in the ensemble layout), its kind, the
     statistics computed once, the output folder and the caller's options."""
 
     ds: xr.Dataset
@@ -69,7 +70,7 @@ class Spec:
 
 def _net(c: Context):
     return [(plot_net(c.ds, c.out / "net.png"),
-             "Draped net of the first realisation" + (" at each blank-holder force" if FORCE in c.ds.dims else "")
+             "Draped net of the first realisation" + (" at each blank-holder force" if c.ds.sizes[FORCE] > 1 else "")
              + ", cells coloured by node shear (deg) on one colour scale.")]
 
 
@@ -140,6 +141,15 @@ def _histograms(c: Context):
              "Histograms of node shear with the fitted Normal (thesis Fig 5.20), each level on its own bins.")]
 
 
+def _has_spread(c: Context) -> bool:
+    return bool((c.node_stats["sd"] > 0).any())
+
+
+def _no_spread(c: Context) -> str:
+    return (f"No histograms or convergence plot: node shear is the same in all {c.ds.sizes['realization']} "
+            "realisations (no random input of the study changed any drape).")
+
+
 def _convergence(c: Context):
     return [(plot_convergence(c.ds, c.out / "convergence.png", node_stats=c.node_stats),
              "Convergence of the mean shear with N at the most variable node.")]
@@ -171,7 +181,7 @@ ALL = KINDS
 #: The figures of the Sensitivity section, drawn first on a sensitivity design's page.
 SENSITIVITY_PLAN = (
     Spec("sensitivity_vs_force", (DESIGN,), _sensitivity_vs_force,
-         when=lambda c: c.sensitivity is not None and FORCE in c.sensitivity.dims),
+         when=lambda c: c.sensitivity is not None and c.sensitivity.sizes[FORCE] > 1),
     Spec("sensitivity_bars", (DESIGN,), _sensitivity_bars, when=lambda c: c.sensitivity is not None),
     Spec("sensitivity_maps", (DESIGN,), _sensitivity_maps, when=lambda c: c.sensitivity_maps is not None),
 )
@@ -180,14 +190,14 @@ PLAN = (
     Spec("net", ALL, _net),
     Spec("lines", ALL, _lines),
     Spec("vs_factor", (RANDOM, SWEPT), _vs_factor,
-         when=lambda c: FORCE not in c.ds.dims and len(varying_factors(c.ds)) == 1),
-    Spec("sweep", ALL, _sweep, when=lambda c: FORCE in c.ds.dims),
+         when=lambda c: c.ds.sizes[FORCE] == 1 and len(varying_factors(c.ds)) == 1),
+    Spec("sweep", ALL, _sweep, when=lambda c: c.ds.sizes[FORCE] > 1),
     Spec("mean_shear", (RANDOM, DETERMINISTIC, DESIGN), _mean),
     Spec("sd_shear", (RANDOM, DESIGN), _sd),
     Spec("wrinkle_risk", (RANDOM,), _wrinkle, when=_has_risk, otherwise=_no_risk),
     Spec("line_statistics", (RANDOM,), _line_statistics),
-    Spec("histograms", (RANDOM,), _histograms),
-    Spec("convergence", (RANDOM,), _convergence),
+    Spec("histograms", (RANDOM,), _histograms, when=_has_spread, otherwise=_no_spread),
+    Spec("convergence", (RANDOM,), _convergence, when=_has_spread),
 )
 
 

@@ -2,8 +2,8 @@
 confidence intervals per quantity of interest, indices against blank-holder force per
 factor, and index maps of node shear on the net.
 
-Inputs are the Datasets ``uqdrape.workflow.write_sensitivity`` stores: QoI indices (dims factor, qoi
-[, blankholder_force]) and node-shear index maps (dims factor, i, j[, blankholder_force]),
+Inputs are the Datasets ``uqdrape.workflow.write_sensitivity`` stores: QoI indices (dims factor, qoi,
+blankholder_force) and node-shear index maps (dims factor, i, j, blankholder_force),
 Sobol' (S1, ST and their ``_conf`` half-widths) or Morris (mu_star, mu_star_conf).
 Error bars and bands are the stored bootstrap confidence half-widths.
 """
@@ -13,12 +13,11 @@ from __future__ import annotations
 import matplotlib as mpl
 import numpy as np
 import xarray as xr
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from .ensemble_figures import triangulation, mean_positions
-from .figures import FORCE, describe, force_title, save, styled, suptitle, unit_text
+from ..schema import FORCE
+from .figures import describe, force_title, levels, panels, report_figure, save, suptitle, unit_text
 
 #: The indices drawn per method: (variable, its confidence half-width, label).
 INDICES = {
@@ -34,19 +33,6 @@ def _method(ds: xr.Dataset) -> str:
     return method
 
 
-def _levels(ds: xr.Dataset) -> list:
-    """[(force N or None, indices at that level)]."""
-    if FORCE in ds.dims:
-        return [(float(f), ds.sel({FORCE: f})) for f in ds[FORCE].values]
-    return [(None, ds)]
-
-
-def _grid(rows: int, cols: int, size):
-    fig = Figure(figsize=(size[0] * cols, size[1] * rows), layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig, fig.subplots(rows, cols, squeeze=False)
-
-
 def _design_text(ds: xr.Dataset) -> str:
     what = "base samples" if ds.attrs["method"] == "sobol" else "trajectories"
     return (f"{ds.attrs['method']}: {ds.attrs['base_samples']} {what}, {ds.attrs['n_evaluations']} drapes per level, "
@@ -60,25 +46,21 @@ def _qoi_axis_label(ds: xr.Dataset, q: str) -> str:
     return f"μ* ({'' if units == '-' else units + ' '}per unit step)"
 
 
-@styled
+@report_figure
 def plot_sensitivity_bars(indices: xr.Dataset, path):
     """Bar chart per quantity of interest (rows) and blank-holder level (columns; one level:
     the QoIs fill a grid): each factor's indices (Sobol' S1 and ST side by side, or Morris
     μ*) with their confidence intervals as error bars. Returns the path."""
     method = _method(indices)
     pairs = INDICES[method]
-    groups = _levels(indices)
+    groups = levels(indices)
     qois = [str(q) for q in indices["qoi"].values]
     factors = [str(f) for f in indices["factor"].values]
     size = (max(3.6, 0.9 * len(factors) + 1.2), 2.9)
-    if len(groups) == 1:
-        cols = min(3, len(qois))
-        fig, grid = _grid(-(-len(qois) // cols), cols, size)
-        for ax in grid.flat[len(qois):]:
-            ax.set_visible(False)
-        axes = grid.reshape(-1, 1)
-    else:
-        fig, axes = _grid(len(qois), len(groups), size)
+    # one level: the QoIs fill a grid of up to 3 columns; else a row per QoI, a column per level
+    cols = min(3, len(qois)) if len(groups) == 1 else len(groups)
+    fig, axes = panels(len(qois) * len(groups), size=size, cols=cols)
+    axes = np.reshape(axes, (len(qois), len(groups)))
     x = np.arange(len(factors))
     width = 0.8 / len(pairs)
     colors = ("tab:blue", "tab:orange")
@@ -96,32 +78,27 @@ def plot_sensitivity_bars(indices: xr.Dataset, path):
             ax.grid(axis="y", alpha=0.3)
             if method == "sobol":
                 ax.set_ylim(min(-0.1, ax.get_ylim()[0]), max(1.1, ax.get_ylim()[1]))
-            ax.set_title(q + ("" if force is None else f", {force_title(force)}"), fontsize=10)
+            ax.set_title(f"{q}, {force_title(force)}", fontsize=10)
             ax.set_ylabel(_qoi_axis_label(indices, q))
     axes[0, 0].legend(loc="upper left", fontsize=8)
     fig.suptitle(f"sensitivity indices per quantity of interest\n{_design_text(indices)}")
     return save(fig, path)
 
 
-@styled
+@report_figure
 def plot_sensitivity_vs_force(indices: xr.Dataset, path):
     """Indices against blank-holder force (N), one panel per quantity of interest and one
     colour per factor: ST solid and S1 dashed (Morris: μ*), shaded confidence intervals.
-    Needs a ``blankholder_force`` dim. Returns the path."""
+    Returns the path."""
     method = _method(indices)
-    if FORCE not in indices.dims:
-        raise ValueError(f"plot_sensitivity_vs_force needs a {FORCE!r} dim (a blank-holder sweep); "
-                         f"dims: {dict(indices.sizes)}")
     pairs = INDICES[method]
     qois = [str(q) for q in indices["qoi"].values]
     force = indices[FORCE].values.astype(float)
-    cols = min(3, len(qois))
-    rows = -(-len(qois) // cols)
-    fig, axes = _grid(rows, cols, size=(5.0, 3.9))
+    fig, axes = panels(len(qois), size=(5.0, 3.9), cols=min(3, len(qois)))
     cmap = mpl.colormaps["tab10"]
     styles = {"ST": "-", "S1": "--", "mu_star": "-"}
     for n, q in enumerate(qois):
-        ax = axes.flat[n]
+        ax = axes[n]
         for k, factor in enumerate(indices["factor"].values):
             sel = indices.sel(qoi=q, factor=factor).transpose(FORCE)
             for var, conf, name in pairs:
@@ -131,8 +108,6 @@ def plot_sensitivity_vs_force(indices: xr.Dataset, path):
         ax.axhline(0.0, color="0.5", linewidth=0.8)
         ax.set(xlabel="blank-holder force F_BH (N)", ylabel=_qoi_axis_label(indices, q), title=q)
         ax.grid(alpha=0.3)
-    for ax in axes.flat[len(qois):]:
-        ax.set_visible(False)
     # one legend entry per factor (its colour) and per index (its line style, drawn long enough to read)
     handles = [Line2D([], [], color=cmap(k % 10), linewidth=6, label=str(f))
                for k, f in enumerate(indices["factor"].values)]
@@ -142,7 +117,7 @@ def plot_sensitivity_vs_force(indices: xr.Dataset, path):
     return save(fig, path)
 
 
-@styled
+@report_figure
 def plot_sensitivity_map(ds: xr.Dataset, maps: xr.Dataset, path, index: str = "ST"):
     """Index ``index`` (S1, ST or mu_star) of node shear on the net: one row per factor,
     one column per blank-holder level, drawn on the ensemble-mean node positions of the
@@ -152,15 +127,16 @@ def plot_sensitivity_map(ds: xr.Dataset, maps: xr.Dataset, path, index: str = "S
     if index not in valid:
         raise ValueError(f"index={index!r} is not a {method} index; valid: {', '.join(valid)}")
     pos = mean_positions(ds)
-    groups = _levels(maps)
+    groups = levels(maps)
     factors = [str(f) for f in maps["factor"].values]
-    fig, axes = _grid(len(factors), len(groups), size=(2.9, 2.7))
+    fig, axes = panels(len(factors) * len(groups), size=(2.9, 2.7), cols=len(groups))
+    axes = np.reshape(axes, (len(factors), len(groups)))
     values = maps[index].values
     top = float(np.nanmax(values)) if np.isfinite(values).any() else 1.0
     norm = mpl.colors.Normalize(0.0, 1.0 if method == "sobol" else (top or 1.0))
     cmap = mpl.colormaps["magma_r"]
     for col, (force, level) in enumerate(groups):
-        xy = pos.sel({FORCE: force}) if force is not None else pos
+        xy = pos.sel({FORCE: force})
         x, y = xy["x"].transpose("i", "j").values, xy["y"].transpose("i", "j").values
         for row, factor in enumerate(factors):
             ax = axes[row, col]
@@ -170,7 +146,7 @@ def plot_sensitivity_map(ds: xr.Dataset, maps: xr.Dataset, path, index: str = "S
                 tri, used = triangulation(x, y, ok)
                 ax.tripcolor(tri, v.flat[used], shading="gouraud", norm=norm, cmap=cmap)
             ax.set(aspect="equal", xticks=[], yticks=[])
-            ax.set_title(factor + ("" if force is None else f", {force_title(force)}"), fontsize=9)
+            ax.set_title(f"{factor}, {force_title(force)}", fontsize=9)
     label = f"{index} of node shear" + (" (-)" if method == "sobol" else " (deg per unit step)")
     fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=axes, shrink=0.8, label=label)
     suptitle(fig, f"{index} of node shear on the mean net (x-y plan), {describe(ds)}", _design_text(maps))

@@ -2,8 +2,7 @@
 Sobol'/Morris indices as xarray Datasets, and indices versus blank-holder force.
 
 Flow (as SALib's): ``make_problem`` -> ``sample`` -> evaluate -> ``analyze``;
-``run_sensitivity`` does all three for any callable model; ``qoi_indices`` and
-``map_indices`` analyse the outputs of a design per blank-holder force level. The
+``qoi_indices`` and ``map_indices`` analyse the outputs of a design per blank-holder force level. The
 study-level flow (a study's design, its drapes, the files) is ``uqdrape.workflow``.
 """
 
@@ -17,7 +16,6 @@ from .design import (
     check_base_samples,
     sample,
 )
-from .pipeline import run_sensitivity
 from .problem import check_problem, field_group, make_problem
 from .indices import ROUNDOFF, Design, map_indices, qoi_indices
 
@@ -25,6 +23,6 @@ __all__ = [
     "CONSTANT_RTOL", "METHODS", "MORRIS_MIN_TRAJECTORIES", "MORRIS_NUM_LEVELS",
     "MORRIS_TAIL_QUANTILE", "SOBOL_MIN_BASE_SAMPLES", "VARIABLES", "analyze",
     "analyze_map", "check_base_samples", "check_problem", "field_group", "indices_vs_levels",
-    "make_problem", "run_sensitivity", "sample",
+    "make_problem", "sample",
     "ROUNDOFF", "Design", "map_indices", "qoi_indices",
 ]

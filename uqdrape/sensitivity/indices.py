@@ -1,8 +1,7 @@
 """Sensitivity indices of evaluated designs, per blank-holder force level, as xarray.
 
-Given a :class:`Design` and the outputs of its rows (realisations 0..n-1 in order,
-optionally with a leading ``blankholder_force`` dimension: the same rows draped at every
-level), :func:`qoi_indices` analyses scalar quantities of interest and
+Given a :class:`Design` and the outputs of its rows (dims blankholder_force, realization:
+realisations 0..n-1 in order, the same rows draped at every force level), :func:`qoi_indices` analyses scalar quantities of interest and
 :func:`map_indices` a per-node output such as node shear. Arrays in, Datasets out: no
 files are read or written here.
 """
@@ -44,13 +43,11 @@ class Design:
 
 
 def _per_level(design: Design, data, analyse):
-    """``analyse(level)`` at each blank-holder level of ``data`` (stacked), or once."""
+    """``analyse(level)`` at each blank-holder level of ``data``, stacked along ``blankholder_force``."""
     rows = data[REALIZATION].values
-    if not np.array_equal(rows, np.arange(design.n_evaluations)):
+    if not np.array_equal(rows, np.arange(design.n_evaluations)) or FORCE not in data.dims:
         raise ValueError(f"the outputs must be the design's {design.n_evaluations} evaluations as realisations "
-                         f"0..{design.n_evaluations - 1} in order; got {rows.size} realisations")
-    if FORCE not in data.dims:
-        return analyse(data)
+                         f"0..{design.n_evaluations - 1} in order at each {FORCE!r} level; got dims {dict(data.sizes)}")
     forces = data[FORCE].values
     return indices_vs_levels([analyse(data.sel({FORCE: f})) for f in forces], forces, dim=FORCE, units="N")
 
@@ -70,10 +67,10 @@ def _describe_factors(design: Design, ds: xr.Dataset) -> xr.Dataset:
 
 def qoi_indices(design: Design, qois: xr.Dataset, *, seed: int, conf_level: float = 0.95,
                 num_resamples: int = 100) -> xr.Dataset:
-    """Indices of every variable of ``qois`` (dims [blankholder_force,] realization, the
+    """Indices of every variable of ``qois`` (dims blankholder_force, realization, the
     realisations being the design's rows), per force level.
 
-    Dims (factor, qoi[, blankholder_force]); variables of ``uqdrape.sensitivity.analyze``
+    Dims (factor, qoi, blankholder_force); variables of ``uqdrape.sensitivity.analyze``
     (Sobol' S1, S1_conf, ST, ST_conf or Morris mu, mu_star, mu_star_conf, sigma);
     coordinates qoi_units, n_variables, factor_kind; attributes of the analysis and the design.
     """
@@ -93,8 +90,8 @@ def qoi_indices(design: Design, qois: xr.Dataset, *, seed: int, conf_level: floa
 
 def map_indices(design: Design, field: xr.DataArray, *, seed: int, conf_level: float = 0.95,
                 num_resamples: int = 100) -> xr.Dataset:
-    """Index maps of a per-node output, e.g. node shear (dims [blankholder_force,]
-    realization, i, j): dims (factor, i, j[, blankholder_force]); NaN where a node is
+    """Index maps of a per-node output, e.g. node shear (dims blankholder_force,
+    realization, i, j): dims (factor, i, j, blankholder_force); NaN where a node is
     invalid in some evaluation (see ``analyze_map``)."""
     def analyse(level):
         return analyze_map(design.problem, design.X, level, method=design.method, conf_level=conf_level,

@@ -8,8 +8,7 @@ import numpy as np
 import xarray as xr
 from scipy import stats
 
-#: The ensemble dimension every statistic reduces over.
-REALIZATION = "realization"
+from ..schema import REALIZATION
 
 
 def check_confidence(confidence: float) -> float:

@@ -23,8 +23,8 @@ import math
 import numpy as np
 import xarray as xr
 
-from ..schema import FORCE, SOLVER_INPUTS
-from ._common import REALIZATION
+from ..drape.status import Status
+from ..schema import FORCE, REALIZATION, SOLVER_INPUTS, by_force
 from .convergence import samples_needed
 from .exceedance import exceedance_probability
 from .summary import node_statistics
@@ -34,19 +34,22 @@ KINDS = (RANDOM, DETERMINISTIC, SWEPT, DESIGN)
 
 
 def varying_factors(ds: xr.Dataset) -> list[str]:
-    """Sampled scalar solver inputs (``uqdrape.schema.SOLVER_INPUTS``) stored along
-    ``realization`` that take more than one value in ``ds``, in the table's order."""
+    """Scalar solver inputs (``uqdrape.schema.SOLVER_INPUTS``) that take more than one
+    value over the realisations of ``ds`` (a drape or an ensemble), in the table's order."""
+    ds = by_force(ds)
     out = []
-    for name in SOLVER_INPUTS:
-        if name in ds.data_vars and ds[name].dims == (REALIZATION,):
-            finite = ds[name].values[np.isfinite(ds[name].values)]
-            if finite.size and finite.min() < finite.max():
+    for name, inp in SOLVER_INPUTS.items():
+        if inp.variable in ds.data_vars and set(ds[inp.variable].dims) == {FORCE, REALIZATION}:
+            values = ds[inp.variable].values
+            if np.nanmin(values, initial=np.inf) < np.nanmax(values, initial=-np.inf):
                 out.append(name)
     return out
 
 
 def study_kind(ds: xr.Dataset) -> str:
-    """One of :data:`KINDS` for ensemble ``ds`` (see the module docstring for the rules)."""
+    """One of :data:`KINDS` for ``ds`` in the ensemble layout (``uqdrape.schema.by_force``;
+    see the module docstring for the rules)."""
+    ds = by_force(ds)
     if ds.attrs.get("design_method"):
         return DESIGN
     if ds.sizes[REALIZATION] < 2:
@@ -74,8 +77,7 @@ def _site(da: xr.DataArray) -> dict:
     at = argmax_site(da)
     if at is None:
         return {"value": None, "node": None, "blankholder_force_N": None}
-    return {"value": float(da.sel(at)), "node": [int(at["i"]), int(at["j"])],
-            "blankholder_force_N": float(at[FORCE]) if FORCE in at else None}
+    return {"value": float(da.sel(at)), "node": [int(at["i"]), int(at["j"])], "blankholder_force_N": float(at[FORCE])}
 
 
 def wrinkle_risk(ds: xr.Dataset, confidence: float = 0.95) -> xr.Dataset | None:
@@ -102,21 +104,31 @@ def wrinkle_risk(ds: xr.Dataset, confidence: float = 0.95) -> xr.Dataset | None:
     return ex
 
 
+def _status_counts(ds: xr.Dataset) -> dict[str, int]:
+    """Node values per placement status over the whole ensemble, statuses that occur only."""
+    if "status" not in ds:
+        return {}
+    codes, counts = np.unique(np.asarray(ds["status"].values), return_counts=True)
+    return {Status(int(c)).name.lower(): int(k) for c, k in zip(codes, counts)}
+
+
 def headline_numbers(ds: xr.Dataset, *, node_stats: xr.Dataset | None = None,
                      exceedance: xr.Dataset | None = None, half_width_deg: float = 1.0,
                      confidence: float = 0.95) -> dict:
     """The headline numbers of ensemble ``ds`` as a JSON-ready dict (angles in deg).
 
-    Always: ``kind`` (:func:`study_kind`), ``realizations`` (N per level),
+    ``ds`` is taken in the ensemble layout (``uqdrape.schema.by_force``). Always: ``kind``
+    (:func:`study_kind`), ``realizations`` (N per level),
     ``blankholder_force_levels_N``, ``blankholder_model`` (ensembles written before the
     choice existed used "radial"), ``valid_fraction`` (valid node values / all node
-    values) and ``max_abs_mean_shear_deg`` (value, node, level; the shear itself for one
+    values), ``node_status`` (count of node values per status name, e.g. ``off_mould``) and ``max_abs_mean_shear_deg`` (value, node, level; the shear itself for one
     drape per level). A random sample or a sensitivity design adds ``max_sd_deg``; a
     random sample adds ``max_wrinkle_probability`` (the largest ``wrinkle_risk`` with its
     interval and ``measure``) and ``samples_needed`` (N for a ``confidence`` interval of
     the mean of half-width ``half_width_deg`` at the node of largest sd). Numbers that
     do not apply to the kind, or cannot be computed, are None.
     """
+    ds = by_force(ds)
     kind = study_kind(ds)
     node_stats = node_statistics(ds, confidence=confidence) if node_stats is None else node_stats
     count = node_stats["count"]
@@ -124,9 +136,10 @@ def headline_numbers(ds: xr.Dataset, *, node_stats: xr.Dataset | None = None,
     out = {
         "kind": kind,
         "realizations": n,
-        "blankholder_force_levels_N": [float(f) for f in ds[FORCE].values] if FORCE in ds.dims else None,
+        "blankholder_force_levels_N": [float(f) for f in ds[FORCE].values],
         "blankholder_model": ds.attrs.get("blankholder_model", "radial"),
         "valid_fraction": float(count.sum()) / (n * count.size),
+        "node_status": _status_counts(ds),
         "max_abs_mean_shear_deg": _site(abs(node_stats["mean"])),
         "max_sd_deg": _site(node_stats["sd"]) if kind in (RANDOM, DESIGN) else None,
         "max_wrinkle_probability": None,
@@ -138,8 +151,7 @@ def headline_numbers(ds: xr.Dataset, *, node_stats: xr.Dataset | None = None,
     if exceedance is not None:
         site = _site(exceedance["probability"])
         if site["value"] is not None:
-            at = exceedance.sel(i=site["node"][0], j=site["node"][1],
-                                **({} if site["blankholder_force_N"] is None else {FORCE: site["blankholder_force_N"]}))
+            at = exceedance.sel({"i": site["node"][0], "j": site["node"][1], FORCE: site["blankholder_force_N"]})
             site.update(lower=float(at["probability_lower"]), upper=float(at["probability_upper"]),
                         measure=exceedance.attrs["risk"],
                         interval=f"{exceedance.attrs['confidence']:.0%} {exceedance.attrs['interval']}")
@@ -156,13 +168,12 @@ def headline_numbers(ds: xr.Dataset, *, node_stats: xr.Dataset | None = None,
 
 def dominant_factors(indices: xr.Dataset) -> list[dict]:
     """Per blank-holder level, the factor with the largest total-order Sobol' index ST over
-    every quantity of interest: [{blankholder_force_N, factor, qoi, ST, ST_conf}] (force
-    None without a sweep). ``indices`` is a Sobol' indices Dataset (factor, qoi[, level])."""
+    every quantity of interest: [{blankholder_force_N, factor, qoi, ST, ST_conf}].
+    ``indices`` is a Sobol' indices Dataset (factor, qoi, blankholder_force)."""
     out = []
-    levels = indices[FORCE].values if FORCE in indices.dims else [None]
-    for force in levels:
-        st = indices if force is None else indices.sel({FORCE: force})
+    for force in indices[FORCE].values:
+        st = indices.sel({FORCE: force})
         at = argmax_site(st["ST"].transpose("factor", "qoi"))
-        out.append({"blankholder_force_N": None if force is None else float(force), "factor": str(at["factor"]),
+        out.append({"blankholder_force_N": float(force), "factor": str(at["factor"]),
                     "qoi": str(at["qoi"]), "ST": float(st["ST"].sel(at)), "ST_conf": float(st["ST_conf"].sel(at))})
     return out

@@ -12,12 +12,9 @@ import xarray as xr
 
 from uqdrape.drape.lines import max_shear_lines, min_shear_lines
 
+from ..schema import MINUS_QUADRANTS, PLUS_QUADRANTS
 from ._common import REALIZATION, check_confidence
 from .summary import moment_statistics
-
-#: Quadrants with i*j > 0 (positive shear on a dome) and i*j < 0.
-PLUS_QUADRANTS = ("++", "--")
-MINUS_QUADRANTS = ("-+", "+-")
 _KINDS = {"max": max_shear_lines, "min": min_shear_lines}
 
 

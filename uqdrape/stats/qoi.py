@@ -36,7 +36,7 @@ QOIS = tuple(QOI_ATTRS)
 def realization_qois(ds: xr.Dataset, qoi=QOIS) -> xr.Dataset:
     """The quantities ``qoi`` (names from ``QOIS``) of every drape in ``ds`` (a drape or
     ensemble Dataset, dims [blankholder_force,] realization, i, j, ...): one variable per
-    QoI with dims ([blankholder_force,] realization), CF units and long_name; loaded."""
+    QoI with the Dataset's dims but the node ones, CF units and long_name; loaded."""
     qoi = tuple(qoi)
     unknown = [q for q in qoi if q not in QOIS]
     if not qoi or unknown or len(set(qoi)) != len(qoi):

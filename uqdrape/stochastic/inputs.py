@@ -5,7 +5,7 @@ and is called with a flat vector of standard normals of length ``n_variables`` (
 over leading axes): exact white noise for Monte Carlo, or KL mode variables after
 :meth:`kl` for a design. Lattice points are segment midpoints / cell centres of the flat
 blank, ``spacing_mm`` apart along each fibre; axis 0 runs along fibre 1 (i), axis 1
-along fibre 2 (j), as in the net arrays (see notes/schema.md).
+along fibre 2 (j), as in the net arrays.
 """
 
 from __future__ import annotations

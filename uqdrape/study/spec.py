@@ -33,10 +33,12 @@ SECTIONS = (
 DESIGN_VARIABLES = ("force", "sectors")
 #: Design objectives by name -> (the per-drape quantity, the statistic of it):
 #: P(any node locked) (binomial, Wilson limits), the 95 % quantile of the largest |node
-#: shear| (order-statistic limits), |mean asymmetry| (Student-t limits of the mean).
+#: shear| (order-statistic limits), |mean asymmetry| (Student-t limits of the mean), the
+#: 95 % quantile of the largest draw-in of the held edge (mm; also the draw-in limit's).
 DESIGN_OBJECTIVES = {"p_locked": ("any_locked", "probability"),
                      "q95_max_abs_shear": ("max_abs_shear", "quantile95"),
-                     "abs_mean_asymmetry": ("asymmetry", "abs_mean")}
+                     "abs_mean_asymmetry": ("asymmetry", "abs_mean"),
+                     "q95_max_draw_in": ("max_draw_in", "quantile95")}
 #: What a design minimises of its objective: the upper confidence limit or the estimate.
 DESIGN_STATISTICS = ("upper", "estimate")
 #: Study-file parameter names of each factor distribution; "bounds" = [lower, upper].
@@ -159,7 +161,8 @@ class Design:
     ``force_bounds_N``, their sum at most ``budget_N``. ``friction_bounds`` (optional) adds
     the friction coefficient as a variable. The design minimises ``statistic`` ("upper"
     confidence limit at ``confidence``, or the "estimate") of ``objective`` (a key of
-    DESIGN_OBJECTIVES), or with ``target`` its distance from the target value. At most
+    DESIGN_OBJECTIVES), or with ``target`` its distance from the target value, among the
+    designs whose ``q95_max_draw_in`` (same statistic) is at most ``max_draw_in_mm``. At most
     ``max_evaluations`` designs of the study's realisations each (common random numbers);
     the optimum is re-evaluated on ``validation_realizations`` fresh ones.
     """
@@ -176,6 +179,7 @@ class Design:
     max_evaluations: int = 40
     tolerance_N: float = 5.0
     validation_realizations: int | None = None
+    max_draw_in_mm: float | None = None
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,8 @@ Sections and keys (units: mm, N, degrees)::
     [design]       variables ("force" | "sectors"), sectors (>= 2, for "sectors"), force_bounds_N = [lo, hi]
                    (the total force, or each sector's), friction_bounds = [lo, hi], budget_N (total force),
                    objective (DESIGN_OBJECTIVES), statistic = "upper" | "estimate", target, confidence = 0.95,
-                   max_evaluations = 40, tolerance_N = 5, validation_realizations = study.realizations:
+                   max_evaluations = 40, tolerance_N = 5, validation_realizations = study.realizations,
+                   max_draw_in_mm (a draw-in limit: the statistic of q95_max_draw_in at most this):
                    a blank-holder design (uqdrape.design); the study's own force is the baseline design
     [report]       histogram_nodes = [], experimental_csv
     [output]       directory = "results/<study name>", float32 = false (true: chunks store floats as
@@ -558,7 +559,8 @@ def _design(src: _Source, doc: dict, process: Process, uncertainty: Uncertainty,
         return None
     t = _Table(src, "design", doc["design"], ("variables", "sectors", "force_bounds_N", "friction_bounds",
                                               "budget_N", "objective", "statistic", "target", "confidence",
-                                              "max_evaluations", "tolerance_N", "validation_realizations"))
+                                              "max_evaluations", "tolerance_N", "validation_realizations",
+                                              "max_draw_in_mm"))
     variables = t.string("variables", choices=DESIGN_VARIABLES)
     sectors = None
     if variables == "sectors":
@@ -579,7 +581,9 @@ def _design(src: _Source, doc: dict, process: Process, uncertainty: Uncertainty,
     evaluations = t.number("max_evaluations", 40, integer=True, ge=4)
     tolerance = t.number("tolerance_N", 5.0, gt=0)
     validation = t.number("validation_realizations", None, integer=True, ge=2)
-    if DESIGN_OBJECTIVES[objective][1] == "quantile95" and statistic == "upper":
+    draw_in = t.number("max_draw_in_mm", None, gt=0)
+    quantiles = DESIGN_OBJECTIVES[objective][1] == "quantile95" or draw_in is not None
+    if quantiles and statistic == "upper":
         fewest = _fewest_for_quantile_limit(0.95, confidence)
         for key, n in (("study.realizations", realizations), ("design.validation_realizations", validation)):
             if n is not None and n < fewest:
@@ -596,7 +600,7 @@ def _design(src: _Source, doc: dict, process: Process, uncertainty: Uncertainty,
         src.invalid("sensitivity.method", sensitivity.method,
                     'a [design] study runs its own designs; set method = "none" or remove [design]')
     return Design(variables, (lo, hi), objective, sectors, friction, budget, statistic, target, confidence,
-                  evaluations, tolerance, validation)
+                  evaluations, tolerance, validation, draw_in)
 
 
 def _report(src: _Source, doc: dict, rings: int) -> Report:
