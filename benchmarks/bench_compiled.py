@@ -1,8 +1,9 @@
 """Compiled drape against the previous (numpy) implementation, measured in one run (issue 12).
 
 Both implementations are timed by the same code in child processes, one after the other:
-this checkout's (the Python running this script) and a previous release installed in its
-own virtual environment, given by ``--previous`` (its ``python``). Set that up once,
+this checkout's (the Python running this script, with the checkout holding the script
+first on its path) and a previous release installed in its own virtual environment, given
+by ``--previous`` (its ``python``, run without PYTHONPATH). Set that up once,
 outside the repository, from the last numpy commit::
 
     mkdir /tmp/uqdrape-prev && git archive 36beba2 | tar -x -C /tmp/uqdrape-prev
@@ -31,6 +32,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from pathlib import Path
 
 CHILD = r'''
 import json, statistics, sys, time
@@ -93,13 +95,13 @@ LABELS = {
 }
 
 
-def measure(python, batch, own_path):
-    """The child's figures (dict) under interpreter ``python``, run outside the checkout so
-    that each interpreter imports its own installed uqdrape; ``own_path`` False drops this
-    process's PYTHONPATH (which may put a checkout first) from the child's environment."""
-    env = dict(os.environ)
-    if not own_path:
-        env.pop("PYTHONPATH", None)
+def measure(python, batch, checkout=None):
+    """The child's figures (dict) under interpreter ``python``, run outside the checkout:
+    with ``checkout`` first on its path (this checkout's uqdrape), else with its own
+    installed uqdrape (no PYTHONPATH)."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    if checkout:
+        env["PYTHONPATH"] = str(checkout)
     done = subprocess.run([python, "-c", CHILD, str(batch)], capture_output=True, text=True, check=True,
                           cwd=tempfile.gettempdir(), env=env)
     out = json.loads(done.stdout.strip().splitlines()[-1])
@@ -118,7 +120,7 @@ def main():
     with open("/proc/loadavg") as f:
         load = f.read().split()[:3]
     t = time.perf_counter()
-    runs = [(measure(sys.executable, args.batch, True), measure(args.previous, args.batch, False))
+    runs = [(measure(sys.executable, args.batch, Path(__file__).resolve().parents[1]), measure(args.previous, args.batch))
             for _ in range(args.repeats)]
     new, old = ({key: statistics.median(run[side][key] for run in runs) for key in LABELS} for side in (0, 1))
     print(f"N = {args.batch}, {args.repeats} run(s) each; load average before the run {' '.join(load)}; "

@@ -241,9 +241,9 @@ def test_hemisphere_shear_converges_at_a_fixed_point_when_the_spacing_halves():
 
 
 # -- batching --------------------------------------------------------------------------
-def _assert_batch_equals_singles(surf, s, n, mode, inputs, atol=1e-12):
+def _assert_batch_equals_singles(surf, s, n, mode, inputs, atol=0.0, threads=1):
     material = load_material("ebxhd936_like")
-    batch = drape(surf, s, n, mode=mode, material=material, **inputs)
+    batch = drape(surf, s, n, mode=mode, material=material, threads=threads, **inputs)
     R = batch.sizes["realization"]
     for r in range(R):
         one = drape(surf, s, n, mode=mode, material=material, **{k: v[r] for k, v in inputs.items()})
@@ -275,9 +275,35 @@ def test_a_batch_gives_the_numbers_of_single_calls(mode):
     assert len(np.unique(batch.energy_total)) == 4
 
 
-def test_a_batch_gives_the_numbers_of_single_calls_near_the_rim():
+@pytest.mark.parametrize("threads", [1, 2])
+def test_a_batch_gives_the_numbers_of_single_calls_near_the_rim(threads):
+    """Nodes past the rim fall back from Newton to the bracket search; a batch on one or on
+    two threads is bitwise the single calls."""
     rng = np.random.default_rng(7)
-    _assert_batch_equals_singles(Hemisphere(50.0, 60.0), 5.0, 10, "geodesic", _varied_inputs(rng, 5.0, 10, 5))
+    _assert_batch_equals_singles(Hemisphere(50.0, 60.0), 5.0, 10, "geodesic", _varied_inputs(rng, 5.0, 10, 5),
+                                 threads=threads)
+
+
+def test_threads_by_default_only_from_the_main_thread_of_the_main_process():
+    """Ensemble workers and thread-pool threads share the cores already: one thread each."""
+    import threading
+
+    import numba
+
+    from uqdrape.drape.solver import default_threads
+
+    assert default_threads() == numba.config.NUMBA_NUM_THREADS
+    seen = []
+    worker = threading.Thread(target=lambda: seen.append(default_threads()))
+    worker.start()
+    worker.join()
+    assert seen == [1]
+
+
+def test_the_drape_dataset_has_the_net_s_dimensions():
+    ds = drape(Hemisphere(100.0), 5.0, 4, orientation=[0.0, 30.0], factors={"spacing_cv": 0.01})
+    assert ds.sizes == {"realization": 2, "i": 9, "j": 9, "cell_i": 8, "cell_j": 8, "ring": 4, "arm": 4,
+                        "quadrant": 4}
 
 
 # -- failure is data -------------------------------------------------------------------
@@ -327,6 +353,8 @@ BAD = [
     (dict(orientation=float("nan")), "orientation"),
     (dict(blankholder_force=-1.0), "blankholder_force"),
     (dict(friction=float("nan")), "friction"),
+    (dict(threads=0), "threads"),
+    (dict(threads=1.5), "threads"),
 ]
 
 

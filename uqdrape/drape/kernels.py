@@ -25,6 +25,10 @@ from .status import Status
 THETA_MAX = np.deg2rad(89.0)
 _NEWTON_ITERS = 12
 _BRACKET_GRID = np.linspace(-THETA_MAX, THETA_MAX, 90)
+#: Grid intervals in the order the bracket search tries them: nearest t = 0 first (ties to
+#: the lower index), so the scan stops at the first sign change.
+_BRACKET_ORDER = np.array(sorted(range(_BRACKET_GRID.size - 1), key=lambda s: (
+    abs(0.5 * (_BRACKET_GRID[s] + _BRACKET_GRID[s + 1])), s)), np.int64)
 _BRACKET_ITERS = 60
 #: Status codes as plain ints, for the compiled kernels.
 OK, NO_INTERSECTION, OFF_MOULD, DEPENDENT, FOLDED = (int(s) for s in (
@@ -48,18 +52,21 @@ def _gap(kind, par, c, u, v, rho, t):
 
 @jit
 def _bracket(kind, par, c, u, v, rho, tol):
-    """Sign change nearest t = 0 on a grid of circle angles, then Illinois false position."""
+    """Sign change nearest t = 0 on a grid of circle angles, then Illinois false position.
+
+    The grid's gaps are evaluated lazily, interval by interval outwards from t = 0."""
     grid = _BRACKET_GRID
-    m = grid.size
-    g = np.empty(m)
-    for s in range(m):
-        g[s] = _gap(kind, par, c, u, v, rho, grid[s])[1]
-    pick, best = 0, math.inf
-    for s in range(m - 1):
-        centre = abs(0.5 * (grid[s] + grid[s + 1]))
-        if np.sign(g[s]) * np.sign(g[s + 1]) <= 0 and centre < best:
-            pick, best = s, centre
-    found = best < math.inf
+    g = np.empty(grid.size)
+    seen = np.zeros(grid.size, np.bool_)
+    pick, found = 0, False
+    for s in _BRACKET_ORDER:
+        for e in (s, s + 1):
+            if not seen[e]:
+                g[e] = _gap(kind, par, c, u, v, rho, grid[e])[1]
+                seen[e] = True
+        if np.sign(g[s]) * np.sign(g[s + 1]) <= 0:
+            pick, found = s, True
+            break
     a, b = grid[pick], grid[pick + 1]
     ga, gb = g[pick], g[pick + 1]
     side = 0
@@ -93,12 +100,13 @@ def _solve_on_circle(kind, par, c, u, v, rho, tol):
     """Point of the circle ``c + rho (cos t u + sin t v)`` on the surface, |t| < THETA_MAX.
 
     Returns (q, ok, dh/dx, dh/dy at q): the root nearest t = 0 by safeguarded Newton
-    (steps clipped to 0.2 rad), falling back to a bracketing search; ``tol`` is the
-    vertical gap accepted (mm).
+    (steps clipped to 0.2 rad), falling back to a bracketing search when Newton does not
+    settle in _NEWTON_ITERS steps or starts to alternate; ``tol`` is the vertical gap
+    accepted (mm).
     """
     if not (math.isfinite(c[0] + c[1] + c[2] + u[0] + u[1] + u[2] + v[0] + v[1] + v[2] + rho) and rho > 0):
         return NAN3, False, math.nan, math.nan
-    theta = 0.0
+    theta, last, older = 0.0, math.nan, math.nan
     q, g, dg, hx, hy = _gap(kind, par, c, u, v, rho, theta)
     for _ in range(_NEWTON_ITERS):
         if abs(g) < tol:
@@ -106,7 +114,9 @@ def _solve_on_circle(kind, par, c, u, v, rho, tol):
         step = -g / dg
         if math.isnan(step):
             break
-        theta += min(max(step, -0.2), 0.2)
+        older, last, theta = last, theta, theta + min(max(step, -0.2), 0.2)
+        if theta == older:  # a 2-cycle: Newton would alternate until it gives up
+            return _bracket(kind, par, c, u, v, rho, tol)
         q, g, dg, hx, hy = _gap(kind, par, c, u, v, rho, theta)
     if abs(g) < tol and abs(theta) < THETA_MAX:
         return q, True, hx, hy
@@ -226,6 +236,24 @@ def net_shear(P, out):
                 lo, hi, left, right = ei[a, b], ei[a, b + 1], ej[a, b], ej[a + 1, b]
                 out[r, a, b] = 0.25 * (_asin1(_dot(lo, left)) + _asin1(_dot(lo, right)) + _asin1(_dot(hi, left))
                                        + _asin1(_dot(hi, right)))
+
+
+@jit
+def net_node_mean(cells, out):
+    """Mean of the finite cells around each node: cells (R, m, m) into out (R, m + 1, m + 1),
+    NaN where a node has none. Cells are added in a fixed order (the cell at (a, b), then
+    (a, b - 1), (a - 1, b), (a - 1, b - 1)), so the value does not depend on the batch."""
+    m = cells.shape[1]
+    for r in range(cells.shape[0]):
+        for a in range(m + 1):
+            for b in range(m + 1):
+                total, count = 0.0, 0
+                for ca in (a, a - 1):
+                    for cb in (b, b - 1):
+                        if 0 <= ca < m and 0 <= cb < m and math.isfinite(cells[r, ca, cb]):
+                            total += cells[r, ca, cb]
+                            count += 1
+                out[r, a, b] = total / count if count > 0 else math.nan
 
 
 def _flat(shape, *arrays):

@@ -15,6 +15,7 @@ Node (i, j) is stored at array index (i + n, j + n). Arms are ordered +i, +j, -i
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from . import ring
@@ -52,11 +53,6 @@ class NetProblem:
         self.cell_s1 = 0.5 * (seg_i[:, :, :-1] + seg_i[:, :, 1:])
         self.cell_s2 = 0.5 * (seg_j[:, :-1, :] + seg_j[:, 1:, :])
 
-    # -- index helpers -----------------------------------------------------------------
-    def node(self, P, i, j):
-        """Positions (R, ..., 3) of nodes (i, j) in the batch's net P (or flat blank)."""
-        return P[:, i + self.n, j + self.n]
-
     # -- shared stages -----------------------------------------------------------------
     def start(self):
         """Arrays with the crossover placed: P (R, N, N, 3) mm, status (R, N, N)."""
@@ -85,32 +81,33 @@ class NetProblem:
         return np.stack([vx + n[..., 0] * w / (1 + n[..., 2]), vy + n[..., 1] * w / (1 + n[..., 2]), w], axis=-1)
 
     def ring_blankholder(self, P, k):
-        """Blank-holder energy (R, 4 quadrants) of the boundary polygon of ring k (J)."""
-        out = np.zeros((self.R, 4))
-        t = np.arange(-k, k)
-        centre = self.crossover[:, None, :]
-        force = self.blankholder.force[:, None]
-        mu = self.blankholder.friction[:, None]
+        """Blank-holder energy (R, 4 quadrants) of the boundary polygon of ring k (J).
+
+        Per quadrant (si, sj) its fibre-2 segments (si k, j)-(si k, j+1) and fibre-1
+        segments (i, sj k)-(i+1, sj k), all evaluated in one call."""
+        t = np.arange(k)
+        i1, j1, i2, j2 = np.empty((4, 4, 2, k), np.int64)  # end indices, (quadrant, fibre-2/fibre-1, segment)
         for q, (si, sj) in enumerate(QUADRANT_SIGNS.values()):
-            jj = t[(t >= 0) == (sj > 0)]  # fibre-2 segments (si k, j)-(si k, j+1)
-            ii = t[(t >= 0) == (si > 0)]  # fibre-1 segments (i, sj k)-(i+1, sj k)
-            e = self.blankholder.segment_energy(
-                self.node(P, si * k, jj), self.node(P, si * k, jj + 1),
-                self.node(self.flat, si * k, jj), self.node(self.flat, si * k, jj + 1),
-                centre, force, mu)
-            e2 = self.blankholder.segment_energy(
-                self.node(P, ii, sj * k), self.node(P, ii + 1, sj * k),
-                self.node(self.flat, ii, sj * k), self.node(self.flat, ii + 1, sj * k),
-                centre, force, mu)
-            out[:, q] = np.nansum(e, axis=-1) + np.nansum(e2, axis=-1)
-        return out
+            jj, ii = (t if sj > 0 else t - k), (t if si > 0 else t - k)
+            i1[q, 0], j1[q, 0], i2[q, 0], j2[q, 0] = si * k, jj, si * k, jj + 1
+            i1[q, 1], j1[q, 1], i2[q, 1], j2[q, 1] = ii, sj * k, ii + 1, sj * k
+        i1, j1, i2, j2 = i1 + self.n, j1 + self.n, i2 + self.n, j2 + self.n
+        e = self.blankholder.segment_energy(
+            P[:, i1, j1], P[:, i2, j2], self.flat[:, i1, j1], self.flat[:, i2, j2], self.crossover[:, None, None, None],
+            self.blankholder.force[:, None, None, None], self.blankholder.friction[:, None, None, None])
+        both = np.nansum(e, axis=-1)
+        return both[..., 0] + both[..., 1]
 
 
-def build_geodesic(prob: NetProblem):
-    """Geodesic net: arms first, then anti-diagonal fill (``ring.geodesic_block``). Returns P, status."""
+def build_geodesic(prob: NetProblem, threads=1):
+    """Geodesic net: arms first, then anti-diagonal fill (``ring.geodesic_block``), the
+    realisations on ``threads`` of numba's threads. Returns P, status."""
     P, status = prob.start()
-    ring.geodesic_block(prob.surface.kernel, prob.tol, prob.n, P, status, prob.seg_i, prob.seg_j,
-                        np.ascontiguousarray(prob.first_directions()))
+    if threads > 1:
+        numba.set_num_threads(threads)
+    block = ring.geodesic_block_threads if threads > 1 else ring.geodesic_block
+    block(prob.surface.kernel, prob.tol, prob.n, P, status, prob.seg_i, prob.seg_j,
+          np.ascontiguousarray(prob.first_directions()))
     return P, status
 
 

@@ -2,7 +2,8 @@
 energy drape's ring step (thesis Fig 5.1).
 
 ``geodesic_block`` traces the four generator arms as discrete geodesics and fills the
-rest of the net anti-diagonal by anti-diagonal (|i| + |j| = d).
+rest of the net anti-diagonal by anti-diagonal (|i| + |j| = d); ``geodesic_block_threads``
+does the same with the realisations on numba's threads.
 
 At ring k each arm gets one segment whose turn angle about the surface normal (rad)
 minimises the energy of the pattern so far. That energy splits into one term per arm
@@ -26,8 +27,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import prange
 
-from .._jit import jit
+from .._jit import jit, jit_threads
 from ..material.model import cell_energy
 from .energy import segment_energy
 from .kernels import OK, arm_node, fill, shear
@@ -74,26 +76,38 @@ def _put(P, status, n, i, j, q, st):
 
 
 @jit
-def geodesic_block(surf, tol, n, P, status, seg_i, seg_j, first_dir):
-    """Geodesic nets of a block: P (R, N, N, 3) mm and status (R, N, N), with the crossover
-    placed, are filled in place; seg_i, seg_j, first_dir (R, 4, 3) per realisation."""
+def _geodesic_net(surf, tol, n, P, status, seg_i, seg_j, first_dir):
+    """Geodesic net of one realisation: P (N, N, 3) mm and status (N, N), with the
+    crossover placed, are filled in place; seg_i, seg_j, first_dir (4, 3)."""
     kind, par = surf
+    for k in range(1, n + 1):
+        for a in range(4):
+            di, dj = ARMS[a]
+            q, st = arm_node(kind, par, _node(P, n, (k - 1) * di, (k - 1) * dj),
+                             _arm_direction(P, n, k, a, first_dir), 0.0, _arm_length(seg_i, seg_j, n, k, a), tol)
+            _put(P, status, n, k * di, k * dj, q, st)
+    for d in range(2, 2 * n + 1):
+        for a in range(max(1, d - n), min(n, d - 1) + 1):
+            for si, sj in ((1, 1), (-1, 1), (-1, -1), (1, -1)):
+                i, j = si * a, sj * (d - a)
+                q, st = fill(kind, par, _node(P, n, i - si, j), _node(P, n, i, j - sj), _node(P, n, i - si, j - sj),
+                             seg_i[min(i, i - si) + n, j + n], seg_j[i + n, min(j, j - sj) + n], si * sj, tol)
+                _put(P, status, n, i, j, q, st)
+
+
+@jit
+def geodesic_block(surf, tol, n, P, status, seg_i, seg_j, first_dir):
+    """Geodesic nets of a block, one after the other: P (R, N, N, 3), status (R, N, N),
+    seg_i, seg_j, first_dir (R, 4, 3) as ``_geodesic_net`` per realisation."""
     for r in range(P.shape[0]):
-        Pr, sr, si_, sj_ = P[r], status[r], seg_i[r], seg_j[r]
-        for k in range(1, n + 1):
-            for a in range(4):
-                di, dj = ARMS[a]
-                q, st = arm_node(kind, par, _node(Pr, n, (k - 1) * di, (k - 1) * dj),
-                                 _arm_direction(Pr, n, k, a, first_dir[r]), 0.0, _arm_length(si_, sj_, n, k, a), tol)
-                _put(Pr, sr, n, k * di, k * dj, q, st)
-        for d in range(2, 2 * n + 1):
-            for a in range(max(1, d - n), min(n, d - 1) + 1):
-                for si, sj in ((1, 1), (-1, 1), (-1, -1), (1, -1)):
-                    i, j = si * a, sj * (d - a)
-                    q, st = fill(kind, par, _node(Pr, n, i - si, j), _node(Pr, n, i, j - sj),
-                                 _node(Pr, n, i - si, j - sj), si_[min(i, i - si) + n, j + n],
-                                 sj_[i + n, min(j, j - sj) + n], si * sj, tol)
-                    _put(Pr, sr, n, i, j, q, st)
+        _geodesic_net(surf, tol, n, P[r], status[r], seg_i[r], seg_j[r], first_dir[r])
+
+
+@jit_threads
+def geodesic_block_threads(surf, tol, n, P, status, seg_i, seg_j, first_dir):
+    """``geodesic_block`` with the realisations shared among numba's threads."""
+    for r in prange(P.shape[0]):
+        _geodesic_net(surf, tol, n, P[r], status[r], seg_i[r], seg_j[r], first_dir[r])
 
 
 @jit

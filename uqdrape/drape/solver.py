@@ -2,16 +2,20 @@
 
 from __future__ import annotations
 
+import functools
 import json
+import multiprocessing
 import numbers
+import threading
 
+import numba
 import numpy as np
 import xarray as xr
 
 from .. import __version__
 from ..schema import SOLVER_INPUTS
 from .energy import BlankHolder
-from .kernels import net_shear
+from .kernels import net_node_mean, net_shear
 from .net import QUADRANTS, EnergyRings, NetProblem, build_geodesic
 from .status import Status
 
@@ -41,11 +45,20 @@ def _batch_size(**arrays):
     return distinct.pop() if distinct else 1
 
 
+def default_threads():
+    """Threads for a batch of geodesic nets: all of numba's for a call from the main thread
+    of the main process, else 1, because ensemble workers (one process per core) and the
+    threads of a thread pool already share the cores among themselves."""
+    if multiprocessing.parent_process() is None and threading.current_thread() is threading.main_thread():
+        return numba.config.NUMBA_NUM_THREADS
+    return 1
+
+
 def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
           crossover=(0.0, 0.0), seg_i=None, seg_j=None, gamma0=None, mode="geodesic",
           material=None, blankholder_force=0.0, friction=0.2, sectors=None,
           blankholder_model="slip", tolerance=1e-3, max_iterations=30, max_turn=10.0, factors=None,
-          progress=None) -> xr.Dataset:
+          progress=None, threads=None) -> xr.Dataset:
     """Drape a batch of pin-jointed nets over ``surface``; one Python loop for the batch.
 
     Arguments that may differ per realisation take a scalar (or base shape) or an array
@@ -72,6 +85,8 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     progress           None (silent), or a callable given the number of rings placed so far in
                        the current block of realisations (BLOCK of them): after each ring of an
                        energy drape, once with ``rings`` when a geodesic block is done
+    threads            numba threads sharing a batch's geodesic nets (None: ``default_threads()``);
+                       the nets are the same whatever the count
 
     Nodes that cannot be placed are NaN with a ``status`` code (``Status``); the call
     does not raise for them. Impossible arguments raise ValueError naming the argument.
@@ -89,6 +104,11 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     for name, v in (("tolerance", tolerance), ("max_turn", max_turn)):
         if not np.isfinite(v) or v <= 0:
             raise ValueError(f"{name} must be > 0 (deg), got {v!r}")
+    if threads is None:
+        threads = default_threads()
+    if not isinstance(threads, numbers.Integral) or not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
+        raise ValueError(f"threads must be an integer from 1 to {numba.config.NUMBA_NUM_THREADS} "
+                         f"(numba's threads), got {threads!r}")
     n = int(rings)
     shapes = dict(orientation=(orientation, 0), pre_shear=(pre_shear, 0), skew=(skew, 0),
                   crossover=(crossover, 1), seg_i=(seg_i, 2), seg_j=(seg_j, 2), gamma0=(gamma0, 2),
@@ -138,7 +158,7 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
                           np.deg2rad(gamma0[b]), e1[b], e2[b], BlankHolder(force[b], mu[b], sectors, blankholder_model),
                           material, tol)
         if mode == "geodesic":
-            P, status = build_geodesic(prob)
+            P, status = build_geodesic(prob, min(threads, prob.R))
             if progress is not None:
                 progress(n)
             r = prob.R
@@ -147,8 +167,10 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
             solved = EnergyRings(prob, material.bending_stiffness, np.deg2rad(tolerance),
                                  int(max_iterations), np.deg2rad(max_turn)).run(progress)
         blocks.append(_dataset(prob, *solved, mode, {k: v[b] for k, v in stored.items()}))
-    ds = blocks[0] if len(blocks) == 1 else xr.concat(blocks, dim="realization", data_vars="minimal",
-                                                       coords="minimal", compat="override", join="override")
+    if len(blocks) == 1:
+        return blocks[0]
+    ds = xr.concat(blocks, dim="realization", data_vars="minimal", coords="minimal", compat="override",
+                   join="override")
     return ds.assign_coords(realization=np.arange(R))
 
 
@@ -168,16 +190,18 @@ def node_mean(cells):
     """Mean of the valid (finite) cells around each node; cells (R, 2n, 2n) -> (R, N, N), NaN
     where a node has no valid cell. Node shear is this mean of the cell shears."""
     R, m, _ = cells.shape
-    total = np.zeros((R, m + 1, m + 1))
-    count = np.zeros((R, m + 1, m + 1))
-    valid = np.isfinite(cells)
-    c = np.where(valid, cells, 0.0)
-    for da in (0, 1):
-        for db in (0, 1):
-            total[:, da:da + m, db:db + m] += c
-            count[:, da:da + m, db:db + m] += valid
-    with np.errstate(invalid="ignore"):
-        return np.where(count > 0, total / np.maximum(count, 1), np.nan)
+    out = np.empty((R, m + 1, m + 1))
+    net_node_mean(np.ascontiguousarray(cells, float), out)
+    return out
+
+
+@functools.lru_cache(maxsize=8)
+def _coords(R, n):
+    """The coordinates of a drape Dataset of R realisations of an n-ring net, with their
+    indexes built once per shape (building them was most of a single drape's time)."""
+    return xr.Coordinates({"realization": np.arange(R), "i": np.arange(-n, n + 1), "j": np.arange(-n, n + 1),
+                           "cell_i": np.arange(-n, n) + 0.5, "cell_j": np.arange(-n, n) + 0.5,
+                           "ring": np.arange(1, n + 1), "arm": ["+i", "+j", "-i", "-j"], "quadrant": list(QUADRANTS)})
 
 
 def _dataset(prob, P, status, turns, bending, iterations, converged, mode, factors):
@@ -195,44 +219,40 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
     near = node_mean(np.where(np.isfinite(gamma), locked, np.nan))
     node_locked = np.where(np.isnan(near), np.nan, near > 0) if material is not None else np.full(near.shape, np.nan)
     bh = prob.ring_blankholder(P, n)
-    idx = np.arange(-n, n + 1)
-    cidx = np.arange(-n, n) + 0.5
     node = ("realization", "i", "j")
     cell = ("realization", "cell_i", "cell_j")
     total = np.nan_to_num(shear_energy) + bending + bh.sum(-1)
-    inputs = {}  # the per-realisation inputs, built with the Dataset (one alignment, not one per input)
-    for name, value in factors.items():
+    variables = {
+        "x": (node, P[..., 0], {"units": "mm", "long_name": "node x"}),
+        "y": (node, P[..., 1], {"units": "mm", "long_name": "node y"}),
+        "z": (node, P[..., 2], {"units": "mm", "long_name": "node z (height)"}),
+        "shear": (node, np.rad2deg(node_mean(gamma)),
+                  {"units": "degree", "long_name": "node shear angle (mean of adjacent cells)"}),
+        "status": (node, status, {"long_name": "node status", "units": "1", "flag_values": [s.value for s in Status],
+                                  "flag_meanings": " ".join(s.name.lower() for s in Status)}),
+        "cell_shear": (cell, np.rad2deg(gamma), {"units": "degree", "long_name": "signed cell shear angle"}),
+        "cell_locked": (cell, locked, {"long_name": "cell sheared beyond the locking angle", "units": "1"}),
+        "locked": (node, node_locked, {"units": "1", "long_name": "node next to a cell sheared beyond "
+                                       "its branch's locking angle (1) or not (0); NaN: invalid node"}),
+        "gamma0": (cell, np.rad2deg(prob.gamma0), {"units": "degree", "long_name": "zero-energy shear angle"}),
+        "turn": (("realization", "ring", "arm"), np.rad2deg(turns),
+                 {"units": "degree", "long_name": "generator-arm turn angle about the surface normal"}),
+        "energy_shear": ("realization", shear_energy, {"units": "J", "long_name": "shear energy"}),
+        "energy_bending": ("realization", bending, {"units": "J", "long_name": "generator-path bending energy"}),
+        "energy_blankholder": ("realization", bh.sum(-1), {"units": "J", "long_name": "blank-holder friction energy"}),
+        "energy_blankholder_quadrant": (("realization", "quadrant"), bh,
+                                        {"units": "J", "long_name": "blank-holder energy per quadrant"}),
+        "energy_total": ("realization", total, {"units": "J", "long_name": "total forming energy"}),
+        "iterations": ("realization", iterations, {"long_name": "minimiser iterations, all steps", "units": "1"}),
+        "converged": ("realization", converged, {"long_name": "minimiser converged at every step", "units": "1"}),
+    }
+    for name, value in factors.items():  # the per-realisation inputs
         inp = SOLVER_INPUTS.get(name)
         attrs = {"units": inp.units, "long_name": inp.long_name} if inp else {"units": "1", "long_name": f"sampled input {name}"}
-        inputs[name] = ("realization", np.asarray(value, dtype=float), attrs)
-    ds = xr.Dataset(
-        {
-            "x": (node, P[..., 0], {"units": "mm", "long_name": "node x"}),
-            "y": (node, P[..., 1], {"units": "mm", "long_name": "node y"}),
-            "z": (node, P[..., 2], {"units": "mm", "long_name": "node z (height)"}),
-            "shear": (node, np.rad2deg(node_mean(gamma)),
-                      {"units": "degree", "long_name": "node shear angle (mean of adjacent cells)"}),
-            "status": (node, status, {"long_name": "node status", "units": "1", "flag_values": [s.value for s in Status],
-                                      "flag_meanings": " ".join(s.name.lower() for s in Status)}),
-            "cell_shear": (cell, np.rad2deg(gamma), {"units": "degree", "long_name": "signed cell shear angle"}),
-            "cell_locked": (cell, locked, {"long_name": "cell sheared beyond the locking angle", "units": "1"}),
-            "locked": (node, node_locked, {"units": "1", "long_name": "node next to a cell sheared beyond "
-                                           "its branch's locking angle (1) or not (0); NaN: invalid node"}),
-            "gamma0": (cell, np.rad2deg(prob.gamma0), {"units": "degree", "long_name": "zero-energy shear angle"}),
-            "turn": (("realization", "ring", "arm"), np.rad2deg(turns),
-                     {"units": "degree", "long_name": "generator-arm turn angle about the surface normal"}),
-            "energy_shear": ("realization", shear_energy, {"units": "J", "long_name": "shear energy"}),
-            "energy_bending": ("realization", bending, {"units": "J", "long_name": "generator-path bending energy"}),
-            "energy_blankholder": ("realization", bh.sum(-1), {"units": "J", "long_name": "blank-holder friction energy"}),
-            "energy_blankholder_quadrant": (("realization", "quadrant"), bh,
-                                            {"units": "J", "long_name": "blank-holder energy per quadrant"}),
-            "energy_total": ("realization", total, {"units": "J", "long_name": "total forming energy"}),
-            "iterations": ("realization", iterations, {"long_name": "minimiser iterations, all steps", "units": "1"}),
-            "converged": ("realization", converged, {"long_name": "minimiser converged at every step", "units": "1"}),
-            **inputs,
-        },
-        coords={"realization": np.arange(prob.R), "i": idx, "j": idx, "cell_i": cidx, "cell_j": cidx,
-                "ring": np.arange(1, n + 1), "arm": ["+i", "+j", "-i", "-j"], "quadrant": list(QUADRANTS)},
+        variables[name] = ("realization", np.asarray(value, dtype=float), attrs)
+    coords = _coords(prob.R, n)
+    return xr.Dataset(
+        variables, coords=coords,
         attrs={"spacing_mm": prob.s, "rings": n, "mode": mode, "geometry": prob.surface.describe(),
                "material": getattr(material, "name", "none"),
                "locking_angle_deg": float(getattr(material, "locking_angle_deg", np.nan) or np.nan),
@@ -242,4 +262,3 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
                "status_codes": Status.describe(), "uqdrape_version": __version__,
                "Conventions": "CF-1.8"},
     )
-    return ds
