@@ -96,7 +96,7 @@ def test_report_phase_has_its_line(study, tmp_path, capsys, monkeypatch):
 
 @pytest.mark.parametrize("terminal", [False, True])
 @pytest.mark.parametrize("quiet", [False, True])
-def test_single_drape_counts_its_rings_on_stderr(tmp_path, capsys, monkeypatch, quiet, terminal):
+def test_single_drape_counts_its_rings_on_stderr(tmp_path, capsys, monkeypatch, quiet, terminal, unrasterised):
     """``uqdrape drape --mode energy`` counts "ring k/n" on stderr: a bar on a terminal,
     elsewhere a plain line every PLAIN_EVERY s (here 0: every ring); -q hides it. stdout
     keeps only the summary."""
