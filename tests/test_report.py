@@ -11,6 +11,7 @@ import re
 import subprocess
 from pathlib import Path
 
+import matplotlib as mpl
 import numpy as np
 import pytest
 import xarray as xr
@@ -37,7 +38,7 @@ from uqdrape.report import (
     read_experimental,
     write_report,
 )
-from uqdrape.report.figures import DPI, _line_panels, panels, save
+from uqdrape.report.figures import DPI, _line_panels, panels, save, suptitle
 from uqdrape.report.html import default_histogram_nodes
 from uqdrape.report.plan import PLAN
 from uqdrape.schema import by_force
@@ -155,6 +156,20 @@ def test_plot_net_errors(ensemble, tmp_path):
     with pytest.raises(ValueError, match=r"\.png"):
         plot_net(ensemble, tmp_path / "a.jpg")
     assert not list(tmp_path.iterdir())
+
+
+def test_figure_titles_fit_their_figure_and_wrap_only_when_they_must():
+    head, detail = "ST of node shear on the mean net (x-y plan), nose cone, ebxhd936_like, energy drape", \
+        "Sobol' design, 128 base samples, 896 drapes per level"
+    wide, _ = panels(4, size=(5.4, 4.2), cols=4)  # 21.6 in: room for both on one line
+    suptitle(wide, head, detail)
+    assert wide._suptitle.get_text() == f"{head}: {detail}"
+    narrow, _ = panels(2, size=(2.9, 2.7), cols=2)  # 5.8 in at 13 pt: 58 characters a line
+    with mpl.rc_context({"figure.titlesize": 13}):
+        suptitle(narrow, head, detail)
+    lines = narrow._suptitle.get_text().split("\n")
+    assert lines[1:] == ["ebxhd936_like, energy drape", detail] and len(lines[0]) <= 58
+    assert " ".join(lines) == f"{head} {detail}"  # wrapped at words, nothing lost
 
 
 def test_save_writes_the_rendered_pixels_losslessly(tmp_path):

@@ -13,6 +13,7 @@ from __future__ import annotations
 import functools
 import io
 import math
+import textwrap
 from pathlib import Path
 
 import matplotlib as mpl
@@ -144,10 +145,14 @@ def describe(ds: xr.Dataset) -> str:
 
 def suptitle(fig: Figure, head: str, detail: str = "") -> None:
     """Figure title "head: detail" on one line if it fits the figure's width (about 0.55
-    em a character), else with the detail on a second line; never wrapped further."""
+    em a character), else the detail on the next line; a part wider than the figure (a
+    narrow grid of panels) is wrapped at words rather than clipped."""
     size = mpl.font_manager.FontProperties(size=mpl.rcParams["figure.titlesize"]).get_size_in_points()
-    fits = len(head) + len(detail) + 2 <= fig.get_figwidth() * 72 / (0.55 * size)
-    fig.suptitle(f"{head}{': ' if fits else chr(10)}{detail}" if detail else head)
+    width = int(fig.get_figwidth() * 72 / (0.55 * size))
+    if len(head) + len(detail) + 2 <= width or not detail:
+        fig.suptitle(textwrap.fill(f"{head}: {detail}" if detail else head, width))
+    else:
+        fig.suptitle(f"{textwrap.fill(head, width)}\n{textwrap.fill(detail, width)}")
 
 
 def _site_dims(da: xr.DataArray) -> tuple[str, str]:
