@@ -2,7 +2,7 @@
 
 ``python tools/gallery.py [--only NAME ...] [--workers N]`` runs each study of
 :data:`GALLERY` from the checkout's ``studies/`` (ensemble under ``results/<name>/``, as
-``uqdrape run`` would), writes its report and copies the report -- PNGs, ``index.html``,
+``uqdrape run`` would), writes its report and copies the report -- the PNGs its page links, ``index.html``,
 ``summary.json``, not the netCDF chunks; a design study's ``design.nc`` too -- into
 ``results/gallery/<name>/``, plus the
 entry's headline numbers in ``headline.json`` and, for entries with ``exports``, its
@@ -36,8 +36,9 @@ from uqdrape.stats import inner_outer_sd, line_scalars, line_statistics, wrinkle
 ROOT = Path(__file__).resolve().parent.parent
 #: Where the committed reference reports live, relative to the checkout root.
 GALLERY_DIR = Path("results") / "gallery"
-#: Report files kept in the gallery (everything else of a run stays in results/<name>/).
-KEPT = ("*.png", "index.html", "summary.json")
+#: Report files kept in the gallery besides the figures the page links (everything else of
+#: a run stays in results/<name>/, including PNGs an older report left in its folder).
+KEPT = ("index.html", "summary.json")
 #: Rings at each end of the net summarised by ``inner_outer_sd``.
 RING_BAND = 5
 
@@ -261,9 +262,9 @@ def build_entry(entry: Entry, *, workers: int | None = None, resume: bool = Fals
     if target.exists():
         shutil.rmtree(target)
     target.mkdir(parents=True)
-    for pattern in KEPT:
-        for path in sorted(report.glob(pattern)):
-            shutil.copy2(path, target / path.name)
+    figures = json.loads((report / "summary.json").read_text(encoding="utf-8"))["figures"]
+    for name in (*KEPT, *figures):
+        shutil.copy2(report / name, target / name)
     if study.design is not None:
         shutil.copy2(out / DESIGN_FILE, target / DESIGN_FILE)
     if entry.exports:
