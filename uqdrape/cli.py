@@ -252,6 +252,15 @@ def cmd_export(args) -> int:
     return 0
 
 
+
+def _engine_options(p: argparse.ArgumentParser) -> None:
+    """The options ``run`` and ``design`` share: where the drapes run and where they go."""
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="address of an existing dask.distributed scheduler (default: local processes)")
+    p.add_argument("--workers", type=int, help="local worker processes (default: all cores)")
+    p.add_argument("--out", metavar="DIR", help="output folder (default: the study's [output] directory)")
+    p.add_argument("--no-report", action="store_true", help="skip the report")
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="uqdrape",
@@ -298,17 +307,13 @@ def build_parser() -> argparse.ArgumentParser:
                                    "parallel with dask, store chunks under the study's output folder "
                                    "(resuming finished chunks) and write the report.")
     r.add_argument("study", help="study file (TOML), e.g. studies/nosecone-zero-angle.toml")
-    r.add_argument("--scheduler", metavar="ADDRESS",
-                   help="address of an existing dask.distributed scheduler (default: local processes)")
-    r.add_argument("--workers", type=int, help="local worker processes (default: all cores)")
+    _engine_options(r)
     r.add_argument("--chunk-size", type=int, help="realisations per chunk (default: the study's)")
     r.add_argument("--method", choices=("sobol", "morris", "none"),
                    help="override the study's [sensitivity] method: 'morris' for a cheap screening run "
                         "(20 trajectories unless the study is a Morris study), 'none' for the Monte Carlo "
                         "sample; output goes to <output directory>-<method>")
-    r.add_argument("--out", metavar="DIR", help="output folder (default: the study's [output] directory)")
     r.add_argument("--no-resume", action="store_true", help="recompute chunks that already exist")
-    r.add_argument("--no-report", action="store_true", help="skip the report")
     r.set_defaults(func=cmd_run)
 
     dsg = sub.add_parser("design", help="run a study's [design]: the blank-holder force(s) under uncertainty",
@@ -318,11 +323,7 @@ def build_parser() -> argparse.ArgumentParser:
                                     "a fresh sample; writes design.nc and the report (resumes from the designs "
                                     "already draped). `uqdrape run` on such a study does the same.")
     dsg.add_argument("study", help="study file (TOML) with a [design] section, e.g. studies/design-nosecone-symmetrise.toml")
-    dsg.add_argument("--scheduler", metavar="ADDRESS",
-                    help="address of an existing dask.distributed scheduler (default: local processes)")
-    dsg.add_argument("--workers", type=int, help="local worker processes (default: all cores)")
-    dsg.add_argument("--out", metavar="DIR", help="output folder (default: the study's [output] directory)")
-    dsg.add_argument("--no-report", action="store_true", help="skip the report")
+    _engine_options(dsg)
     dsg.set_defaults(func=cmd_design)
 
     rep = sub.add_parser("report", help="write the report of a finished run")

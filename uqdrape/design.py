@@ -510,9 +510,8 @@ def result_dataset(result: Result, evaluate: Evaluator) -> xr.Dataset:
     boot = penalised(statistics({k: resampled[k] for k in {spec.objective, DRAW_IN}}, confidence), spec)
     best = design_X[np.argmin(boot, axis=1)]
     opt_stats = evaluate.statistics([result.optimum])[0][spec.objective]
-    val_stats = {role: evaluate.statistics([x], "validation")[0][spec.objective]
-                 for role, x in result.validation.items()}
-    inside = opt_stats[1] <= val_stats["optimum"][0] <= opt_stats[2]
+    val_stats = {role: evaluate.statistics([x], "validation")[0] for role, x in result.validation.items()}
+    inside = opt_stats[1] <= val_stats["optimum"][spec.objective][0] <= opt_stats[2]
     ds.attrs.update(
         study_name=prob.study.name, objective=spec.objective, statistic=spec.statistic,
         target=spec.target if spec.target is not None else "none", confidence=confidence,
@@ -527,8 +526,8 @@ def result_dataset(result: Result, evaluate: Evaluator) -> xr.Dataset:
         optimum_upper=list(np.quantile(best, 0.975, axis=0)), optimum_interval=(
             f"2.5-97.5 % of the best evaluated design over {BOOTSTRAP} realisation resamples"),
         optimum_estimate=list(opt_stats), baseline=list(prob.baseline),
-        validation=json.dumps({role: {"x": list(x), "estimate": list(val_stats[role]),
-                                      "draw_in": list(evaluate.statistics([x], "validation")[0][DRAW_IN])}
+        validation=json.dumps({role: {"x": list(x), "estimate": list(val_stats[role][spec.objective]),
+                                      "draw_in": list(val_stats[role][DRAW_IN])}
                                for role, x in result.validation.items()}),
         validated=int(inside), study_json=json.dumps(prob.study.to_dict()),
     )
