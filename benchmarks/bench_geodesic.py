@@ -1,8 +1,8 @@
 """Geodesic drape speed (issue 2): hemisphere R = 100 mm, spacing 5 mm, 41 x 41 net.
 
 Prints the median single-drape time, the time of one batched call of N different drapes
-(random orientation, crossover and segment lengths) on numba's threads (the default from
-a main process) and on one thread, and the throughput ratio batched / looped-single
+(random orientation, crossover and segment lengths) on one thread per core (the default
+from a main process) and on one thread, and the throughput ratio batched / looped-single
 measured in the same run, with the load average before and after.
 Run: python benchmarks/bench_geodesic.py [N]
 """
@@ -14,10 +14,10 @@ import sys
 import time
 
 import dask
-import numba
 import numpy as np
 
 from uqdrape.drape import drape
+from uqdrape.drape.solver import default_threads
 from uqdrape.geometry import Hemisphere
 
 
@@ -76,7 +76,7 @@ def main(n_batch=1000, n_single=30):
     print(f"single drape: median {single * 1e3:.1f} ms over {n_single} runs")
     print(f"batch of {n_batch}: median {batch:.2f} s over 3 runs ({n_batch / batch:.0f} drapes/s, valid nodes {valid:.3f})")
     print(f"batch of {n_batch} on one thread: median {statistics.median(one_thread):.2f} s "
-          f"({statistics.median(one_thread) / batch:.2f}x the threaded call, {numba.get_num_threads()} threads; "
+          f"({statistics.median(one_thread) / batch:.2f}x the threaded call, {default_threads()} threads; "
           f"its CPU time {statistics.median(cpu):.2f} s: the threads got {statistics.median(cpu) / batch:.2f} CPUs)")
     print(f"throughput ratio batched / looped-single: {single * n_batch / batch:.1f}x (one process)")
     print(f"batch of {n_batch} over 2 dask processes: median {par:.2f} s; ratio to looped-single "

@@ -15,16 +15,15 @@ Node (i, j) is stored at array index (i + n, j + n). Arms are ordered +i, +j, -i
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
+from .._jit import on_threads
 from . import ring
 from .energy import MM_TO_M, bending_energy
 from .status import Status
 
 #: Per quadrant: its i-family arm and side, its j-family arm and side, its signs (si, sj).
 QUADRANTS = dict(zip(("++", "-+", "--", "+-"), ring.CORNERS))
-QUADRANT_SIGNS = {q: c[4:] for q, c in QUADRANTS.items()}
 
 
 class NetProblem:
@@ -45,11 +44,9 @@ class NetProblem:
         self.material = material
         self.tol = tol
         self.R = crossover.shape[0]
-        idx = np.arange(-rings, rings + 1)
-        # Flat-blank node positions at nominal spacing (thesis Fig 5.2), (R, N, N, 2).
-        self.flat = (crossover[:, None, None, :]
-                     + spacing * idx[None, :, None, None] * flat_e1[:, None, None, :]
-                     + spacing * idx[None, None, :, None] * flat_e2[:, None, None, :])
+        # The flat blank at nominal spacing (thesis Fig 5.2), (R, 3, 2): node (i, j) lies at
+        # blank[0] + i blank[1] + j blank[2] (``ring._flat``).
+        self.blank = np.stack([crossover, spacing * flat_e1, spacing * flat_e2], axis=1)
         self.cell_s1 = 0.5 * (seg_i[:, :, :-1] + seg_i[:, :, 1:])
         self.cell_s2 = 0.5 * (seg_j[:, :-1, :] + seg_j[:, 1:, :])
 
@@ -80,34 +77,14 @@ class NetProblem:
         w = -(n[..., 0] * vx + n[..., 1] * vy)
         return np.stack([vx + n[..., 0] * w / (1 + n[..., 2]), vy + n[..., 1] * w / (1 + n[..., 2]), w], axis=-1)
 
-    def ring_blankholder(self, P, k):
-        """Blank-holder energy (R, 4 quadrants) of the boundary polygon of ring k (J).
-
-        Per quadrant (si, sj) its fibre-2 segments (si k, j)-(si k, j+1) and fibre-1
-        segments (i, sj k)-(i+1, sj k), all evaluated in one call."""
-        t = np.arange(k)
-        i1, j1, i2, j2 = np.empty((4, 4, 2, k), np.int64)  # end indices, (quadrant, fibre-2/fibre-1, segment)
-        for q, (si, sj) in enumerate(QUADRANT_SIGNS.values()):
-            jj, ii = (t if sj > 0 else t - k), (t if si > 0 else t - k)
-            i1[q, 0], j1[q, 0], i2[q, 0], j2[q, 0] = si * k, jj, si * k, jj + 1
-            i1[q, 1], j1[q, 1], i2[q, 1], j2[q, 1] = ii, sj * k, ii + 1, sj * k
-        i1, j1, i2, j2 = i1 + self.n, j1 + self.n, i2 + self.n, j2 + self.n
-        e = self.blankholder.segment_energy(
-            P[:, i1, j1], P[:, i2, j2], self.flat[:, i1, j1], self.flat[:, i2, j2], self.crossover[:, None, None, None],
-            self.blankholder.force[:, None, None, None], self.blankholder.friction[:, None, None, None])
-        both = np.nansum(e, axis=-1)
-        return both[..., 0] + both[..., 1]
-
 
 def build_geodesic(prob: NetProblem, threads=1):
     """Geodesic net: arms first, then anti-diagonal fill (``ring.geodesic_block``), the
-    realisations on ``threads`` of numba's threads. Returns P, status."""
+    realisations shared among ``threads`` threads. Returns P, status."""
     P, status = prob.start()
-    if threads > 1:
-        numba.set_num_threads(threads)
-    block = ring.geodesic_block_threads if threads > 1 else ring.geodesic_block
-    block(prob.surface.kernel, prob.tol, prob.n, P, status, prob.seg_i, prob.seg_j,
-          np.ascontiguousarray(prob.first_directions()))
+    first_dir = np.ascontiguousarray(prob.first_directions())
+    on_threads(threads, prob.R, lambda r: ring.geodesic_block(
+        prob.surface.kernel, prob.tol, prob.n, P[r], status[r], prob.seg_i[r], prob.seg_j[r], first_dir[r]))
     return P, status
 
 
@@ -116,8 +93,9 @@ class EnergyRings:
     compiled per realisation in ``ring``; ``sides`` and ``corners`` expose the step
     energy's two kinds of term for a whole batch."""
 
-    def __init__(self, prob: NetProblem, bending_stiffness, tolerance, max_iterations, max_turn):
+    def __init__(self, prob: NetProblem, bending_stiffness, tolerance, max_iterations, max_turn, threads=1):
         self.prob = prob
+        self.threads = threads
         self.B = bending_stiffness
         self.tol = tolerance
         self.max_iterations = max_iterations
@@ -128,7 +106,7 @@ class EnergyRings:
     def _realisation(self, P, r, k):
         """The leading arguments of the compiled ring functions at ring k, realisation r."""
         p = self.prob
-        return (p.surface.kernel, p.tol, p.n, k, np.ascontiguousarray(P[r]), p.flat[r], p.seg_i[r], p.seg_j[r],
+        return (p.surface.kernel, p.tol, p.n, k, np.ascontiguousarray(P[r]), p.blank[r], p.seg_i[r], p.seg_j[r],
                 p.cell_s1[r], p.cell_s2[r], p.gamma0[r], p.crossover[r], p.blankholder.force[r],
                 p.blankholder.friction[r])
 
@@ -159,7 +137,8 @@ class EnergyRings:
         return X, Xs, energy
 
     def run(self, progress=None):
-        """Drape ring by ring (one compiled call per ring for the whole block; ``progress``,
+        """Drape ring by ring (one compiled call per ring for the whole block, the block's
+        realisations shared among ``threads`` threads; ``progress``,
         if given, is called with the number of rings placed after each). Returns P, status,
         turn angles (R, n, 4) rad, bending energy (R,) J, total iterations (R,) and converged (R,)."""
         prob = self.prob
@@ -168,11 +147,12 @@ class EnergyRings:
         iterations = np.zeros(prob.R, np.int32)
         converged = np.ones(prob.R, bool)
         for k in range(1, prob.n + 1):
-            ring.drape_ring(prob.surface.kernel, prob.tol, prob.n, k, P, status, prob.flat, prob.seg_i, prob.seg_j,
-                            prob.cell_s1, prob.cell_s2, prob.gamma0, prob.crossover, prob.blankholder.force,
-                            prob.blankholder.friction, self.first_dir, self.bend, prob.material.kernel,
-                            prob.blankholder.kernel, self.tol, self.max_iterations, self.max_turn, turns, iterations,
-                            converged)
+            on_threads(self.threads, prob.R, lambda r: ring.drape_ring(
+                prob.surface.kernel, prob.tol, prob.n, k, P[r], status[r], prob.blank[r], prob.seg_i[r],
+                prob.seg_j[r], prob.cell_s1[r], prob.cell_s2[r], prob.gamma0[r], prob.crossover[r],
+                prob.blankholder.force[r], prob.blankholder.friction[r], self.first_dir[r], self.bend,
+                prob.material.kernel, prob.blankholder.kernel, self.tol, self.max_iterations, self.max_turn, turns[r],
+                iterations[r], converged[r]))
             if progress is not None:
                 progress(k)
         bending = bending_energy(turns, self.B, prob.s).sum(axis=(1, 2))

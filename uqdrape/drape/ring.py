@@ -2,8 +2,7 @@
 energy drape's ring step (thesis Fig 5.1).
 
 ``geodesic_block`` traces the four generator arms as discrete geodesics and fills the
-rest of the net anti-diagonal by anti-diagonal (|i| + |j| = d); ``geodesic_block_threads``
-does the same with the realisations on numba's threads.
+rest of the net anti-diagonal by anti-diagonal (|i| + |j| = d).
 
 At ring k each arm gets one segment whose turn angle about the surface normal (rad)
 minimises the energy of the pattern so far. That energy splits into one term per arm
@@ -16,7 +15,8 @@ places one ring of every realisation of a block, each realisation to its own ite
 count (a straggler holds no other).
 
 Arrays of one realisation r (mm unless stated): P (N, N, 3) the net, NaN where unplaced;
-flat (N, N, 2) the flat blank; seg_i (2n, 2n+1), seg_j (2n+1, 2n) segment lengths;
+blank (3, 2) the flat blank, whose node (i, j) lies at blank[0] + i blank[1] + j blank[2]
+(the crossover and the fibre steps s e1, s e2); seg_i (2n, 2n+1), seg_j (2n+1, 2n) segment lengths;
 s1, s2 (2n, 2n) cell segment lengths and g0 (2n, 2n) zero-energy angles (rad);
 centre (2,) the crossover. ``surf`` is the mould's ``(kind, params)``, ``mat`` the
 material's and ``bh`` the blank-holder's compiled form. Energies in J.
@@ -27,9 +27,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import prange
 
-from .._jit import jit, jit_threads
+from .._jit import jit
 from ..material.model import cell_energy
 from .energy import segment_energy
 from .kernels import OK, arm_node, fill, shear
@@ -103,11 +102,30 @@ def geodesic_block(surf, tol, n, P, status, seg_i, seg_j, first_dir):
         _geodesic_net(surf, tol, n, P[r], status[r], seg_i[r], seg_j[r], first_dir[r])
 
 
-@jit_threads
-def geodesic_block_threads(surf, tol, n, P, status, seg_i, seg_j, first_dir):
-    """``geodesic_block`` with the realisations shared among numba's threads."""
-    for r in prange(P.shape[0]):
-        _geodesic_net(surf, tol, n, P[r], status[r], seg_i[r], seg_j[r], first_dir[r])
+@jit
+def boundary_blankholder(n, k, P, blank, centre, force, mu, bh, out):
+    """Blank-holder energy (J) of ring k's boundary polygon per quadrant, out (R, 4), for the
+    nets P (R, N, N, 3) of a block: per quadrant (si, sj) its fibre-2 segments
+    (si k, j)-(si k, j + 1) and fibre-1 segments (i, sj k)-(i + 1, sj k); unplaced ends
+    add nothing. blank (R, 3, 2), centre (R, 2), force and mu (R,) as in ``sides``."""
+    for r in range(P.shape[0]):
+        for q in range(4):
+            si, sj = CORNERS[q][4], CORNERS[q][5]
+            total = 0.0
+            for t in range(k):
+                lo = t if sj > 0 else t - k  # fibre-2 segment (si k, lo)-(si k, lo + 1)
+                a, b = si * k + n, lo + n
+                e = segment_energy(bh, P[r, a, b], P[r, a, b + 1], _flat(blank[r], si * k, lo),
+                                   _flat(blank[r], si * k, lo + 1), centre[r], force[r], mu[r])
+                if not math.isnan(e):
+                    total += e
+                lo = t if si > 0 else t - k  # fibre-1 segment (lo, sj k)-(lo + 1, sj k)
+                a, b = lo + n, sj * k + n
+                e = segment_energy(bh, P[r, a, b], P[r, a + 1, b], _flat(blank[r], lo, sj * k),
+                                   _flat(blank[r], lo + 1, sj * k), centre[r], force[r], mu[r])
+                if not math.isnan(e):
+                    total += e
+            out[r, q] = total
 
 
 @jit
@@ -116,8 +134,9 @@ def _node(P, n, i, j):
 
 
 @jit
-def _flat(flat, n, i, j):
-    return (flat[i + n, j + n, 0], flat[i + n, j + n, 1])
+def _flat(blank, i, j):
+    """Plan position (mm) of node (i, j) in the flat blank."""
+    return (blank[0, 0] + i * blank[1, 0] + j * blank[2, 0], blank[0, 1] + i * blank[1, 1] + j * blank[2, 1])
 
 
 @jit
@@ -129,7 +148,7 @@ def _finite0(e):
 
 
 @jit
-def sides(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend,
+def sides(surf, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend,
           mat, bh, turns, S, St, energy):
     """Arm nodes and side chains of ring k for candidate turn angles ``turns`` (M, 4) rad.
 
@@ -181,7 +200,7 @@ def sides(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu,
                     e = cell_energy(mat, gamma, s1[ci, cj], s2[ci, cj], g0[ci, cj])
                     if not math.isnan(e):
                         cells += e
-                    e = segment_energy(bh, prev, x, _flat(flat, n, xi - ei, xj - ej), _flat(flat, n, xi, xj),
+                    e = segment_energy(bh, prev, x, _flat(blank, xi - ei, xj - ej), _flat(blank, xi, xj),
                                        centre, force, mu)
                     if not math.isnan(e):
                         held += e
@@ -190,7 +209,7 @@ def sides(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu,
 
 
 @jit
-def corners(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S, pairs,
+def corners(surf, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S, pairs,
             X, Xs, energy):
     """Quadrant corner nodes of ring k for candidate pairs ``pairs`` (C, 2): (candidate of
     the i-family arm, candidate of the j-family arm) of the side chains S.
@@ -213,9 +232,9 @@ def corners(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, m
             gamma = shear(diag, a, x, b, float(si * sj))
             ci, cj = min(si * k, si * (k - 1)) + n, min(sj * k, sj * (k - 1)) + n
             cell = cell_energy(mat, gamma, s1[ci, cj], s2[ci, cj], g0[ci, cj])
-            fx = _flat(flat, n, si * k, sj * k)
-            held = (segment_energy(bh, a, x, _flat(flat, n, si * (k - 1), sj * k), fx, centre, force, mu)
-                    + segment_energy(bh, b, x, _flat(flat, n, si * k, sj * (k - 1)), fx, centre, force, mu))
+            fx = _flat(blank, si * k, sj * k)
+            held = (segment_energy(bh, a, x, _flat(blank, si * (k - 1), sj * k), fx, centre, force, mu)
+                    + segment_energy(bh, b, x, _flat(blank, si * k, sj * (k - 1)), fx, centre, force, mu))
             energy[c, q] = _finite0(cell) + _finite0(held) + INVALID_NODE_ENERGY * (xs != OK)
 
 
@@ -244,7 +263,7 @@ def _stencil(e_arm, e_corner, h, grad, hess):
 
 
 @jit
-def minimise(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat, bh,
+def minimise(surf, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat, bh,
              turn, tolerance, max_iterations, max_turn, S, St, X, Xs, best_ring):
     """Trust-region Newton on the four turn angles (rad) of ring k, from ``turn``.
 
@@ -277,9 +296,9 @@ def minimise(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, 
             for c in range(3):
                 cand[c, a] = turn[a] + (c - 1) * h
         # the trial's own ring first: its stencil neighbours only if it is accepted
-        sides(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat, bh,
+        sides(surf, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat, bh,
               cand[1:2], S[1:2], St[1:2], e_arm[1:2])
-        corners(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S, pairs[1:2],
+        corners(surf, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S, pairs[1:2],
                 X[1:2], Xs[1:2], e_corner[1:2])
         total = 0.0
         for a in range(4):
@@ -290,9 +309,9 @@ def minimise(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, 
         its += 1
         if total <= best_energy:
             for c in (0, 2):
-                sides(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat,
+                sides(surf, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat,
                       bh, cand[c:c + 1], S[c:c + 1], St[c:c + 1], e_arm[c:c + 1])
-            corners(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S, pairs,
+            corners(surf, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S, pairs,
                     X, Xs, e_corner)
             _stencil(e_arm, e_corner, h, grad_best, hess_best)
             best[:] = turn
@@ -319,7 +338,7 @@ def minimise(surf, tol, n, k, P, flat, seg_i, seg_j, s1, s2, g0, centre, force, 
 
 
 @jit
-def drape_ring(surf, tol, n, k, P, status, flat, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat,
+def drape_ring(surf, tol, n, k, P, status, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat,
                bh, tolerance, max_iterations, max_turn, turns, iterations, converged):
     """Ring k of every realisation r of a block, each from its own ring k - 1 and to its own
     iteration count (a straggler holds no other): P (R, N, N, 3) and status (R, N, N), with
@@ -333,7 +352,7 @@ def drape_ring(surf, tol, n, k, P, status, flat, seg_i, seg_j, s1, s2, g0, centr
                  np.empty((1, 4), np.int8))
     S_best, St_best, X_best, Xs_best = best_ring
     for r in range(P.shape[0]):
-        args = (P[r], flat[r], seg_i[r], seg_j[r], s1[r], s2[r], g0[r], centre[r], force[r], mu[r])
+        args = (P[r], blank[r], seg_i[r], seg_j[r], s1[r], s2[r], g0[r], centre[r], force[r], mu[r])
         if k > 1:
             turn, its, ok = minimise(surf, tol, n, k, *args, first_dir[r], bend, mat, bh, turns[r, k - 2].copy(),
                                      tolerance, max_iterations, max_turn, S, St, X, Xs, best_ring)

@@ -6,17 +6,19 @@ import functools
 import json
 import multiprocessing
 import numbers
+import os
 import threading
 
-import numba
 import numpy as np
 import xarray as xr
 
 from .. import __version__
+from .._jit import on_threads
 from ..schema import SOLVER_INPUTS
 from .energy import BlankHolder
 from .kernels import net_node_mean, net_shear
 from .net import QUADRANTS, EnergyRings, NetProblem, build_geodesic
+from .ring import boundary_blankholder
 from .status import Status
 
 MODES = ("geodesic", "energy")
@@ -46,11 +48,11 @@ def _batch_size(**arrays):
 
 
 def default_threads():
-    """Threads for a batch of geodesic nets: all of numba's for a call from the main thread
-    of the main process, else 1, because ensemble workers (one process per core) and the
-    threads of a thread pool already share the cores among themselves."""
+    """Threads sharing a batch: one per core for a call from the main thread of the main
+    process, else 1, because ensemble workers (one process per core) and the threads of a
+    thread pool already share the cores among themselves."""
     if multiprocessing.parent_process() is None and threading.current_thread() is threading.main_thread():
-        return numba.config.NUMBA_NUM_THREADS
+        return os.cpu_count() or 1
     return 1
 
 
@@ -85,8 +87,8 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     progress           None (silent), or a callable given the number of rings placed so far in
                        the current block of realisations (BLOCK of them): after each ring of an
                        energy drape, once with ``rings`` when a geodesic block is done
-    threads            numba threads sharing a batch's geodesic nets (None: ``default_threads()``);
-                       the nets are the same whatever the count
+    threads            threads sharing a batch's realisations (None: ``default_threads()``);
+                       the drapes are the same whatever the count
 
     Nodes that cannot be placed are NaN with a ``status`` code (``Status``); the call
     does not raise for them. Impossible arguments raise ValueError naming the argument.
@@ -106,9 +108,8 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
             raise ValueError(f"{name} must be > 0 (deg), got {v!r}")
     if threads is None:
         threads = default_threads()
-    if not isinstance(threads, numbers.Integral) or not 1 <= threads <= numba.config.NUMBA_NUM_THREADS:
-        raise ValueError(f"threads must be an integer from 1 to {numba.config.NUMBA_NUM_THREADS} "
-                         f"(numba's threads), got {threads!r}")
+    if not isinstance(threads, numbers.Integral) or threads < 1:
+        raise ValueError(f"threads must be an integer >= 1, got {threads!r}")
     n = int(rings)
     shapes = dict(orientation=(orientation, 0), pre_shear=(pre_shear, 0), skew=(skew, 0),
                   crossover=(crossover, 1), seg_i=(seg_i, 2), seg_j=(seg_j, 2), gamma0=(gamma0, 2),
@@ -158,15 +159,15 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
                           np.deg2rad(gamma0[b]), e1[b], e2[b], BlankHolder(force[b], mu[b], sectors, blankholder_model),
                           material, tol)
         if mode == "geodesic":
-            P, status = build_geodesic(prob, min(threads, prob.R))
+            P, status = build_geodesic(prob, threads)
             if progress is not None:
                 progress(n)
             r = prob.R
             solved = (P, status, np.zeros((r, n, 4)), np.zeros(r), np.zeros(r, np.int32), np.ones(r, bool))
         else:
             solved = EnergyRings(prob, material.bending_stiffness, np.deg2rad(tolerance),
-                                 int(max_iterations), np.deg2rad(max_turn)).run(progress)
-        blocks.append(_dataset(prob, *solved, mode, {k: v[b] for k, v in stored.items()}))
+                                 int(max_iterations), np.deg2rad(max_turn), threads).run(progress)
+        blocks.append(_dataset(prob, *solved, mode, {k: v[b] for k, v in stored.items()}, threads))
     if len(blocks) == 1:
         return blocks[0]
     ds = xr.concat(blocks, dim="realization", data_vars="minimal", coords="minimal", compat="override",
@@ -174,24 +175,26 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     return ds.assign_coords(realization=np.arange(R))
 
 
-def cell_shear(P):
+def cell_shear(P, threads=1):
     """Signed cell shear (rad), (R, 2n, 2n), of net positions P (R, N, N, 3).
 
     Same value as ``quad_shear`` per cell, with each unit edge computed once for the net
     (``kernels.net_shear``).
     """
     R, N = P.shape[:2]
+    P = np.ascontiguousarray(P, float)
     out = np.empty((R, N - 1, N - 1))
-    net_shear(np.ascontiguousarray(P, float), out)
+    on_threads(threads, R, lambda r: net_shear(P[r], out[r]))
     return out
 
 
-def node_mean(cells):
+def node_mean(cells, threads=1):
     """Mean of the valid (finite) cells around each node; cells (R, 2n, 2n) -> (R, N, N), NaN
     where a node has no valid cell. Node shear is this mean of the cell shears."""
     R, m, _ = cells.shape
+    cells = np.ascontiguousarray(cells, float)
     out = np.empty((R, m + 1, m + 1))
-    net_node_mean(np.ascontiguousarray(cells, float), out)
+    on_threads(threads, R, lambda r: net_node_mean(cells[r], out[r]))
     return out
 
 
@@ -204,21 +207,25 @@ def _coords(R, n):
                            "ring": np.arange(1, n + 1), "arm": ["+i", "+j", "-i", "-j"], "quadrant": list(QUADRANTS)})
 
 
-def _dataset(prob, P, status, turns, bending, iterations, converged, mode, factors):
+def _dataset(prob, P, status, turns, bending, iterations, converged, mode, factors, threads):
     n = prob.n
-    gamma = cell_shear(P)
+    gamma = cell_shear(P, threads)
     material = prob.material
     if material is not None:
         cell_e = material.cell_energy(gamma, prob.cell_s1, prob.cell_s2, prob.gamma0)
         shear_energy = np.nansum(cell_e, axis=(1, 2))
         locked = material.is_locked(gamma - prob.gamma0)
+        # a node is locked when a valid cell next to it is (branch- and zero-angle-aware)
+        near = node_mean(np.where(np.isfinite(gamma), locked, np.nan), threads)
+        node_locked = np.where(np.isnan(near), np.nan, near > 0)
     else:
         shear_energy = np.full(prob.R, np.nan)
         locked = np.zeros(gamma.shape, bool)
-    # a node is locked when a valid cell next to it is (branch- and zero-angle-aware)
-    near = node_mean(np.where(np.isfinite(gamma), locked, np.nan))
-    node_locked = np.where(np.isnan(near), np.nan, near > 0) if material is not None else np.full(near.shape, np.nan)
-    bh = prob.ring_blankholder(P, n)
+        node_locked = np.full(P.shape[:-1], np.nan)
+    bh = np.empty((prob.R, 4))
+    bhk = prob.blankholder
+    on_threads(threads, prob.R, lambda r: boundary_blankholder(
+        n, n, P[r], prob.blank[r], prob.crossover[r], bhk.force[r], bhk.friction[r], bhk.kernel, bh[r]))
     node = ("realization", "i", "j")
     cell = ("realization", "cell_i", "cell_j")
     total = np.nan_to_num(shear_energy) + bending + bh.sum(-1)
@@ -226,7 +233,7 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
         "x": (node, P[..., 0], {"units": "mm", "long_name": "node x"}),
         "y": (node, P[..., 1], {"units": "mm", "long_name": "node y"}),
         "z": (node, P[..., 2], {"units": "mm", "long_name": "node z (height)"}),
-        "shear": (node, np.rad2deg(node_mean(gamma)),
+        "shear": (node, np.rad2deg(node_mean(gamma, threads)),
                   {"units": "degree", "long_name": "node shear angle (mean of adjacent cells)"}),
         "status": (node, status, {"long_name": "node status", "units": "1", "flag_values": [s.value for s in Status],
                                   "flag_meanings": " ".join(s.name.lower() for s in Status)}),
