@@ -176,15 +176,20 @@ def cmd_validate(args) -> int:
     return 0
 
 
-def cmd_run(args) -> int:
+def _engine_study(args):
+    """The study of ``run`` or ``design``, its output folder replaced by ``--out`` if given."""
     import dataclasses
 
     from .study import load_study
-    from .workflow import run_report, run_study
 
     study = load_study(args.study)
-    if args.out:
-        study = dataclasses.replace(study, output_dir=Path(args.out))
+    return dataclasses.replace(study, output_dir=Path(args.out)) if args.out else study
+
+
+def cmd_run(args) -> int:
+    from .workflow import run_report, run_study
+
+    study = _engine_study(args)
     if study.design is not None:
         if args.method or args.chunk_size or args.no_resume:
             raise ValueError(f"{args.study} is a [design] study: --method, --chunk-size and --no-resume do not apply")
@@ -201,14 +206,9 @@ def cmd_run(args) -> int:
 
 
 def cmd_design(args) -> int:
-    import dataclasses
-
-    from .study import load_study
     from .workflow import run_design, run_report
 
-    study = load_study(args.study)
-    if args.out:
-        study = dataclasses.replace(study, output_dir=Path(args.out))
+    study = _engine_study(args)
     out = run_design(study, scheduler=args.scheduler, workers=args.workers, progress=args.verbosity > 0)
     print(f"designs written to {out}")
     if not args.no_report:
