@@ -338,17 +338,17 @@ def statistics(values: dict, confidence: float) -> dict[str, tuple]:
     for name, v in values.items():
         v = np.asarray(v, dtype=float)
         kind = DESIGN_OBJECTIVES[name][1]
+        drapes = xr.DataArray(v).rename({f"dim_{v.ndim - 1}": "realization"})
         if kind == "probability":
             n = np.count_nonzero(~np.isnan(v), axis=-1)
             k = np.nansum(v, axis=-1)
             lo, hi = wilson_interval(k, n, confidence)
             triple = (k / n, lo, hi)
         elif kind == "quantile95":
-            q = quantile_statistics(xr.DataArray(v).rename({f"dim_{v.ndim - 1}": "realization"}), [0.95],
-                                    confidence).isel(quantile=0)
+            q = quantile_statistics(drapes, [0.95], confidence).isel(quantile=0)
             triple = tuple(q[f"quantile_{s}"].values for s in ("value", "lower", "upper"))
         else:
-            m = mean_statistics(xr.DataArray(v).rename({f"dim_{v.ndim - 1}": "realization"}), confidence)
+            m = mean_statistics(drapes, confidence)
             mean, lo, hi = (m[s].values for s in ("mean", "mean_lower", "mean_upper"))
             straddles = (lo <= 0) & (hi >= 0)  # |mean| folded at 0
             triple = (np.abs(mean), np.where(straddles, 0.0, np.minimum(np.abs(lo), np.abs(hi))),
@@ -474,7 +474,7 @@ def result_dataset(result: Result, evaluate: Evaluator) -> xr.Dataset:
     """Every evaluated design with its statistics, and the result, as one Dataset."""
     prob, spec = result.prob, result.prob.spec
     confidence = spec.confidence
-    rows = [(s, k, x) for s, k, x in evaluate.order]
+    rows = list(evaluate.order)
     stats = [evaluate.statistics([x], s)[0] for s, _, x in rows]
     X = np.array([x for _, _, x in rows])
     settings = [prob.settings(x) for x in X]
