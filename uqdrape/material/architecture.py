@@ -323,15 +323,10 @@ def _compaction(arch: Architecture, theta):
     return _branchwise(theta, lambda idx: cumulative_trapezoid(-sigma[idx] * dvol[idx], theta[idx], initial=0.0))
 
 
-def crossover_slip(arch: Architecture, theta_end_rad: float):
-    """Slip-area of one crossover per path step (mm³) and the step ends θ (rad); see
-    _crossover_slip (cached: it depends only on the crossover's geometry)."""
-    return _crossover_slip(arch.crossover_side_mm, arch.tow_shear_ratio, arch.phi0_deg, float(theta_end_rad))
-
-
 @functools.lru_cache(maxsize=64)
 def _crossover_slip(a: float, tow_shear_ratio: float, phi0_deg: float, theta_end_rad: float):
-    """Slip-area of one crossover: Σ_j A_j l_ij per path step (mm³) and the step ends θ (rad).
+    """Slip-area of one crossover: Σ_j A_j l_ij per path step (mm³) and the step ends θ (rad);
+    cached, as it depends only on the crossover's geometry.
 
     Relative velocity of the two tow layers, Eq 4.37: v = Ω(θ)·(−Y, X) with
     Ω = (1 − γ_t/ω)(1 − sin|θ|) per unit fabric shear rate (the field is a rotation about
@@ -391,7 +386,7 @@ def _crossover(arch: Architecture, theta):
         end = theta[idx[-1]]
         if end == 0.0:
             continue
-        ts, slip = crossover_slip(arch, end)
+        ts, slip = _crossover_slip(arch.crossover_side_mm, arch.tow_shear_ratio, arch.phi0_deg, float(end))
         mid = 0.5 * (ts[1:] + ts[:-1])
         pressure = bulk_stress(arch, fibre_volume_fraction(arch, mid))
         cum = np.concatenate([[0.0], np.cumsum(pressure * slip)])  # Pa·mm³
