@@ -53,7 +53,7 @@ def cmd_drape(args) -> int:
 
     from .conventions import cf_encode
     from .drape import drape
-    from .ensemble.progress import Progress
+    from .ensemble import Progress, write_atomic
     from .geometry import build
     from .material import load_material
     from .report import plot_lines, plot_net
@@ -70,12 +70,9 @@ def cmd_drape(args) -> int:
     bar.close()
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    nc = out.with_suffix(".nc")
-    tmp = nc.with_name(nc.name + ".tmp")
     encoded, encoding = cf_encode(ds, title=f"uqdrape {args.mode} drape of {surface.describe()}",
                                   history="uqdrape " + shlex.join(args.argv))
-    encoded.to_netcdf(tmp, encoding=encoding)
-    tmp.replace(nc)
+    nc = write_atomic(encoded, out.with_suffix(".nc"), encoding)
     net_png = plot_net(ds, out.with_name(out.name + "-net.png"),
                        title=f"{surface.describe()}, {args.mode} drape, s = {args.spacing} mm")
     lines_png = plot_lines(ds, out.with_name(out.name + "-lines.png"))
