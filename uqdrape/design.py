@@ -278,6 +278,8 @@ class Evaluator:
         keys = [self.key(sample, x) for x in X]
         todo = {}
         for key, x in zip(keys, X):
+            if all(key != k for _, k, _ in self.order):
+                self.order.append((sample, key, x))
             if key in self.records or key in todo:
                 continue
             path = None if self.folder is None else self.folder / f"{key}.nc"
@@ -285,9 +287,6 @@ class Evaluator:
                 self.records[key] = xr.load_dataset(path)
             else:
                 todo[key] = x
-        for key, x in zip(keys, X):
-            if all(key != k for _, k, _ in self.order):
-                self.order.append((sample, key, x))
         if todo:
             self._drape(study, sample, todo)
         return [self.records[k] for k in keys]
