@@ -400,16 +400,12 @@ class Result:
     validation: dict  # role -> x, draped on the validation sample
 
 
-def _k_max(record: xr.Dataset) -> int:
-    """Line nodes 1..k_max valid in every realisation of the baseline design."""
-    return int(line_means(record["line_shear"]).attrs["k_max"])
-
-
 def optimise(prob: Problem, evaluate: Evaluator) -> Result:
     """Run the optimiser of ``prob`` (see the module notes); deterministic for a given
     study, so a rerun over the cached records replays it exactly."""
     spec, study = prob.spec, prob.study
-    k_max = evaluate.k_max = _k_max(evaluate([prob.baseline])[0])
+    # the asymmetry averages line nodes 1..k_max, those valid in every realisation of the baseline design
+    k_max = evaluate.k_max = int(line_means(evaluate([prob.baseline])[0]["line_shear"]).attrs["k_max"])
 
     def values(X):
         # to 12 significant digits: numpy's sums can differ in the last bit with the memory
