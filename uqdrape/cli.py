@@ -53,7 +53,7 @@ def cmd_drape(args) -> int:
 
     from .conventions import cf_encode
     from .drape import drape
-    from .ensemble.progress import Progress
+    from .ensemble import Progress, write_atomic
     from .geometry import build
     from .material import load_material
     from .report import plot_lines, plot_net
@@ -70,12 +70,9 @@ def cmd_drape(args) -> int:
     bar.close()
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    nc = out.with_suffix(".nc")
-    tmp = nc.with_name(nc.name + ".tmp")
     encoded, encoding = cf_encode(ds, title=f"uqdrape {args.mode} drape of {surface.describe()}",
                                   history="uqdrape " + shlex.join(args.argv))
-    encoded.to_netcdf(tmp, encoding=encoding)
-    tmp.replace(nc)
+    nc = write_atomic(encoded, out.with_suffix(".nc"), encoding)
     net_png = plot_net(ds, out.with_name(out.name + "-net.png"),
                        title=f"{surface.describe()}, {args.mode} drape, s = {args.spacing} mm")
     lines_png = plot_lines(ds, out.with_name(out.name + "-lines.png"))
@@ -176,15 +173,20 @@ def cmd_validate(args) -> int:
     return 0
 
 
-def cmd_run(args) -> int:
+def _engine_study(args):
+    """The study of ``run`` or ``design``, its output folder replaced by ``--out`` if given."""
     import dataclasses
 
     from .study import load_study
-    from .workflow import run_report, run_study
 
     study = load_study(args.study)
-    if args.out:
-        study = dataclasses.replace(study, output_dir=Path(args.out))
+    return dataclasses.replace(study, output_dir=Path(args.out)) if args.out else study
+
+
+def cmd_run(args) -> int:
+    from .workflow import run_report, run_study
+
+    study = _engine_study(args)
     if study.design is not None:
         if args.method or args.chunk_size or args.no_resume:
             raise ValueError(f"{args.study} is a [design] study: --method, --chunk-size and --no-resume do not apply")
@@ -201,14 +203,9 @@ def cmd_run(args) -> int:
 
 
 def cmd_design(args) -> int:
-    import dataclasses
-
-    from .study import load_study
     from .workflow import run_design, run_report
 
-    study = load_study(args.study)
-    if args.out:
-        study = dataclasses.replace(study, output_dir=Path(args.out))
+    study = _engine_study(args)
     out = run_design(study, scheduler=args.scheduler, workers=args.workers, progress=args.verbosity > 0)
     print(f"designs written to {out}")
     if not args.no_report:

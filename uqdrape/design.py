@@ -278,6 +278,8 @@ class Evaluator:
         keys = [self.key(sample, x) for x in X]
         todo = {}
         for key, x in zip(keys, X):
+            if all(key != k for _, k, _ in self.order):
+                self.order.append((sample, key, x))
             if key in self.records or key in todo:
                 continue
             path = None if self.folder is None else self.folder / f"{key}.nc"
@@ -285,9 +287,6 @@ class Evaluator:
                 self.records[key] = xr.load_dataset(path)
             else:
                 todo[key] = x
-        for key, x in zip(keys, X):
-            if all(key != k for _, k, _ in self.order):
-                self.order.append((sample, key, x))
         if todo:
             self._drape(study, sample, todo)
         return [self.records[k] for k in keys]
@@ -338,17 +337,17 @@ def statistics(values: dict, confidence: float) -> dict[str, tuple]:
     for name, v in values.items():
         v = np.asarray(v, dtype=float)
         kind = DESIGN_OBJECTIVES[name][1]
+        drapes = xr.DataArray(v).rename({f"dim_{v.ndim - 1}": "realization"})
         if kind == "probability":
             n = np.count_nonzero(~np.isnan(v), axis=-1)
             k = np.nansum(v, axis=-1)
             lo, hi = wilson_interval(k, n, confidence)
             triple = (k / n, lo, hi)
         elif kind == "quantile95":
-            q = quantile_statistics(xr.DataArray(v).rename({f"dim_{v.ndim - 1}": "realization"}), [0.95],
-                                    confidence).isel(quantile=0)
+            q = quantile_statistics(drapes, [0.95], confidence).isel(quantile=0)
             triple = tuple(q[f"quantile_{s}"].values for s in ("value", "lower", "upper"))
         else:
-            m = mean_statistics(xr.DataArray(v).rename({f"dim_{v.ndim - 1}": "realization"}), confidence)
+            m = mean_statistics(drapes, confidence)
             mean, lo, hi = (m[s].values for s in ("mean", "mean_lower", "mean_upper"))
             straddles = (lo <= 0) & (hi >= 0)  # |mean| folded at 0
             triple = (np.abs(mean), np.where(straddles, 0.0, np.minimum(np.abs(lo), np.abs(hi))),
@@ -401,16 +400,12 @@ class Result:
     validation: dict  # role -> x, draped on the validation sample
 
 
-def _k_max(record: xr.Dataset) -> int:
-    """Line nodes 1..k_max valid in every realisation of the baseline design."""
-    return int(line_means(record["line_shear"]).attrs["k_max"])
-
-
 def optimise(prob: Problem, evaluate: Evaluator) -> Result:
     """Run the optimiser of ``prob`` (see the module notes); deterministic for a given
     study, so a rerun over the cached records replays it exactly."""
     spec, study = prob.spec, prob.study
-    k_max = evaluate.k_max = _k_max(evaluate([prob.baseline])[0])
+    # the asymmetry averages line nodes 1..k_max, those valid in every realisation of the baseline design
+    k_max = evaluate.k_max = int(line_means(evaluate([prob.baseline])[0]["line_shear"]).attrs["k_max"])
 
     def values(X):
         # to 12 significant digits: numpy's sums can differ in the last bit with the memory
@@ -474,7 +469,7 @@ def result_dataset(result: Result, evaluate: Evaluator) -> xr.Dataset:
     """Every evaluated design with its statistics, and the result, as one Dataset."""
     prob, spec = result.prob, result.prob.spec
     confidence = spec.confidence
-    rows = [(s, k, x) for s, k, x in evaluate.order]
+    rows = list(evaluate.order)
     stats = [evaluate.statistics([x], s)[0] for s, _, x in rows]
     X = np.array([x for _, _, x in rows])
     settings = [prob.settings(x) for x in X]

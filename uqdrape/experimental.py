@@ -65,22 +65,15 @@ def read_experimental(path) -> ExperimentalPoints:
                 try:
                     value = float(text)
                 except ValueError:
-                    raise ValueError(
-                        f"experimental CSV {str(path)!r} row {row_number}: column {name!r} = {text!r} is not a number"
-                    ) from None
-                if not np.isfinite(value):
-                    raise ValueError(
-                        f"experimental CSV {str(path)!r} row {row_number}: column {name!r} = {text!r} is not finite"
-                    )
-                if name == "quadrant_sign" and value not in (1.0, -1.0):
-                    raise ValueError(
-                        f"experimental CSV {str(path)!r} row {row_number}: quadrant_sign = {text!r}; "
-                        "valid: +1 (i*j > 0 quadrants) or -1"
-                    )
-                if name == "distance_mm" and value < 0:
-                    raise ValueError(
-                        f"experimental CSV {str(path)!r} row {row_number}: distance_mm = {text!r} must be >= 0 (mm)"
-                    )
+                    value = None
+                why = (f"column {name!r} = {text!r} is not a number" if value is None
+                       else f"column {name!r} = {text!r} is not finite" if not np.isfinite(value)
+                       else f"quadrant_sign = {text!r}; valid: +1 (i*j > 0 quadrants) or -1"
+                       if name == "quadrant_sign" and value not in (1.0, -1.0)
+                       else f"distance_mm = {text!r} must be >= 0 (mm)" if name == "distance_mm" and value < 0
+                       else None)
+                if why is not None:
+                    raise ValueError(f"experimental CSV {str(path)!r} row {row_number}: {why}")
                 columns[name].append(value)
     if not columns["distance_mm"]:
         raise ValueError(f"experimental CSV {str(path)!r} has a header but no data rows")

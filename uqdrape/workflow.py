@@ -199,15 +199,14 @@ def run_report(output_dir, out_dir=None) -> Path:
     the study stored in its attributes, the wall time from its manifest, and its
     sensitivity results if it has them; of a design run, its design page. Writes into
     ``out_dir`` (default ``output_dir/report``); returns the index.html path."""
-    if (Path(output_dir) / _design.DESIGN_FILE).is_file():
-        ds = xr.load_dataset(Path(output_dir) / _design.DESIGN_FILE)
-        study = from_dict(json.loads(ds.attrs["study_json"]), Path(output_dir))
-        return write_design_report(ds, Path(out_dir) if out_dir else Path(output_dir) / "report",
-                                   surface=study.geometry.build_mould())
-    ds = open_ensemble(output_dir)
-    sensitivity = open_sensitivity(output_dir)
+    design = Path(output_dir) / _design.DESIGN_FILE
+    ds = xr.load_dataset(design) if design.is_file() else open_ensemble(output_dir)
     study = from_dict(json.loads(ds.attrs["study_json"]), Path(output_dir))
-    return write_report(ds, Path(out_dir) if out_dir else Path(output_dir) / "report", title=study.name,
+    report = Path(out_dir) if out_dir else Path(output_dir) / "report"
+    if design.is_file():
+        return write_design_report(ds, report, surface=study.geometry.build_mould())
+    sensitivity = open_sensitivity(output_dir)
+    return write_report(ds, report, title=study.name,
                         description=study.description or None, study_text=ds.attrs.get("study_toml"),
                         histogram_nodes=list(study.report.histogram_nodes) or None,
                         experimental_csv=study.report.experimental_csv,

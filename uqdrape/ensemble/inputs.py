@@ -76,10 +76,7 @@ def sampled_inputs(study, realizations) -> dict:
     sizes = [inp.n_variables for inp in fields.values()] + ([d] if monte_carlo else [])
     normals = realization_normals(study.seed, r, sizes)
     xi = dict(zip(fields, normals))
-    if monte_carlo:
-        u = ndtr(normals[-1])
-    else:
-        u = sample_uniforms(study.sampling.plan, study.realizations, d, study.seed)[r]
+    u = ndtr(normals[-1]) if monte_carlo else sample_uniforms(study.sampling.plan, study.realizations, d, study.seed)[r]
     return _inputs(study, fields, xi, u)
 
 

@@ -19,6 +19,7 @@ the same chunks; what the outputs mean is not this package's business.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sys
 import time
@@ -76,14 +77,18 @@ def plan_chunks(study: Study, chunk_size: int, realizations: int | None = None) 
 def _run_chunk(study: Study, chunk: Chunk, folder: str, attrs: dict, design_rows=None) -> str:
     """Dask task: drape one chunk (its Monte Carlo realisations, or the given rows of a
     sensitivity design), write its file, return the file's path."""
-    r = np.arange(chunk.start, chunk.stop)
-    inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows)
-    ds = at_level(drape_inputs(study, r, inputs, force=chunk.force), chunk.force)
+    ds = at_level(_drape(study, np.arange(chunk.start, chunk.stop), chunk.force, design_rows), chunk.force)
     ds.attrs.update(attrs)
     ds, encoding = cf_encode(ds, title=f"uqdrape ensemble chunk: study {study.name}, realisations "
                                        f"{chunk.start}-{chunk.stop - 1} at {chunk.force:g} N",
                              history=f"uqdrape run {Path(study.path).name}", float32=study.float32)
     return str(write_atomic(ds, Path(folder) / chunk.name, encoding, keep=lambda: not orphaned()))
+
+
+def _drape(study: Study, r, force: float, design_rows):
+    """Drape realisations ``r`` of the study's sample, or the design rows ``design_rows`` (one per r)."""
+    inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows)
+    return drape_inputs(study, r, inputs, force=force)
 
 
 def _positive_int(name: str, value) -> int:
@@ -149,10 +154,8 @@ def compute_tasks(tasks: list, sizes: list, scheduler: str | None, workers: int 
                 return list(dask.compute(*tasks, scheduler="synchronous"))
             # dask batches local tasks (6 per dispatch by default); a chunk is already a
             # big batch, so dispatch one at a time or two chunks share one process
-            if pool is not None:
+            with local_pool(workers) if pool is None else contextlib.nullcontext(pool) as pool:
                 return list(dask.compute(*tasks, scheduler="processes", pool=pool, chunksize=1))
-            with local_pool(workers) as own:
-                return list(dask.compute(*tasks, scheduler="processes", pool=own, chunksize=1))
     from distributed import Client, as_completed
 
     try:
@@ -231,8 +234,8 @@ def _preflight(study: Study, chunk: Chunk, design_rows) -> None:
     if more than the study's failure budget of its nodes cannot be placed: such a run
     would only write NaNs (the crossover off the mould, a net larger than the mould)."""
     r = np.arange(chunk.start, chunk.start + 1)
-    inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows[r])
-    failed, why = placement_failures(drape_inputs(study, r, inputs, force=chunk.force)["status"].values[0])
+    rows = None if design_rows is None else design_rows[r]
+    failed, why = placement_failures(_drape(study, r, chunk.force, rows)["status"].values[0])
     if failed > study.solver.failure_budget:
         raise ValueError(f"study {study.name!r} ({study.path}): {failed:.0%} of the nodes of realisation {chunk.start} "
                          f"cannot be placed, more than solver.failure_budget = {study.solver.failure_budget:g} "

@@ -163,10 +163,6 @@ def _vtu(tmp: Path, mesh: meshio.Mesh, blocks, values: dict) -> None:
     meshio.write(tmp, meshio.Mesh(mesh.points, blocks, cell_data=cell_data), file_format="vtu")
 
 
-def _number(v: float) -> str:
-    return repr(float(v))
-
-
 def _abaqus(tmp: Path, values: dict, labels: np.ndarray, source: str) -> None:
     """An Abaqus include: per-element local directions 1 and 2 as a *DISTRIBUTION used by
     a coordinate *ORIENTATION; unmapped elements keep the default (global x, y) and are
@@ -180,7 +176,7 @@ def _abaqus(tmp: Path, values: dict, labels: np.ndarray, source: str) -> None:
              "*DISTRIBUTION, NAME=UQDRAPE_FIBRE, LOCATION=ELEMENT, TABLE=UQDRAPE_FIBRE_TABLE",
              ", 1.0, 0.0, 0.0, 0.0, 1.0, 0.0"]
     for k in np.flatnonzero(status == ON_NET):
-        lines.append(", ".join([str(labels[k])] + [_number(v) for v in (*d1[k], *d2[k])]))
+        lines.append(", ".join([str(labels[k])] + [repr(float(v)) for v in (*d1[k], *d2[k])]))
     lines += ["*ORIENTATION, NAME=UQDRAPE_FIBRE_ORIENTATION, DEFINITION=COORDINATES, SYSTEM=RECTANGULAR",
               "UQDRAPE_FIBRE"]
     unmapped = labels[status != ON_NET]

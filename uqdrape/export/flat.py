@@ -112,11 +112,10 @@ def flat_files(levels: list[Level], stem) -> dict:
         ai, aj = np.nonzero(valid)
         nodes = flat[ai, aj]
         loops = outline(valid)
-        if level.is_ensemble:
-            rows, header, fmt = (np.column_stack([ai - n, aj - n, nodes, p_valid[ai, aj]]), "i,j,x_mm,y_mm,p_valid",
-                                 ["%d", "%d", "%.17g", "%.17g", "%.17g"])
-        else:
-            rows, header, fmt = np.column_stack([ai - n, aj - n, nodes]), "i,j,x_mm,y_mm", ["%d", "%d", "%.17g", "%.17g"]
+        extra = [p_valid[ai, aj]] if level.is_ensemble else []  # an ensemble adds the share of drapes placing a node
+        rows = np.column_stack([ai - n, aj - n, nodes, *extra])
+        header = "i,j,x_mm,y_mm" + (",p_valid" if extra else "")
+        fmt = ["%d", "%d"] + ["%.17g"] * (rows.shape[1] - 2)
         lines = [np.column_stack([np.full(len(loop), k), loop - n, flat[loop[:, 0], loop[:, 1]]])
                  for k, loop in enumerate(loops)]
         writers[stem.with_name(f"{base}-flat-nodes.csv")] = partial(_csv, header=header, rows=rows, fmt=fmt)

@@ -81,7 +81,7 @@ def surface_of(ds: xr.Dataset) -> Surface:
 
 def _drape_level(ds: xr.Dataset, label: str) -> Level:
     one = ds.isel(realization=0)
-    P = np.stack([one.x.values, one.y.values, one.z.values], axis=-1)
+    P = np.stack([one[c].values for c in ("x", "y", "z")], axis=-1)
     fields = {"shear": one.shear.values, "status": one.status.values.astype(np.int8)}
     if "locked" in one:
         fields["locked"] = one.locked.values.astype(float)
@@ -93,8 +93,7 @@ def _ensemble_level(ds: xr.Dataset, label: str) -> Level:
 
     st = node_statistics(ds, "shear", quantiles=QUANTILES)
     placed = (ds.status == 0)
-    mean = {c: ds[c].where(placed).mean("realization").values for c in ("x", "y", "z")}
-    P = np.stack([mean["x"], mean["y"], mean["z"]], axis=-1)
+    P = np.stack([ds[c].where(placed).mean("realization").values for c in ("x", "y", "z")], axis=-1)
     fields = {"shear_mean": st["mean"].values, "shear_sd": st["sd"].values}
     for q in QUANTILES:
         fields[f"shear_q{round(100 * q):02d}"] = st["quantile_value"].sel(quantile=q).values

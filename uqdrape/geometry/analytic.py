@@ -7,8 +7,9 @@ is clipped to a large finite value, so callers never see NaN or inf. Each class 
 the shape formulas.
 
 Each class has ``bounds`` = (xmin, xmax, ymin, ymax) in mm, the plan rectangle that
-holds its domain; ``params()`` returns exactly the constructor arguments, so
-``type(s)(**s.params())`` rebuilds the same mould.
+holds its domain, and keeps each constructor argument as the attribute of the same name
+(the cone's ``height`` excepted), so ``params()`` returns exactly the constructor
+arguments and ``type(s)(**s.params())`` rebuilds the same mould.
 """
 
 from __future__ import annotations
@@ -79,9 +80,6 @@ class Plate(_SquareDomain):
         self.size = self.half_width
         self.kernel = (compiled.PLATE, np.array([self._half]))
 
-    def params(self):
-        return {"half_width": self.half_width}
-
 
 class Hemisphere(_SquareDomain):
     """Hemisphere of radius R (mm) centred at the origin, standing on a flat flange z = 0.
@@ -99,9 +97,6 @@ class Hemisphere(_SquareDomain):
         self._half = self.flange_half_width
         self.size = self.radius
         self.kernel = (compiled.HEMISPHERE, np.array([self._half, self.radius]))
-
-    def params(self):
-        return {"radius": self.radius, "flange_half_width": self.flange_half_width}
 
 
 class Cylinder(Surface):
@@ -132,9 +127,6 @@ class Cylinder(Surface):
         a, c = 0.5 * self.length, self.WIDTH_FRACTION * self.radius
         return (-a, a, -c, c) if self.axis == "x" else (-c, c, -a, a)
 
-    def params(self):
-        return {"radius": self.radius, "length": self.length, "axis": self.axis}
-
 
 class Cone(_SquareDomain):
     """Right circular cone, apex up on the z axis, on a flat flange z = 0.
@@ -163,11 +155,9 @@ class Cone(_SquareDomain):
         self.kernel = (compiled.CONE, np.array([self._half, self.cone_height, self._cot, self.base_radius]))
 
     def params(self):
-        return {
-            "half_angle_deg": self.half_angle_deg,
-            "height": self.cone_height,
-            "flange_half_width": self.flange_half_width,
-        }
+        # ``height`` is the constructor's name, but Surface.height is the height field
+        return {"half_angle_deg": self.half_angle_deg, "height": self.cone_height,
+                "flange_half_width": self.flange_half_width}
 
 
 class NoseCone(_SquareDomain):
@@ -216,14 +206,6 @@ class NoseCone(_SquareDomain):
         self.size = self.base_radius
         self.kernel = (compiled.NOSE_CONE, np.array([self._half, self.base_radius, self._cot, self.tip_radius, self.blend_radius,
                                              self._z_centre]))
-
-    def params(self):
-        return {
-            "base_radius": self.base_radius,
-            "half_angle_deg": self.half_angle_deg,
-            "tip_radius": self.tip_radius,
-            "flange_half_width": self.flange_half_width,
-        }
 
 
 class DoubleDome(_SquareDomain):
@@ -276,15 +258,6 @@ class DoubleDome(_SquareDomain):
         self.kernel = (compiled.DOUBLE_DOME, np.array([self._half, self.dome_radius, self.base_radius, self.centre_distance,
                                                self.blend, self._depth, self._rim_slope]))
 
-    def params(self):
-        return {
-            "dome_radius": self.dome_radius,
-            "base_radius": self.base_radius,
-            "centre_distance": self.centre_distance,
-            "blend": self.blend,
-            "flange_half_width": self.flange_half_width,
-        }
-
 
 class Saddle(_SquareDomain):
     """Hyperbolic paraboloid z = (x^2 - y^2) / (2 R) over |x|, |y| <= half_width (mm).
@@ -302,5 +275,3 @@ class Saddle(_SquareDomain):
         self.size = self.half_width
         self.kernel = (compiled.SADDLE, np.array([self._half, self.radius]))
 
-    def params(self):
-        return {"radius": self.radius, "half_width": self.half_width}

@@ -6,6 +6,8 @@ The tool moves along z and the blank-holder lies in an x-y plane (thesis assumpt
 
 from __future__ import annotations
 
+import inspect
+
 import numpy as np
 
 from . import compiled
@@ -41,8 +43,10 @@ class Surface:
         return compiled.evaluate(self.kernel, x, y)
 
     def params(self) -> dict:
-        """Shape parameters (for netCDF attributes and reports)."""
-        return {}
+        """Shape parameters (for netCDF attributes and reports): the constructor's
+        arguments, read from the attributes of the same names."""
+        names = list(inspect.signature(type(self).__init__).parameters)[1:]
+        return {name: getattr(self, name) for name in names}
 
     def normal(self, x, y):
         """Unit upward normal, shape (..., 3)."""

@@ -50,6 +50,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
+from scipy.integrate import cumulative_trapezoid
 from scipy.optimize import brentq
 
 from .model import DEFAULT_BENDING_STIFFNESS
@@ -232,7 +233,7 @@ def _tension(arch: Architecture, strain):
         return k * e, 0.5 * k * e * e
     x, t = (np.asarray(v, dtype=float) for v in arch.tension_curve)
     slope = (t[-1] - t[-2]) / (x[-1] - x[-2])
-    cum = np.concatenate([[0.0], np.cumsum(0.5 * (t[1:] + t[:-1]) * np.diff(x))])
+    cum = cumulative_trapezoid(t, x, initial=0.0)
     inside = np.minimum(e, x[-1])
     tension = np.interp(inside, x, t) + slope * (e - inside)
     k = np.clip(np.searchsorted(x, inside, side="right") - 1, 0, x.size - 2)
@@ -259,7 +260,7 @@ def _branchwise(theta, fn):
 def _stitch_terms(arch: Architecture, theta):
     """(W_tension, W_friction, tension S) on the grid θ (rad, containing 0): J/m², J/m², N."""
     free = stitch_length(arch, 0.0) / (1.0 + arch.prestrain)
-    strain = stitch_length(arch, theta) / free - 1.0
+    strain = stitch_strain(arch, theta)
     tension, stored = _tension(arch, strain)
     # failure: from the first grid point (walking out from 0) at or past the failure strain
     # the thread carries nothing and its stored energy stays where it was
@@ -276,13 +277,8 @@ def _stitch_terms(arch: Architecture, theta):
     lengths = _pass_through_lengths(arch, theta)
     geometric = stitch_length(arch, theta) / stitch_length(arch, 0.0) - 1.0
     slip = np.abs(lengths - (1.0 + geometric)[:, None, None] * lengths[zero]).sum(axis=(-1, -2))
-
-    def friction(idx):
-        s, e = tension[idx], slip[idx]
-        steps = 0.5 * (s[1:] + s[:-1]) * np.diff(e)
-        return np.concatenate([[0.0], np.cumsum(steps)])
-
-    w_friction = arch.stitch_friction * _branchwise(theta, friction) * to_j_per_m2
+    friction = _branchwise(theta, lambda idx: cumulative_trapezoid(tension[idx], slip[idx], initial=0.0))
+    w_friction = arch.stitch_friction * friction * to_j_per_m2
     return w_tension, w_friction, tension
 
 
@@ -319,27 +315,18 @@ def bulk_stress(arch: Architecture, vf):
     return np.where(vf >= arch.va, np.inf, np.where(vf <= arch.v0, 0.0, sigma))
 
 
-def _compaction(arch: Architecture, theta, sigma):
+def _compaction(arch: Architecture, theta):
     """W_c(θ) = −∫ σ_b dV, V = t0 · area ratio (both tow layers, per unit initial area), J/m²."""
+    sigma = bulk_stress(arch, fibre_volume_fraction(arch, theta))
     t0 = arch.thickness_mm * 1e-3
     dvol = t0 * np.gradient(_area_ratio(arch, theta), theta)  # m per rad
-
-    def integrate(idx):
-        f = -sigma[idx] * dvol[idx]
-        return np.concatenate([[0.0], np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(theta[idx]))])
-
-    return _branchwise(theta, integrate)
-
-
-def crossover_slip(arch: Architecture, theta_end_rad: float):
-    """Slip-area of one crossover per path step (mm³) and the step ends θ (rad); see
-    _crossover_slip (cached: it depends only on the crossover's geometry)."""
-    return _crossover_slip(arch.crossover_side_mm, arch.tow_shear_ratio, arch.phi0_deg, float(theta_end_rad))
+    return _branchwise(theta, lambda idx: cumulative_trapezoid(-sigma[idx] * dvol[idx], theta[idx], initial=0.0))
 
 
 @functools.lru_cache(maxsize=64)
 def _crossover_slip(a: float, tow_shear_ratio: float, phi0_deg: float, theta_end_rad: float):
-    """Slip-area of one crossover: Σ_j A_j l_ij per path step (mm³) and the step ends θ (rad).
+    """Slip-area of one crossover: Σ_j A_j l_ij per path step (mm³) and the step ends θ (rad);
+    cached, as it depends only on the crossover's geometry.
 
     Relative velocity of the two tow layers, Eq 4.37: v = Ω(θ)·(−Y, X) with
     Ω = (1 − γ_t/ω)(1 − sin|θ|) per unit fabric shear rate (the field is a rotation about
@@ -399,7 +386,7 @@ def _crossover(arch: Architecture, theta):
         end = theta[idx[-1]]
         if end == 0.0:
             continue
-        ts, slip = crossover_slip(arch, end)
+        ts, slip = _crossover_slip(arch.crossover_side_mm, arch.tow_shear_ratio, arch.phi0_deg, float(end))
         mid = 0.5 * (ts[1:] + ts[:-1])
         pressure = bulk_stress(arch, fibre_volume_fraction(arch, mid))
         cum = np.concatenate([[0.0], np.cumsum(pressure * slip)])  # Pa·mm³
@@ -423,9 +410,8 @@ def energy_terms(arch: Architecture, theta_rad=None) -> dict:
     if not np.any(theta == 0.0):
         raise ValueError("the θ grid must contain 0 (energies are integrated outward from it)")
     w_t, w_f, _ = _stitch_terms(arch, theta)
-    sigma = bulk_stress(arch, fibre_volume_fraction(arch, theta))
     return {"theta": theta, "stitch_tension": w_t, "stitch_friction": w_f,
-            "compaction": _compaction(arch, theta, sigma), "crossover": _crossover(arch, theta)}
+            "compaction": _compaction(arch, theta), "crossover": _crossover(arch, theta)}
 
 
 def branch_forces(arch: Architecture, theta, energy):
@@ -434,19 +420,17 @@ def branch_forces(arch: Architecture, theta, energy):
 
     Returns ((θ ≥ 0, N_s), (θ ≤ 0, N_s)), both starting at θ = 0 and running outward.
     """
-    out = []
-    for idx in _outward(theta):
-        t = theta[idx]
-        out.append((t, np.gradient(energy[idx], t) / _area_ratio(arch, t)))
-    return tuple(out)
+    return tuple((theta[idx], _branch_force(arch, theta, energy, idx)) for idx in _outward(theta))
+
+
+def _branch_force(arch: Architecture, theta, energy, idx):
+    """N_s (N/m) along one branch ``idx`` of the grid (see branch_forces)."""
+    return np.gradient(energy[idx], theta[idx]) / _area_ratio(arch, theta[idx])
 
 
 def shear_force(arch: Architecture, theta, energy):
     """N_s (N/m) on the grid θ (see branch_forces); at θ = 0 the negative side's value."""
-    out = np.empty_like(theta)
-    for idx, (_, ns) in zip(_outward(theta), branch_forces(arch, theta, energy)):
-        out[idx] = ns
-    return out
+    return _branchwise(theta, lambda idx: _branch_force(arch, theta, energy, idx))
 
 
 def summed(arch: Architecture, theta_rad=None) -> dict:
@@ -493,14 +477,12 @@ class _FixedTerms:
     def __init__(self, arch: Architecture):
         self.arch = arch
         self.theta = theta_grid(ZERO_SEARCH_DEG)
-        sigma = bulk_stress(arch, fibre_volume_fraction(arch, self.theta))
-        self.w = _compaction(arch, self.theta, sigma) + _crossover(arch, self.theta)
+        self.w = _compaction(arch, self.theta) + _crossover(arch, self.theta)
 
     def zero_force_angle(self, prestrain: float) -> float:
         arch = replace(self.arch, prestrain=float(prestrain))
         w_t, w_f, _ = _stitch_terms(arch, self.theta)
-        total = self.w + w_t + w_f
-        return _zero_force(self.theta, total)
+        return _zero_force(self.theta, self.w + w_t + w_f)
 
 
 def zero_force_angle(arch: Architecture) -> float:
@@ -587,8 +569,7 @@ def calibrate(arch: Architecture, *, zero_force_angle_deg=None, negative_ns=None
             theta = theta_grid(angle + 1.0)  # central differences at -angle, as in summed()
             at = int(np.argmin(np.abs(theta + math.radians(angle))))
             unit = replace(arch, beta=1.0)
-            sigma = bulk_stress(unit, fibre_volume_fraction(unit, theta))
-            k_ns = -shear_force(unit, theta, _compaction(unit, theta, sigma) + _crossover(unit, theta))[at]
+            k_ns = -shear_force(unit, theta, _compaction(unit, theta) + _crossover(unit, theta))[at]
             w_t, w_f, _ = _stitch_terms(arch, theta)
             stitch = -shear_force(arch, theta, w_t + w_f)[at]
             if not target > stitch:

@@ -19,18 +19,12 @@ import xarray as xr
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from .figures import save, styled
+from .figures import panels, save, styled
 from .html import provenance, provenance_line
 
 _LABELS = {"p_locked": "P(any node locked)", "q95_max_abs_shear": "95 % quantile of max |shear| (deg)",
            "abs_mean_asymmetry": "|mean asymmetry| (deg)", "q95_max_draw_in": "95 % quantile of max draw-in (mm)"}
 DRAW_IN = "q95_max_draw_in"
-
-
-def _figure(size):
-    fig = Figure(figsize=size, layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
 
 
 def _design(ds: xr.Dataset) -> xr.Dataset:
@@ -87,15 +81,16 @@ def plot_objective(ds: xr.Dataset, path) -> Path:
     draw-in limit, a second panel of the draw-in statistic and the limit."""
     name = ds.attrs["objective"]
     limit = ds.attrs["max_draw_in_mm"]
-    fig = _figure((7.0, 4.4 if limit == "none" else 7.6))
-    ax = fig.add_subplot(1 if limit == "none" else 2, 1, 1)
+    fig, axes = panels(1 if limit == "none" else 2, size=(7.0, 4.4 if limit == "none" else 3.8), cols=1)
+    ax = axes[0]
     _statistic_panel(ax, ds, name, "estimate")
     if ds.attrs["target"] != "none":
         ax.axhline(float(ds.attrs["target"]), color="k", ls=":", lw=1, label=f"target {ds.attrs['target']:g}")
     ax.set_title(f"{ds.attrs['study_name']}: {_LABELS[name]} against force")
     ax.legend(loc="best")
     if limit != "none":
-        ax2 = fig.add_subplot(2, 1, 2, sharex=ax)
+        ax2 = axes[1]
+        ax2.sharex(ax)
         _statistic_panel(ax2, ds, DRAW_IN, "draw_in")
         ax2.axhline(float(limit), color="k", ls="--", lw=1,
                     label=f"draw-in limit {float(limit):g} mm (on the {ds.attrs['statistic']})")
@@ -116,8 +111,7 @@ def plot_convergence(ds: xr.Dataset, path) -> Path:
     """The objective of each design in the order evaluated, and the best so far."""
     d = _design(ds)
     f = d["objective"].values
-    fig = _figure((7.0, 3.8))
-    ax = fig.add_subplot()
+    fig, (ax,) = panels(1, size=(7.0, 3.8))
     k = np.arange(1, f.size + 1)
     ax.plot(k, f, "o", color="tab:blue", ms=4, alpha=0.6, label="design evaluated")
     ax.plot(k, np.minimum.accumulate(f), "-", color="tab:green", lw=2, label="best so far")
@@ -188,8 +182,7 @@ def plot_risk_maps(ds: xr.Dataset, path) -> Path:
     roles = ("baseline", "optimum")
     n = _n_forces(ds)
     val = _validation(ds)
-    fig = _figure((11.0, 4.8))
-    axes = [fig.add_subplot(1, 2, k + 1) for k in range(2)]
+    fig, axes = panels(2, size=(5.5, 4.8))
     for ax, role in zip(axes, roles):
         p = ds[f"{role}_node_p_locked"].values.ravel()
         x, y = ds[f"{role}_node_x"].values.ravel(), ds[f"{role}_node_y"].values.ravel()

@@ -55,6 +55,10 @@ from .figures import (
 
 #: Probability level of the shaded band of the realisations along the max-shear lines.
 BAND = 0.95
+#: (variable of ``uqdrape.stats.line_scalars``, colour, legend text) of the line-mean plots.
+_LINE_SCALARS = (("plus_mean_shear", PLUS_COLOR, "+ quadrants (i·j > 0)"),
+                 ("minus_mean_shear", MINUS_COLOR, "− quadrants (i·j < 0)"),
+                 ("asymmetry", "black", "asymmetry (plus + minus)"))
 
 
 def mean_positions(ds: xr.Dataset) -> xr.Dataset:
@@ -321,9 +325,7 @@ def plot_sweep(ds: xr.Dataset, path, *, scalars: xr.Dataset | None = None) -> Pa
     force = ds[FORCE].values.astype(float)
     n = ds.sizes[REALIZATION]
     fig, (ax_q, ax_a) = panels(2, size=(5.8, 4.4))
-    for var, color, text in (("plus_mean_shear", PLUS_COLOR, "+ quadrants (i·j > 0)"),
-                             ("minus_mean_shear", MINUS_COLOR, "− quadrants (i·j < 0)"),
-                             ("asymmetry", "black", "asymmetry (plus + minus)")):
+    for var, color, text in _LINE_SCALARS:
         st = mean_statistics(sc[var]).transpose(FORCE)
         ax = ax_a if var == "asymmetry" else ax_q
         ax.errorbar(force, st["mean"].values, yerr=st["sd"].values, color=color, marker="o", capsize=3,
@@ -377,9 +379,7 @@ def plot_scalar_vs_factor(ds: xr.Dataset, path, factor: str) -> Path:
               linewidth=1.5, label="total")
     ax_e.set(xlabel=xlabel, ylabel="blank-holder energy (J)", title="blank-holder friction energy")
     sc = line_scalars(ds)
-    for var, color, text in (("plus_mean_shear", PLUS_COLOR, "+ quadrants (i·j > 0)"),
-                             ("minus_mean_shear", MINUS_COLOR, "− quadrants (i·j < 0)"),
-                             ("asymmetry", "black", "asymmetry (plus + minus)")):
+    for var, color, text in _LINE_SCALARS:
         ax_s.plot(x[order], sc[var].values[order], marker=".", color=color, label=text)
     ax_s.axhline(0.0, color="0.6", linewidth=0.8)
     ax_s.set(xlabel=xlabel, ylabel="line-mean shear (deg)",

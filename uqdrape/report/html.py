@@ -14,7 +14,6 @@ import datetime
 import html
 import json
 import math
-import subprocess
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -22,6 +21,7 @@ import xarray as xr
 from PIL import Image
 
 from uqdrape import __version__
+from uqdrape.conventions import git_version
 from uqdrape.schema import FORCE, REALIZATION, by_force
 from uqdrape.stats import dominant_factors, headline_numbers, node_statistics, study_kind, wrinkle_risk
 from uqdrape.stats.headline import DESIGN, DETERMINISTIC, RANDOM, SWEPT
@@ -69,16 +69,11 @@ def default_histogram_nodes(ds: xr.Dataset, node_stats: xr.Dataset) -> list[tupl
 
 
 def provenance(wall_time_s: float | None = None) -> dict:
-    """Date (UTC), uqdrape version, git commit of the code (``git describe --always
-    --dirty`` in the package's folder; None outside a git checkout) and the run's wall
+    """Date (UTC), uqdrape version, git commit of the code (``uqdrape.conventions.git_version``,
+    the ``source`` of every netCDF file; None outside a git checkout) and the run's wall
     time (s, None if not recorded)."""
-    try:
-        commit = subprocess.run(["git", "describe", "--always", "--dirty"], cwd=Path(__file__).parent,
-                                capture_output=True, text=True, timeout=10, check=True).stdout.strip() or None
-    except (OSError, subprocess.SubprocessError):
-        commit = None
     return {"date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-            "uqdrape_version": __version__, "git_commit": commit, "wall_time_s": wall_time_s}
+            "uqdrape_version": __version__, "git_commit": git_version() or None, "wall_time_s": wall_time_s}
 
 
 def provenance_line(prov: Mapping) -> str:

@@ -31,10 +31,7 @@ def convergence(
             raise ValueError("node=(i, j) is required when data is a Dataset")
         da = select_site(get_variable(data, var), node)
     elif isinstance(data, xr.DataArray):
-        if node is not None:
-            da = select_site(data, node)
-        else:
-            da = data
+        da = data if node is None else select_site(data, node)
         if REALIZATION not in da.dims:
             raise ValueError(f"data has dims {da.dims}; convergence needs a {REALIZATION!r} dim")
     else:

@@ -88,10 +88,7 @@ def exceedance_probability(
     if thr.ndim == 0:
         k = k.squeeze("threshold")
     p = k / n.where(n > 0)
-    if method == "wilson":
-        lo, hi = wilson_interval(k, n, c)
-    else:
-        lo, hi = clopper_pearson_interval(k, n, c)
+    lo, hi = (wilson_interval if method == "wilson" else clopper_pearson_interval)(k, n, c)
     interval = {"method": _METHOD_TEXT[method], "confidence": c}
     out = xr.Dataset(
         {

@@ -35,21 +35,14 @@ def node_histogram(
     if valid_all.size == 0:
         raise ValueError(f"node {tuple(node)} of {var!r} has no valid realisation to make a histogram of")
     edges = np.histogram_bin_edges(valid_all, bins=bins, range=range)
-    counts, mus, sds, ns = [], [], [], []
-    for row in flat:
-        v = row[~np.isnan(row)]
-        counts.append(np.histogram(v, bins=edges)[0])
-        mu, sd = stats.norm.fit(v) if v.size else (np.nan, np.nan)
-        mus.append(mu)
-        sds.append(sd)
-        ns.append(v.size)
+    rows = [row[~np.isnan(row)] for row in flat]  # the valid values of each level
+    fits = [stats.norm.fit(v) if v.size else (np.nan, np.nan) for v in rows]
     lead = da.dims[:-1]
     shape = values.shape[:-1]
     centres = 0.5 * (edges[:-1] + edges[1:])
-    count = np.asarray(counts).reshape(*shape, centres.size)
-    n = np.asarray(ns).reshape(shape)
-    mu = np.asarray(mus).reshape(shape)
-    sd = np.asarray(sds).reshape(shape)
+    count = np.asarray([np.histogram(v, bins=edges)[0] for v in rows]).reshape(*shape, centres.size)
+    n = np.asarray([v.size for v in rows]).reshape(shape)
+    mu, sd = np.moveaxis(np.asarray(fits, dtype=float).reshape(*shape, 2), -1, 0)
     with np.errstate(invalid="ignore", divide="ignore"):
         density = count / (n[..., None] * np.diff(edges))
     units = da.attrs.get("units")

@@ -32,6 +32,10 @@ QOI_ATTRS = {
 }
 QOIS = tuple(QOI_ATTRS)
 
+#: The QoIs that are max-shear line means -> their variable of ``line_scalars``.
+_LINE_QOIS = {"mean_shear_positive": "plus_mean_shear", "mean_shear_negative": "minus_mean_shear",
+              "asymmetry": "asymmetry"}
+
 
 def realization_qois(ds: xr.Dataset, qoi=QOIS) -> xr.Dataset:
     """The quantities ``qoi`` (names from ``QOIS``) of every drape in ``ds`` (a drape or
@@ -42,18 +46,12 @@ def realization_qois(ds: xr.Dataset, qoi=QOIS) -> xr.Dataset:
     if not qoi or unknown or len(set(qoi)) != len(qoi):
         raise ValueError(f"qoi={list(qoi)} must be distinct names from {', '.join(QOIS)}")
     out = {}
-    lines = None
-    if {"mean_shear_positive", "mean_shear_negative", "asymmetry"} & set(qoi):
-        lines = line_scalars(ds)
+    lines = line_scalars(ds) if set(_LINE_QOIS) & set(qoi) else None
     for name in qoi:
-        if name == "max_abs_shear":
+        if name in _LINE_QOIS:
+            value = lines[_LINE_QOIS[name]]
+        elif name == "max_abs_shear":
             value = abs(ds["shear"]).max(["i", "j"])
-        elif name == "mean_shear_positive":
-            value = lines["plus_mean_shear"]
-        elif name == "mean_shear_negative":
-            value = lines["minus_mean_shear"]
-        elif name == "asymmetry":
-            value = lines["asymmetry"]
         elif name == "blankholder_energy":
             value = ds["energy_blankholder"]
         else:

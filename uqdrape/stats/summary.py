@@ -32,6 +32,13 @@ def _attrs(units, long_name: str, **extra) -> dict:
     return out
 
 
+def _limits(prefix: str, lower, upper, units, what: str, confidence: float, method: str) -> dict:
+    """``<prefix>_lower`` and ``<prefix>_upper``: the confidence limits of ``what`` with their attributes."""
+    return {f"{prefix}_{side}": limit.assign_attrs(_attrs(units, f"{side} {confidence:.0%} confidence limit of {what}",
+                                                          method=method))
+            for side, limit in (("lower", lower), ("upper", upper))}
+
+
 def moment_statistics(da: xr.DataArray, confidence: float, dim: str = REALIZATION) -> xr.Dataset:
     """Lazy mean, sd, skewness, count and t interval of the mean of ``da`` along ``dim``.
 
@@ -65,12 +72,7 @@ def moment_statistics(da: xr.DataArray, confidence: float, dim: str = REALIZATIO
             "sd": sd.assign_attrs(_attrs(units, f"ensemble standard deviation (ddof=1) of {name}")),
             "skewness": skew.assign_attrs(_attrs("1", f"adjusted sample skewness G1 of {name}")),
             "count": n.assign_attrs(_attrs("1", "number of valid (non-NaN) realisations")),
-            "mean_lower": (mean - half).assign_attrs(
-                _attrs(units, f"lower {confidence:.0%} confidence limit of the mean", method=MEAN_INTERVAL)
-            ),
-            "mean_upper": (mean + half).assign_attrs(
-                _attrs(units, f"upper {confidence:.0%} confidence limit of the mean", method=MEAN_INTERVAL)
-            ),
+            **_limits("mean", mean - half, mean + half, units, "the mean", confidence, MEAN_INTERVAL),
         }
     )
 
@@ -118,12 +120,7 @@ def quantile_statistics(
     out = xr.Dataset(
         {
             "quantile_value": q.assign_attrs(_attrs(units, f"ensemble quantile of {name}", method=QUANTILE_METHOD)),
-            "quantile_lower": lo.assign_attrs(
-                _attrs(units, f"lower {confidence:.0%} confidence limit of the quantile", method=QUANTILE_INTERVAL)
-            ),
-            "quantile_upper": hi.assign_attrs(
-                _attrs(units, f"upper {confidence:.0%} confidence limit of the quantile", method=QUANTILE_INTERVAL)
-            ),
+            **_limits("quantile", lo, hi, units, "the quantile", confidence, QUANTILE_INTERVAL),
         },
         coords={"quantile": ("quantile", probs, {"long_name": "probability level", "units": "1"})},
     )

@@ -221,11 +221,12 @@ class _Table:
             self.invalid(key, hint)
         return value if integer else float(value)
 
-    def string(self, key, default=_REQUIRED, *, choices=None, hint=None):
+    def string(self, key, default=_REQUIRED, *, choices=None, hint=None, valid=lambda value: True):
+        """A string, one of ``choices`` if given, for which ``valid(value)`` holds if given."""
         hint = hint or (f"{key} must be one of {', '.join(map(json.dumps, choices))}" if choices
                         else f"{key} must be a string")
         value = self.raw(key, default, hint)
-        if not isinstance(value, str) or (choices is not None and value not in choices):
+        if not isinstance(value, str) or (choices is not None and value not in choices) or not valid(value):
             self.invalid(key, hint)
         return value
 
@@ -266,9 +267,8 @@ def _read_toml(path: Path, src: _Source) -> dict:
 
 def _study(src: _Source, doc: dict) -> dict:
     t = _Table(src, "study", doc.get("study", {}), ("name", "seed", "realizations", "chunk_size", "description"))
-    name = t.string("name", hint="name must be a non-empty string of letters, digits, '-' and '_'")
-    if not _NAME_RE.match(name):
-        t.invalid("name", "name must be a non-empty string of letters, digits, '-' and '_'")
+    name = t.string("name", hint="name must be a non-empty string of letters, digits, '-' and '_'",
+                    valid=_NAME_RE.match)
     return {
         "name": name,
         "seed": t.number("seed", integer=True, ge=0, lt=2**63),
@@ -624,9 +624,7 @@ def _report(src: _Source, doc: dict, rings: int) -> Report:
 
 def _output(src: _Source, doc: dict, name: str) -> tuple[Path, bool]:
     t = _Table(src, "output", doc.get("output", {}), ("directory", "float32"))
-    directory = t.string("directory", f"results/{name}", hint="directory must be a non-empty path")
-    if not directory:
-        t.invalid("directory", "directory must be a non-empty path")
+    directory = t.string("directory", f"results/{name}", hint="directory must be a non-empty path", valid=bool)
     float32 = t.raw("float32", False, "float32 must be true or false")
     if not isinstance(float32, bool):
         t.invalid("float32", "float32 must be true or false")
