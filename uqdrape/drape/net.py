@@ -15,6 +15,8 @@ Node (i, j) is stored at array index (i + n, j + n). Arms are ordered +i, +j, -i
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from .._jit import on_threads
@@ -47,8 +49,17 @@ class NetProblem:
         # The flat blank at nominal spacing (thesis Fig 5.2), (R, 3, 2): node (i, j) lies at
         # blank[0] + i blank[1] + j blank[2] (``ring._flat``).
         self.blank = np.stack([crossover, spacing * flat_e1, spacing * flat_e2], axis=1)
-        self.cell_s1 = 0.5 * (seg_i[:, :, :-1] + seg_i[:, :, 1:])
-        self.cell_s2 = 0.5 * (seg_j[:, :-1, :] + seg_j[:, 1:, :])
+
+    @functools.cached_property
+    def cell_s1(self):
+        """Fibre-1 segment length of each cell (R, 2n, 2n) mm, for the shear energy (not
+        computed for a geodesic net without a material)."""
+        return 0.5 * (self.seg_i[:, :, :-1] + self.seg_i[:, :, 1:])
+
+    @functools.cached_property
+    def cell_s2(self):
+        """Fibre-2 segment length of each cell (R, 2n, 2n) mm."""
+        return 0.5 * (self.seg_j[:, :-1, :] + self.seg_j[:, 1:, :])
 
     # -- shared stages -----------------------------------------------------------------
     def start(self):

@@ -37,6 +37,17 @@ def _per_realisation(name, value, tail, R):
     return np.array(a)
 
 
+def _segments(name, value, spacing, tail, R):
+    """Segment lengths (R, *tail) mm: the nominal ``spacing`` everywhere for None, else
+    ``value`` broadcast, checked finite and positive (raises naming the argument)."""
+    if value is None:
+        return np.full((R, *tail), float(spacing))
+    a = _per_realisation(name, value, tail, R)
+    if not (np.isfinite(a).all() and (a > 0).all()):
+        raise ValueError(f"{name}: every segment length must be finite and > 0 mm")
+    return a
+
+
 def _batch_size(**arrays):
     """Number of realisations implied by the leading axes of the batched arguments."""
     sizes = {name: np.shape(v)[0] for name, (v, ndim) in arrays.items()
@@ -119,22 +130,19 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     pre_shear = _per_realisation("pre_shear", pre_shear, (), R)
     skew = _per_realisation("skew", skew, (), R)
     crossover = _per_realisation("crossover", crossover, (2,), R)
-    seg_i = np.full((R, 2 * n, 2 * n + 1), float(spacing)) if seg_i is None else \
-        _per_realisation("seg_i", seg_i, (2 * n, 2 * n + 1), R)
-    seg_j = np.full((R, 2 * n + 1, 2 * n), float(spacing)) if seg_j is None else \
-        _per_realisation("seg_j", seg_j, (2 * n + 1, 2 * n), R)
+    seg_i = _segments("seg_i", seg_i, spacing, (2 * n, 2 * n + 1), R)
+    seg_j = _segments("seg_j", seg_j, spacing, (2 * n + 1, 2 * n), R)
+    if gamma0 is not None and not np.isfinite(gamma0).all():
+        raise ValueError("gamma0 must be finite (deg)")
     gamma0 = np.zeros((R, 2 * n, 2 * n)) if gamma0 is None else _per_realisation("gamma0", gamma0, (2 * n, 2 * n), R)
     force = _per_realisation("blankholder_force", blankholder_force, (), R)
     mu = _per_realisation("friction", friction, (), R)
     if np.isnan(crossover).any():
         raise ValueError(f"crossover must be finite (mm), got NaN in {crossover[np.isnan(crossover).any(-1)][0]}")
-    for name, a in (("seg_i", seg_i), ("seg_j", seg_j)):
-        if not (np.isfinite(a).all() and (a > 0).all()):
-            raise ValueError(f"{name}: every segment length must be finite and > 0 mm")
     for name, a, lo in (("blankholder_force", force, 0.0), ("friction", mu, 0.0)):
         if not (np.isfinite(a).all() and (a >= lo).all()):
             raise ValueError(f"{name} must be finite and >= {lo:g}, got {float(a[~((a >= lo) & np.isfinite(a))][0]):g}")
-    for name, a in (("orientation", orientation), ("pre_shear", pre_shear), ("skew", skew), ("gamma0", gamma0)):
+    for name, a in (("orientation", orientation), ("pre_shear", pre_shear), ("skew", skew)):
         if not np.isfinite(a).all():
             raise ValueError(f"{name} must be finite (deg)")
     if (np.abs(pre_shear + skew) >= 90).any():
