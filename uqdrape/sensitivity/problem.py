@@ -9,6 +9,7 @@ Sobol'/Morris rank the field as a whole.
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Mapping
 
 from SALib.util import extract_group_names
@@ -84,7 +85,7 @@ def check_problem(problem: Mapping) -> list[str]:
         if dist not in _SALIB_DISTS:
             raise ValueError(f"problem dist {dist!r} is not supported; valid: {', '.join(_SALIB_DISTS)}")
     names = list(problem["names"])
-    repeated = sorted({name for name in names if names.count(name) > 1})
+    repeated = sorted(name for name, count in Counter(names).items() if count > 1)
     if repeated:
         raise ValueError(f"problem names must be unique; repeated: {repeated}")
     labels, n_groups = extract_group_names(problem)
