@@ -147,6 +147,7 @@ def test_a_draw_in_limit_no_design_keeps_gives_the_least_infeasible_design_and_s
                                         "no evaluated design keeps it.")
 
 
+@pytest.mark.slow  # end to end: two design runs and their reports
 def test_design_report_shows_the_draw_in_limit(tmp_path, unrasterised):
     from uqdrape.geometry import build
     from uqdrape.report import write_design_report
@@ -189,6 +190,7 @@ def test_draw_in_is_zero_on_a_plate_and_the_arc_deficit_on_a_hemisphere():
     assert bool(d.sel(i=slice(-n + 1, n - 1), j=slice(-n + 1, n - 1)).isnull().all())
 
 
+@pytest.mark.slow  # end to end: a design run, killed, resumed
 def test_interrupted_design_resumes_to_the_same_result(tmp_path):
     text = ('variables = "force"\nforce_bounds_N = [0.0, 1000.0]\nobjective = "q95_max_abs_shear"\nstatistic = "estimate"\n'
             'tolerance_N = 2.0\nmax_evaluations = 30\n')

@@ -263,6 +263,7 @@ def test_a_sampled_force_is_stored_per_drape_beside_its_nominal_level(tmp_path):
     assert varying_factors(ds) == ["blankholder_force", "friction"]
 
 
+@pytest.mark.slow  # end to end: an energy sweep run
 def test_energy_sweep_uses_common_random_numbers(tmp_path):
     path = study_file(tmp_path, name="sweep", mode="energy", rings=4, realizations=6, chunk_size=4,
                       force="[0.0, 300.0]")
@@ -334,6 +335,7 @@ def test_interrupted_run_resumes_to_the_same_ensemble(tmp_path, reference):
         assert_same_numbers(ds, ref)
 
 
+@pytest.mark.slow  # end to end: two resumed runs
 def test_half_written_part_file_is_never_a_finished_chunk(tmp_path, reference):
     study, ref = reference
     study = moved(study, tmp_path)

@@ -326,6 +326,7 @@ def test_cli_bad_result_is_one_line(tmp_path, capsys):
     assert len(err) == 2 and "no such file" in err[0] and "not a netCDF file" in err[1]
 
 
+@pytest.mark.slow  # end to end: a sweep run and its export
 def test_ensemble_export_per_force_level(tmp_path):
     from uqdrape.workflow import run_study
 

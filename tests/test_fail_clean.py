@@ -103,6 +103,7 @@ def test_a_stale_lock_of_a_dead_process_is_taken_over(tmp_path):
 # ----------------------------------------------------------------------------- I/O faults
 
 
+@pytest.mark.slow  # end to end: a reference run, a failing run and its resume
 def test_a_full_disk_is_one_line_leaves_no_part_file_and_resumes_equal(tmp_path, capsys, monkeypatch):
     path = study_file(tmp_path)
     reference = run_study(study_file(tmp_path, "ref", out=tmp_path / "ref"), scheduler="synchronous", progress=False)
@@ -178,6 +179,7 @@ def test_a_study_whose_net_leaves_the_mould_is_refused_before_draping(tmp_path, 
     assert list((tmp_path / "ok" / "chunks").glob("*")) == []
 
 
+@pytest.mark.slow  # end to end: a 34-ring run and its report
 def test_a_run_within_its_failure_budget_reports_the_status_counts_instead_of_failing(tmp_path, capsys, unrasterised):
     # 2 x 34 x 5 mm of net on a 50 mm dome with a 100 mm flange: most nodes fall off the mould
     path = study_file(tmp_path, rings=34, realizations=2)

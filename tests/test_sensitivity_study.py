@@ -86,7 +86,8 @@ def study_file(tmp_path, name="sens", *, force="[0.0, 378.0]", rings=6, base=128
 
 @pytest.fixture(scope="module")
 def sweep_run(tmp_path_factory):
-    """(study, output folder) of the friction + zero-angle Sobol' study at 0 and 378 N."""
+    """(study, output folder) of the friction + zero-angle Sobol' study at 0 and 378 N:
+    1,024 energy drapes and their analysis, so the tests that use it are marked slow."""
     tmp = tmp_path_factory.mktemp("sweep")
     study = load_study(study_file(tmp))
     return study, run_study(study, scheduler="synchronous", progress=False)
@@ -95,6 +96,7 @@ def sweep_run(tmp_path_factory):
 # ----------------------------------------------------------------------------- physics
 
 
+@pytest.mark.slow  # end to end: uses sweep_run
 def test_friction_does_nothing_without_a_blankholder(sweep_run):
     _, out = sweep_run
     ind, maps = open_sensitivity(out)
@@ -107,6 +109,7 @@ def test_friction_does_nothing_without_a_blankholder(sweep_run):
     assert bool(ind.output_constant.sel(qoi="blankholder_energy", blankholder_force=0.0))
 
 
+@pytest.mark.slow  # end to end: uses sweep_run
 def test_friction_drives_blankholder_energy_at_the_highest_force(sweep_run):
     _, out = sweep_run
     ind, _ = open_sensitivity(out)
@@ -119,6 +122,7 @@ def test_friction_drives_blankholder_energy_at_the_highest_force(sweep_run):
     assert float(asym.sel(blankholder_force=378.0)) < float(asym.sel(blankholder_force=0.0)) - 0.4
 
 
+@pytest.mark.slow  # end to end: uses sweep_run
 def test_zero_angle_field_alone_gives_total_index_one(sweep_run):
     """At 0 N only the zero-angle field acts (friction is inert, checked above): the group
     carries all the variance of the asymmetry, ST = 1 within its confidence interval."""
@@ -132,6 +136,7 @@ def test_zero_angle_field_alone_gives_total_index_one(sweep_run):
     assert str(ind.factor_kind.sel(factor="zero_angle").values) == "field"
 
 
+@pytest.mark.slow  # end to end: uses sweep_run
 def test_design_rows_are_the_realisations_at_every_level(sweep_run):
     """Common random numbers: the same design rows (friction, zero-angle field) at both forces."""
     study, out = sweep_run
@@ -150,6 +155,7 @@ def test_design_rows_are_the_realisations_at_every_level(sweep_run):
 # ----------------------------------------------------------------------------- stored results
 
 
+@pytest.mark.slow  # end to end: uses sweep_run
 def test_stored_indices_have_intervals_sample_size_and_units(sweep_run):
     _, out = sweep_run
     ind, maps = open_sensitivity(out)
@@ -169,6 +175,7 @@ def test_stored_indices_have_intervals_sample_size_and_units(sweep_run):
     assert bool(maps.output_constant.sel(i=0, j=0).all())
 
 
+@pytest.mark.slow  # end to end: uses sweep_run
 def test_stored_indices_round_trip_and_equal_a_recomputation(sweep_run, tmp_path):
     study, out = sweep_run
     ind, _ = open_sensitivity(out)
@@ -179,6 +186,7 @@ def test_stored_indices_round_trip_and_equal_a_recomputation(sweep_run, tmp_path
     xr.testing.assert_identical(again.drop_attrs(), ind.drop_attrs())
 
 
+@pytest.mark.slow  # end to end: uses sweep_run
 def test_qois_of_a_drape(sweep_run):
     _, out = sweep_run
     with open_ensemble(out) as ds:

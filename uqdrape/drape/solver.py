@@ -6,9 +6,9 @@ import functools
 import json
 import multiprocessing
 import numbers
-import os
 import threading
 
+import numba
 import numpy as np
 import xarray as xr
 
@@ -59,11 +59,12 @@ def _batch_size(**arrays):
 
 
 def default_threads():
-    """Threads sharing a batch: one per core for a call from the main thread of the main
-    process, else 1, because ensemble workers (one process per core) and the threads of a
-    thread pool already share the cores among themselves."""
+    """Threads sharing a batch: numba's thread count (one per core unless the environment
+    sets NUMBA_NUM_THREADS) for a call from the main thread of the main process, else 1,
+    because ensemble workers (one process per core) and the threads of a thread pool
+    already share the cores among themselves."""
     if multiprocessing.parent_process() is None and threading.current_thread() is threading.main_thread():
-        return os.cpu_count() or 1
+        return numba.config.NUMBA_NUM_THREADS
     return 1
 
 
