@@ -6,7 +6,7 @@ Issue 10 asked that the package's lines "go down, not up". It is read as a rule 
 redesign's own changes, because the issues after it (fail-clean, design, exports, compiled
 kernels) were meant to add code. By this count the redesign's commits came to -239 lines:
 the house commit +26, the report plans -109, the force dimension -21 and -35, and the later
-consolidation -100. Over the same time the package grew from 6,042 to 7,801 lines with those
+consolidation -100. Over the same time the package grew from 6,042 to 7,819 lines with those
 features.
 """
 import ast, io, sys, tokenize, pathlib
