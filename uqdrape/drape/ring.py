@@ -107,8 +107,12 @@ def boundary_blankholder(n, k, P, blank, centre, force, mu, bh, out):
     """Blank-holder energy (J) of ring k's boundary polygon per quadrant, out (R, 4), for the
     nets P (R, N, N, 3) of a block: per quadrant (si, sj) its fibre-2 segments
     (si k, j)-(si k, j + 1) and fibre-1 segments (i, sj k)-(i + 1, sj k); unplaced ends
-    add nothing. blank (R, 3, 2), centre (R, 2), force and mu (R,) as in ``sides``."""
+    add nothing. blank (R, 3, 2), centre (R, 2), force and mu (R,) as in ``sides``. Without
+    force every segment's energy is 0, so it is not evaluated (a geodesic drape's case)."""
     for r in range(P.shape[0]):
+        if force[r] == 0.0:
+            out[r] = 0.0
+            continue
         for q in range(4):
             si, sj = CORNERS[q][4], CORNERS[q][5]
             total = 0.0

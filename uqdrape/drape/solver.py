@@ -176,7 +176,7 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
         else:
             solved = EnergyRings(prob, material.bending_stiffness, np.deg2rad(tolerance),
                                  int(max_iterations), np.deg2rad(max_turn), threads).run(progress)
-        blocks.append(_dataset(prob, *solved, mode, {k: v[b] for k, v in stored.items()}, threads))
+        blocks.append(_dataset(prob, *solved, mode, {k: v[b] for k, v in stored.items()}, gamma0[b], threads))
     if len(blocks) == 1:
         return blocks[0]
     ds = xr.concat(blocks, dim="realization", data_vars="minimal", coords="minimal", compat="override",
@@ -216,7 +216,8 @@ def _coords(R, n):
                            "ring": np.arange(1, n + 1), "arm": ["+i", "+j", "-i", "-j"], "quadrant": list(QUADRANTS)})
 
 
-def _dataset(prob, P, status, turns, bending, iterations, converged, mode, factors, threads):
+def _dataset(prob, P, status, turns, bending, iterations, converged, mode, factors, gamma0_deg, threads):
+    """The drape Dataset of one block; ``gamma0_deg`` is the caller's zero-energy angles (deg)."""
     n = prob.n
     gamma = cell_shear(P, threads)
     material = prob.material
@@ -237,20 +238,24 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
         n, n, P[r], prob.blank[r], prob.crossover[r], bhk.force[r], bhk.friction[r], bhk.kernel, bh[r]))
     node = ("realization", "i", "j")
     cell = ("realization", "cell_i", "cell_j")
+    # to degrees in place, after every use in radians: fresh (R, N, N) copies cost page faults
+    node_shear = node_mean(gamma, threads)
+    np.rad2deg(node_shear, out=node_shear)
+    np.rad2deg(gamma, out=gamma)
     total = np.nan_to_num(shear_energy) + bending + bh.sum(-1)
     variables = {
         "x": (node, P[..., 0], {"units": "mm", "long_name": "node x"}),
         "y": (node, P[..., 1], {"units": "mm", "long_name": "node y"}),
         "z": (node, P[..., 2], {"units": "mm", "long_name": "node z (height)"}),
-        "shear": (node, np.rad2deg(node_mean(gamma, threads)),
+        "shear": (node, node_shear,
                   {"units": "degree", "long_name": "node shear angle (mean of adjacent cells)"}),
         "status": (node, status, {"long_name": "node status", "units": "1", "flag_values": [s.value for s in Status],
                                   "flag_meanings": " ".join(s.name.lower() for s in Status)}),
-        "cell_shear": (cell, np.rad2deg(gamma), {"units": "degree", "long_name": "signed cell shear angle"}),
+        "cell_shear": (cell, gamma, {"units": "degree", "long_name": "signed cell shear angle"}),
         "cell_locked": (cell, locked, {"long_name": "cell sheared beyond the locking angle", "units": "1"}),
         "locked": (node, node_locked, {"units": "1", "long_name": "node next to a cell sheared beyond "
                                        "its branch's locking angle (1) or not (0); NaN: invalid node"}),
-        "gamma0": (cell, np.rad2deg(prob.gamma0), {"units": "degree", "long_name": "zero-energy shear angle"}),
+        "gamma0": (cell, gamma0_deg, {"units": "degree", "long_name": "zero-energy shear angle"}),
         "turn": (("realization", "ring", "arm"), np.rad2deg(turns),
                  {"units": "degree", "long_name": "generator-arm turn angle about the surface normal"}),
         "energy_shear": ("realization", shear_energy, {"units": "J", "long_name": "shear energy"}),

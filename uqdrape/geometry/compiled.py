@@ -35,13 +35,7 @@ _STL_HEADER = 12
 
 @jit
 def _revolution(kind, p, r):
-    """Profile f(r) (mm) and slope df/dr of a surface of revolution."""
-    if kind == HEMISPHERE:
-        R = p[1]
-        q = R * R - r * r
-        f = math.sqrt(max(q, 0.0))
-        root = max(math.sqrt(max(q, 0.0)), 1e-9 * R)
-        return f, (-r / root if q > 0 else 0.0)
+    """Profile f(r) (mm) and slope df/dr of a cone or nose cone."""
     if kind == CONE:
         f = max(p[1] - r * p[2], 0.0)
         return f, (-p[2] if r < p[3] else 0.0)
@@ -120,7 +114,15 @@ def height_gradient(kind, p, x, y):
         return math.nan, math.nan, math.nan
     if kind == PLATE:
         return 0.0, 0.0, 0.0
-    if kind == HEMISPHERE or kind == CONE or kind == NOSE_CONE:
+    if kind == HEMISPHERE:  # h = sqrt(R^2 - x^2 - y^2), dh/dx = -x / h: no plan radius needed
+        R = p[1]
+        q = R * R - (x * x + y * y)
+        if q <= 0.0:
+            return 0.0, 0.0, 0.0
+        f = math.sqrt(q)
+        k = -1.0 / max(f, 1e-9 * R)
+        return f, k * x, k * y
+    if kind == CONE or kind == NOSE_CONE:
         r = math.sqrt(x * x + y * y)  # not hypot: no overflow to guard against, and 3x faster
         f, slope = _revolution(kind, p, r)
         k = slope / max(r, R_EPS)
