@@ -7,6 +7,8 @@ downwards and keeping the first hit) and interpolates it with a cubic
 node solver's Newton steps converge. The spline is fitted by scipy and evaluated by the
 compiled mould kernel (``compiled.height_gradient``, kind STL) like every other mould. trimesh's own ray casting needs the optional
 ``rtree`` package, so the z-buffer uses trimesh's barycentric coordinates instead.
+trimesh is imported where a mesh is read or written: its second of import time is not
+paid by every process that drapes (ensemble workers, the CLI) for the analytic moulds.
 
 ``export_stl`` writes any Surface's height field as a binary STL. The test mesh
 ``tests/data/hemisphere_r50.stl`` is regenerated from the repository root with::
@@ -20,7 +22,6 @@ import math
 from pathlib import Path
 
 import numpy as np
-import trimesh
 from scipy.interpolate import RectBivariateSpline
 from scipy.ndimage import distance_transform_edt
 
@@ -46,6 +47,8 @@ def _top_heights(triangles: np.ndarray, xg: np.ndarray, yg: np.ndarray) -> np.nd
     Returns an array of shape (len(xg), len(yg)). Triangles that are vertical in plan
     (zero plan area) are skipped: their edges belong to neighbouring triangles.
     """
+    import trimesh
+
     top = np.full((xg.size, yg.size), -np.inf)
     plan = triangles[:, :, :2]
     e1, e2 = plan[:, 1] - plan[:, 0], plan[:, 2] - plan[:, 0]
@@ -112,6 +115,8 @@ class StlSurface(Surface):
         if not (math.isfinite(res) and res > 0):
             raise ValueError(f"resolution_mm must be a positive length in mm, got {resolution_mm!r}")
         self.resolution_mm = res
+        import trimesh
+
         try:
             mesh = trimesh.load_mesh(self.path, file_type="stl")
         except Exception as err:  # trimesh raises assorted types on unreadable files
@@ -182,6 +187,8 @@ def export_stl(surface: Surface, path, half_width: float | None = None, resoluti
     faces = faces[ok[faces].all(axis=1)]
     if faces.size == 0:
         raise ValueError("no triangle lies inside the surface's domain; check half_width")
+    import trimesh
+
     out = Path(path)
     trimesh.Trimesh(vertices=vertices, faces=faces, process=False).export(out, file_type="stl")
     return out

@@ -5,8 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 
 def plot_material(material, path):
@@ -15,6 +13,10 @@ def plot_material(material, path):
     Negative shear is plotted at negative angles with a negative force, as the solver
     sees it; dashed lines mark the locking angles. Returns the path written.
     """
+    # imported here, not with the material model: the solver's processes need no matplotlib
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
     path = Path(path)
     gamma_deg = np.linspace(-material.locking_angle_neg_deg, material.locking_angle_deg, 601)
     gamma = np.deg2rad(gamma_deg)
