@@ -7,22 +7,28 @@ from pathlib import Path
 import numpy as np
 
 
+def _figure(width_in, height_in):
+    """A matplotlib Figure on the Agg canvas. matplotlib is imported here, not with the
+    material model, so the solver's processes do not pay for it."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width_in, height_in), layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
 def plot_material(material, path):
     """Write a PNG of N_s (N/m) and W (J/m²) against shear angle (deg), -locking..+locking.
 
     Negative shear is plotted at negative angles with a negative force, as the solver
     sees it; dashed lines mark the locking angles. Returns the path written.
     """
-    # imported here, not with the material model: the solver's processes need no matplotlib
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
     path = Path(path)
     gamma_deg = np.linspace(-material.locking_angle_neg_deg, material.locking_angle_deg, 601)
     gamma = np.deg2rad(gamma_deg)
 
-    fig = Figure(figsize=(9.0, 3.8), layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = _figure(9.0, 3.8)
     ax_f, ax_w = fig.subplots(1, 2)
     pos, neg = gamma_deg >= 0.0, gamma_deg <= 0.0
     for ax, values, ylabel in (
@@ -56,8 +62,7 @@ def plot_architecture(arch, path, terms=None, gamma0_deg=None):
     path = Path(path)
     terms = summed(arch) if terms is None else terms
     deg = np.rad2deg(terms["theta"])
-    fig = Figure(figsize=(10.0, 4.0), layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = _figure(10.0, 4.0)
     ax_t, ax_s = fig.subplots(1, 2)
     colours = {"stitch_tension": "tab:red", "stitch_friction": "tab:orange", "compaction": "tab:blue",
                "crossover": "tab:green", "total": "k"}
