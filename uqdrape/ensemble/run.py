@@ -36,6 +36,7 @@ from ..conventions import cf_encode
 from ..schema import at_level
 from ..study import Study
 from ..drape import placement_failures
+from ..stochastic.inputs import positive_int
 from .chunk import drape_inputs, write_atomic
 from .inputs import inputs_from_design, sampled_inputs
 from .hygiene import local_pool, orphaned, run_lock
@@ -89,12 +90,6 @@ def _drape(study: Study, r, force: float, design_rows):
     """Drape realisations ``r`` of the study's sample, or the design rows ``design_rows`` (one per r)."""
     inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows)
     return drape_inputs(study, r, inputs, force=force)
-
-
-def _positive_int(name: str, value) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise ValueError(f"{name} must be a positive integer, got {value!r}")
-    return int(value)
 
 
 def _identity(manifest: dict) -> dict:
@@ -197,12 +192,12 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
     and must see the output folder (a shared file system).
     """
     start = time.perf_counter()
-    chunk_size = study.chunk_size if chunk_size is None else _positive_int("chunk_size", chunk_size)
+    chunk_size = study.chunk_size if chunk_size is None else positive_int("chunk_size", chunk_size)
     if scheduler is not None and not (isinstance(scheduler, str) and (scheduler in LOCAL_SCHEDULERS or "://" in scheduler)):
         raise ValueError(f"scheduler must be None, one of {LOCAL_SCHEDULERS} or a dask.distributed "
                          f"address such as 'tcp://host:8786', got {scheduler!r}")
     if workers is not None:
-        workers = _positive_int("workers", workers)
+        workers = positive_int("workers", workers)
         if scheduler is not None and scheduler not in LOCAL_SCHEDULERS:
             raise ValueError(f"workers={workers} sets local processes; the cluster at {scheduler} has its own workers")
     out = Path(study.output_dir if output_dir is None else output_dir).absolute()

@@ -18,10 +18,11 @@ import numpy as np
 from .fields import GaussianField
 
 
-def _rings(rings) -> int:
-    if isinstance(rings, bool) or not isinstance(rings, (int, np.integer)) or rings < 1:
-        raise ValueError(f"rings must be a positive integer, got {rings!r}")
-    return int(rings)
+def positive_int(name: str, value) -> int:
+    """``value`` as an int, or ValueError naming ``name`` unless it is an integer >= 1."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    return int(value)
 
 
 def _spacing(spacing_mm) -> float:
@@ -78,7 +79,7 @@ class SpacingInput(_FieldInput):
     """
 
     def __init__(self, rings: int, spacing_mm: float, cv: float, correlation: str = "iid", length_mm=None):
-        n = _rings(rings)
+        n = positive_int("rings", rings)
         self.spacing_mm = _spacing(spacing_mm)
         if not isinstance(cv, (int, float, np.number)) or not 0.0 <= cv < 1.0:
             raise ValueError(f"cv (spacing coefficient of variation) must be in [0, 1), got {cv!r}")
@@ -109,7 +110,7 @@ class ZeroAngleInput(_FieldInput):
 
     def __init__(self, rings: int, spacing_mm: float, mean_deg: float, sd_deg: float,
                  correlation: str = "iid", length_mm=None):
-        n = _rings(rings)
+        n = positive_int("rings", rings)
         ok = all(isinstance(v, (int, float, np.number)) and math.isfinite(v) for v in (mean_deg, sd_deg))
         if not ok or not abs(mean_deg) < 90.0 or sd_deg < 0:
             raise ValueError(
@@ -142,7 +143,7 @@ class PrestrainInput(_FieldInput):
 
     def __init__(self, rings: int, spacing_mm: float, mean: float, sd: float, to_gamma0,
                  correlation: str = "iid", length_mm=None):
-        n = _rings(rings)
+        n = positive_int("rings", rings)
         ok = all(isinstance(v, (int, float, np.number)) and math.isfinite(v) for v in (mean, sd))
         if not ok or sd < 0:
             raise ValueError(f"stitch pre-strain needs finite mean and sd >= 0 (fractions), got mean={mean!r}, sd={sd!r}")
