@@ -11,6 +11,7 @@ Two orders of construction share the compiled node kernels:
   compiled per realisation (``ring``).
 
 Node (i, j) is stored at array index (i + n, j + n). Arms are ordered +i, +j, -i, -j.
+``net_quads`` gives the cells of a net's valid nodes, for meshes and maps.
 """
 
 from __future__ import annotations
@@ -87,6 +88,17 @@ class NetProblem:
         vx, vy = np.cos(a), np.sin(a)
         w = -(n[..., 0] * vx + n[..., 1] * vy)
         return np.stack([vx + n[..., 0] * w / (1 + n[..., 2]), vy + n[..., 1] * w / (1 + n[..., 2]), w], axis=-1)
+
+
+def net_quads(valid: np.ndarray):
+    """Points and quads of the nodes ``valid`` (N, N) bool: (flat node indices of the kept
+    points, quads (M, 4) into those points, counter-clockwise in (i, j))."""
+    index = np.full(valid.shape, -1)
+    kept = np.flatnonzero(valid.ravel())
+    index.ravel()[kept] = np.arange(kept.size)
+    corners = np.stack([index[:-1, :-1], index[1:, :-1], index[1:, 1:], index[:-1, 1:]], axis=-1)
+    quads = corners[(corners >= 0).all(-1)]
+    return kept, quads.reshape(-1, 4)
 
 
 def build_geodesic(prob: NetProblem, threads=1):

@@ -14,6 +14,7 @@ from pathlib import Path
 import meshio
 import numpy as np
 
+from ..drape.net import net_quads
 from .directions import fibre_deviation, fibre_directions
 from .files import write_all
 from .result import Level, surface_of
@@ -22,17 +23,6 @@ from .result import Level, surface_of
 MOULD_GRID = 120
 #: Margin (fraction of the net's plan extent) of the mould grid around the net.
 MOULD_MARGIN = 0.15
-
-
-def net_quads(valid: np.ndarray):
-    """Points and quads of the nodes ``valid`` (N, N) bool: (flat node indices of the kept
-    points, quads (M, 4) into those points, counter-clockwise in (i, j))."""
-    index = np.full(valid.shape, -1)
-    kept = np.flatnonzero(valid.ravel())
-    index.ravel()[kept] = np.arange(kept.size)
-    corners = np.stack([index[:-1, :-1], index[1:, :-1], index[1:, 1:], index[:-1, 1:]], axis=-1)
-    quads = corners[(corners >= 0).all(-1)]
-    return kept, quads.reshape(-1, 4)
 
 
 def net_mesh(level: Level, surface) -> meshio.Mesh:

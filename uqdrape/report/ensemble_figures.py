@@ -20,6 +20,7 @@ from matplotlib.tri import Triangulation
 from scipy import stats
 
 from uqdrape.drape.lines import max_shear_lines
+from uqdrape.drape.net import net_quads
 from uqdrape.schema import FORCE, QUADRANTS, REALIZATION, SOLVER_INPUTS
 from uqdrape.stats import (
     convergence,
@@ -68,12 +69,8 @@ def mean_positions(ds: xr.Dataset) -> xr.Dataset:
 
 def triangulation(x: np.ndarray, y: np.ndarray, valid: np.ndarray):
     """Triangles (two per net cell with four valid nodes) on the valid nodes; (Triangulation, flat index)."""
-    index = np.full(valid.shape, -1)
-    used = np.flatnonzero(valid)
-    index.flat[used] = np.arange(used.size)
-    a, b, c, d = index[:-1, :-1], index[1:, :-1], index[1:, 1:], index[:-1, 1:]
-    ok = (a >= 0) & (b >= 0) & (c >= 0) & (d >= 0)
-    tris = np.concatenate([np.stack([a[ok], b[ok], c[ok]], -1), np.stack([a[ok], c[ok], d[ok]], -1)])
+    used, quads = net_quads(valid)
+    tris = np.concatenate([quads[:, :3], quads[:, [0, 2, 3]]])
     if tris.size == 0:
         raise ValueError("no net cell has four valid nodes; nothing to map")
     return Triangulation(x.flat[used], y.flat[used], tris), used
