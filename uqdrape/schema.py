@@ -1,5 +1,6 @@
 """Names shared by every stage: ensemble dimensions and variables, quadrant labels, the
-table of the solver's scalar inputs, and the ensemble layout of a drape Dataset.
+dims of a net site, the table of the solver's scalar inputs, and the ensemble layout of a
+drape Dataset.
 
 Everything that reads or writes a drape or ensemble Dataset takes its names from here, so
 that a dimension, a quadrant or an input is spelt once. The module imports nothing of
@@ -35,6 +36,16 @@ APPLIED_FORCE = "applied_blankholder_force"
 QUADRANTS = ("++", "-+", "--", "+-")
 PLUS_QUADRANTS = ("++", "--")
 MINUS_QUADRANTS = ("-+", "+-")
+
+
+def site_dims(da: xr.DataArray) -> tuple[str, str]:
+    """The dims naming one site of the net: ("i", "j") for a node variable, ("cell_i",
+    "cell_j") for a cell variable; ValueError for any other."""
+    for dims in (("i", "j"), ("cell_i", "cell_j")):
+        if set(dims) <= set(da.dims):
+            return dims
+    raise ValueError(f"variable {da.name!r} has dims {da.dims}; expected a node (i, j) or cell "
+                     "(cell_i, cell_j) variable")
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 from PIL import Image
 
 from uqdrape.drape.lines import max_shear_lines
-from uqdrape.schema import FORCE, QUADRANTS, REALIZATION, by_force
+from uqdrape.schema import FORCE, QUADRANTS, REALIZATION, by_force, site_dims
 
 from ..experimental import as_experimental
 
@@ -155,14 +155,6 @@ def suptitle(fig: Figure, head: str, detail: str = "") -> None:
         fig.suptitle(f"{textwrap.fill(head, width)}\n{textwrap.fill(detail, width)}")
 
 
-def _site_dims(da: xr.DataArray) -> tuple[str, str]:
-    for dims in (("i", "j"), ("cell_i", "cell_j")):
-        if set(dims) <= set(da.dims):
-            return dims
-    raise ValueError(f"variable {da.name!r} has dims {da.dims}; plot_net needs a node (i, j) or cell "
-                     "(cell_i, cell_j) variable")
-
-
 def signed_norm(values: np.ndarray, units: str | None):
     """(norm, cmap): diverging and centred on 0 for angles or signed data, else sequential."""
     finite = values[np.isfinite(values)]
@@ -200,7 +192,7 @@ def plot_net(ds: xr.Dataset, path, var: str = "shear", realization: int = 0, tit
     if missing:
         raise ValueError(f"plot_net needs node positions x, y, z; missing {missing}")
     r = check_realization(ds, realization)
-    site = _site_dims(ds[var])
+    site = site_dims(ds[var])
     extra = [d for d in (*ds["x"].dims, *ds[var].dims) if d not in ("i", "j", REALIZATION, FORCE, *site)]
     if extra:
         raise ValueError(f"plot_net draws one net per blank-holder level; the Dataset also has dims "

@@ -8,7 +8,7 @@ import numpy as np
 import xarray as xr
 from scipy import stats
 
-from ..schema import REALIZATION
+from ..schema import REALIZATION, site_dims
 
 
 def check_confidence(confidence: float) -> float:
@@ -34,12 +34,7 @@ def get_variable(ds: xr.Dataset, var: str) -> xr.DataArray:
 
 def select_site(da: xr.DataArray, node: Sequence) -> xr.DataArray:
     """Select one node (i, j) -- or one cell (cell_i, cell_j) for a cell variable."""
-    if "i" in da.dims and "j" in da.dims:
-        names = ("i", "j")
-    elif "cell_i" in da.dims and "cell_j" in da.dims:
-        names = ("cell_i", "cell_j")
-    else:
-        raise ValueError(f"variable {da.name!r} has dims {da.dims}; a node needs (i, j) or (cell_i, cell_j)")
+    names = site_dims(da)
     if len(node) != 2:
         raise ValueError(f"node must be a pair {names}, got {node!r}")
     for name, value in zip(names, node):
