@@ -405,6 +405,47 @@ def test_write_report_bad_input_writes_nothing(ensemble, tmp_path):
     assert not out.exists()
 
 
+def _numbers(record, prefix=""):
+    """The leaves of a summary record as {path: value}."""
+    if isinstance(record, dict):
+        return {k: v for key, sub in record.items() for k, v in _numbers(sub, f"{prefix}/{key}").items()}
+    if isinstance(record, list):
+        return {k: v for n, sub in enumerate(record) for k, v in _numbers(sub, f"{prefix}/{n}").items()}
+    return {prefix: record}
+
+
+def test_a_small_lazy_ensemble_is_read_once_and_reports_the_same(ensemble, tmp_path, unrasterised, monkeypatch):
+    """A dask-backed ensemble of at most LOAD_BYTES is computed in one pass before the
+    statistics; above it every statistic computes lazily. Both reports hold the same numbers
+    (to the order of summation) and the same figures."""
+    from dask.callbacks import Callback
+
+    from uqdrape.report import html
+
+    lazy = ensemble.chunk({"realization": 4})
+    passes = []
+
+    class Count(Callback):
+        def _start(self, dsk):
+            passes.append(1)
+
+    with Count():
+        write_report(lazy, tmp_path / "loaded", title="t")
+    assert len(passes) == 1
+    monkeypatch.setattr(html, "LOAD_BYTES", 0)
+    passes.clear()
+    with Count():
+        write_report(lazy, tmp_path / "lazy", title="t")
+    assert len(passes) > 10
+    loaded, lazy_ = (_numbers(json.loads((tmp_path / d / "summary.json").read_text())) for d in ("loaded", "lazy"))
+    assert loaded.keys() == lazy_.keys()
+    for key, value in loaded.items():
+        if isinstance(value, float) and "provenance" not in key:
+            assert value == pytest.approx(lazy_[key], rel=1e-12, abs=1e-12), key
+        elif "provenance" not in key:
+            assert value == lazy_[key], key
+
+
 def test_default_histogram_nodes_follow_the_thesis(ensemble):
     ds = by_force(ensemble)
     assert default_histogram_nodes(ds, node_statistics(ds)) == [(6, 6), (-6, 6)]

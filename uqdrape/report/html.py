@@ -146,6 +146,11 @@ def _check_extra(summary) -> dict:
     return dict(summary)
 
 
+#: Ensembles up to this size (bytes) are read into memory once for their report; the
+#: statistics and figures otherwise compute lazily (dask), each re-reading the chunk files.
+LOAD_BYTES = 2**30
+
+
 def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None = None,
                  study_text: str | None = None, histogram_nodes: Sequence[Sequence[int]] | None = None,
                  experimental_csv=None, summary: Mapping | None = None, sensitivity: xr.Dataset | None = None,
@@ -153,7 +158,8 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None
     """Write the figures of ensemble ``ds``'s report plan, ``summary.json`` and ``index.html``
     into ``out_dir``; returns the index.html path.
 
-    ``ds``: ensemble or drape Dataset (put in the ensemble layout, ``uqdrape.schema.by_force``);
+    ``ds``: ensemble or drape Dataset (put in the ensemble layout, ``uqdrape.schema.by_force``;
+    read into memory first if it is at most ``LOAD_BYTES``);
     its kind (``uqdrape.stats.study_kind``) picks the figures (``uqdrape.report.plan``).
     ``title``: short page title; ``description``: a sentence under it. ``study_text``:
     the study TOML, shown once, verbatim. ``histogram_nodes``: [(i, j), ...] (default:
@@ -166,6 +172,8 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None
     """
     if REALIZATION not in ds.dims:
         raise ValueError(f"write_report needs an ensemble Dataset with a {REALIZATION!r} dim; dims: {dict(ds.sizes)}")
+    if ds.nbytes <= LOAD_BYTES:  # one read of the chunk files, not one per statistic
+        ds = ds.compute()
     ds = by_force(ds)
     if not isinstance(title, str) or not title.strip():
         raise ValueError(f"title must be a non-empty string, got {title!r}")
