@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from uqdrape.drape import drape, net, ring
+from uqdrape.drape import drape, net
 from uqdrape.drape.status import Status
 from uqdrape.geometry import build
 from uqdrape.material import load_material
@@ -62,11 +62,7 @@ def _steps_from(ref):
             P = np.where(inner[None, :, :, None], P_ref, np.nan)
             status = np.where(inner[None], status_ref, np.int8(Status.DEPENDENT)).astype(np.int8)
             turns = turn_ref.copy()
-            ring.drape_ring(prob.surface.kernel, prob.tol, n, k, P, status, prob.blank, prob.seg_i, prob.seg_j,
-                            prob.cell_s1, prob.cell_s2, prob.gamma0, prob.crossover, prob.blankholder.force,
-                            prob.blankholder.friction, self.first_dir, self.bend, prob.material.kernel,
-                            prob.blankholder.kernel, self.tol, self.max_iterations, self.max_turn, turns,
-                            iterations, converged)
+            self.place_ring(k, P, status, turns, iterations, converged)
             found[:, k - 1] = turns[:, k - 1]
             run.energies[:, :, k - 1] = [_step_energy(self, P, k, t) for t in (turn_ref[:, k - 1], found[:, k - 1])]
         return P_ref, status_ref, found, np.zeros(prob.R), iterations, converged

@@ -170,13 +170,19 @@ class EnergyRings:
         iterations = np.zeros(prob.R, np.int32)
         converged = np.ones(prob.R, bool)
         for k in range(1, prob.n + 1):
-            on_threads(self.threads, prob.R, lambda r: ring.drape_ring(
-                prob.surface.kernel, prob.tol, prob.n, k, P[r], status[r], prob.blank[r], prob.seg_i[r],
-                prob.seg_j[r], prob.cell_s1[r], prob.cell_s2[r], prob.gamma0[r], prob.crossover[r],
-                prob.blankholder.force[r], prob.blankholder.friction[r], self.first_dir[r], self.bend,
-                prob.material.kernel, prob.blankholder.kernel, self.tol, self.max_iterations, self.max_turn, turns[r],
-                iterations[r], converged[r]))
+            self.place_ring(k, P, status, turns, iterations, converged)
             if progress is not None:
                 progress(k)
         bending = bending_energy(turns, self.B, prob.s).sum(axis=(1, 2))
         return P, status, turns, bending, iterations, converged
+
+    def place_ring(self, k, P, status, turns, iterations, converged):
+        """Ring k of every realisation from its rings < k in P, status and turns (rad), all
+        filled in place (``ring.drape_ring``), the realisations shared among ``threads``."""
+        prob = self.prob
+        on_threads(self.threads, prob.R, lambda r: ring.drape_ring(
+            prob.surface.kernel, prob.tol, prob.n, k, P[r], status[r], prob.blank[r], prob.seg_i[r],
+            prob.seg_j[r], prob.cell_s1[r], prob.cell_s2[r], prob.gamma0[r], prob.crossover[r],
+            prob.blankholder.force[r], prob.blankholder.friction[r], self.first_dir[r], self.bend,
+            prob.material.kernel, prob.blankholder.kernel, self.tol, self.max_iterations, self.max_turn, turns[r],
+            iterations[r], converged[r]))
