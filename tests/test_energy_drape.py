@@ -13,7 +13,7 @@ import pytest
 
 from uqdrape.drape import Status, drape, max_shear_lines
 from uqdrape.drape.energy import BlankHolder
-from uqdrape.drape.net import QUADRANTS, EnergyRings, NetProblem
+from uqdrape.drape.net import EnergyRings, NetProblem
 from uqdrape.geometry import Hemisphere, Plate, build
 from uqdrape.material import load_material
 

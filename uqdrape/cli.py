@@ -249,7 +249,6 @@ def cmd_export(args) -> int:
     return 0
 
 
-
 def _engine_options(p: argparse.ArgumentParser) -> None:
     """The options ``run`` and ``design`` share: where the drapes run and where they go."""
     p.add_argument("--scheduler", metavar="ADDRESS",
@@ -257,6 +256,7 @@ def _engine_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--workers", type=int, help="local worker processes (default: all cores)")
     p.add_argument("--out", metavar="DIR", help="output folder (default: the study's [output] directory)")
     p.add_argument("--no-report", action="store_true", help="skip the report")
+
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(

@@ -328,7 +328,6 @@ def per_realization(record: xr.Dataset, k_max: int) -> dict[str, np.ndarray]:
             "abs_mean_asymmetry": asym.values, DRAW_IN: record["max_draw_in"].values}
 
 
-
 def statistics(values: dict, confidence: float) -> dict[str, tuple]:
     """(estimate, lower, upper) of every statistic of per-drape quantities ``values``
     (name -> array (..., R)): floats for one design, arrays (...) for a stack of them

@@ -12,7 +12,9 @@ import numpy as np
 import xarray as xr
 
 from ..schema import QUADRANTS
-_SIGNS = {"++": (1, 1), "-+": (-1, 1), "--": (-1, -1), "+-": (1, -1)}
+
+#: Steps (si, sj) of the max-shear lines: the signs in each quadrant's label.
+_SIGNS = {q: tuple(1 if c == "+" else -1 for c in q) for q in QUADRANTS}
 #: Arm labels of the min-shear lines.
 ARMS = ("+i", "+j", "-i", "-j")
 _ARM_STEP = {"+i": (1, 0), "+j": (0, 1), "-i": (-1, 0), "-j": (0, -1)}

@@ -14,7 +14,6 @@ from __future__ import annotations
 import numpy as np
 
 
-
 def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Dot product over the last axis of batched 3-vectors."""
     return np.einsum("...k,...k->...", a, b)

@@ -58,4 +58,3 @@ def render_vtu(net_vtu, png, field: str, *, mould_vtu=None, label: str | None = 
     png.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(png, dpi=110)
     return png
-

@@ -274,4 +274,3 @@ class Saddle(_SquareDomain):
         self._half = self.half_width
         self.size = self.half_width
         self.kernel = (compiled.SADDLE, np.array([self._half, self.radius]))
-

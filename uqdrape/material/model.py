@@ -101,6 +101,7 @@ def _cell_energy_many(mat, gamma, s1, s2, gamma0, out):
     for m in range(gamma.size):
         out[m] = cell_energy(mat, gamma[m], s1[m], s2[m], gamma0[m])
 
+
 def _as_curve(label, angles_deg, ns):
     """Validate one branch's (angle [deg], N_s [N/m]) points; return float arrays."""
     try:

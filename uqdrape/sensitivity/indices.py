@@ -100,5 +100,3 @@ def map_indices(design: Design, field: xr.DataArray, *, seed: int, conf_level: f
     ds = _per_level(design, field, analyse)
     ds.attrs.update(design.meta)
     return _describe_factors(design, ds)
-
-

@@ -731,5 +731,3 @@ def load_study(path) -> Study:
         design=design,
         float32=float32,
     )
-
-
