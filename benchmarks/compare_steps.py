@@ -1,7 +1,7 @@
 """Per-step check of the energy minimiser against a reference implementation's drapes (issue 12).
 
 A change to the minimiser's search path (start, trust region, stopping) moves each ring's
-turn angles within the minimiser tolerance, and the later rings, built on those, amplify
+turn angles, and the later rings, built on those, amplify
 that difference ring by ring (about 2x per ring on the nose cone: 1e-4 deg at ring 9,
 1e-2 deg at ring 20). Whole drapes of two minimisers therefore differ by more than the
 tolerance however good both are, so this script compares them step by step: every ring k
@@ -14,9 +14,9 @@ of the saved drapes and prints, per case, the largest and 99th-percentile |turn 
 (deg) over all steps and arms, how many steps differ by more than the tolerance, the
 mean iterations per step of both, and the step energy at this checkout's turns relative
 to the energy at the reference's (from the same rings < k): where the turns differ but the
-energies agree to rounding, both minimisers stopped in the same flat valley. Cases: nose cone, ebxhd936_like, 30 rings, 5 mm, random
-gamma0 (sd 5 deg), 8 drapes at 0, 126 and 378 N under the slip model and 8 at 126 N under
-the radial model.
+energies agree to rounding, both minimisers stopped in the same flat valley. Cases: nose
+cone, ebxhd936_like, 30 rings, 5 mm, random gamma0 (sd 5 deg), 8 drapes at 0, 126 and
+378 N under the slip model and 8 at 126 N under the radial model.
 """
 
 import sys
@@ -64,18 +64,10 @@ def _steps_from(ref):
             turns = turn_ref.copy()
             self.place_ring(k, P, status, turns, iterations, converged)
             found[:, k - 1] = turns[:, k - 1]
-            run.energies[:, :, k - 1] = [_step_energy(self, P, k, t) for t in (turn_ref[:, k - 1], found[:, k - 1])]
+            run.energies[:, :, k - 1] = [self.step_energy(P, k, t)[0] for t in (turn_ref[:, k - 1], found[:, k - 1])]
         return P_ref, status_ref, found, np.zeros(prob.R), iterations, converged
     run.energies = np.zeros((2, turn_ref.shape[0], turn_ref.shape[1]))
     return run
-
-
-def _step_energy(rings, P, k, turn):
-    """Step energy (J) of ring k at turns (R, 4) rad, as the minimiser charges it (per arm
-    plus per corner, unplaced-node penalty included), from the net P with rings < k."""
-    S, _, arm = rings.sides(P, k, turn[:, None])
-    _, _, corner = rings.corners(P, k, S, [(0, 0)])
-    return arm.sum((1, 2)) + corner.sum((1, 2))
 
 
 def main(action, folder):
@@ -101,4 +93,6 @@ def main(action, folder):
 
 
 if __name__ == "__main__":
+    if len(sys.argv) != 3 or sys.argv[1] not in ("save", "compare"):
+        sys.exit("usage: python benchmarks/compare_steps.py save|compare DIR")
     main(sys.argv[1], sys.argv[2])

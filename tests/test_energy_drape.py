@@ -31,8 +31,8 @@ class Steps:
     crossover at the origin and nominal segments, rebuilt from the drape's own output.
 
     Rings are never moved once placed, so the net before step k is the output with every
-    ring >= k blanked. ``energy(k, turn)`` is the step objective of ``EnergyRings``: the
-    per-arm terms of ``sides`` plus the per-corner terms of ``corners``.
+    ring >= k blanked. ``energy(k, turn)`` is the step objective of ``EnergyRings``
+    (``step_energy``: the per-arm terms of ``sides`` plus the per-corner terms of ``corners``).
     """
 
     def __init__(self, surface, ds, material, spacing, rings, force, friction, model):
@@ -56,11 +56,9 @@ class Steps:
     def energy(self, k, turn):
         """Step-k energy (R,) J, the arm nodes (R, 4, 3), corner nodes (R, 4, 3) and the number
         of invalid ring-k nodes (R,) for turn angles (R, 4) rad."""
-        P = self.before(k)
-        S, St, e_arm = self.rings.sides(P, k, turn[:, None, :])
-        x, xs, e_corner = self.rings.corners(P, k, S, [(0, 0)])
-        invalid = (St[:, 0] != Status.OK).sum(axis=(1, 2, 3)) + (xs[:, 0] != Status.OK).sum(-1)
-        return e_arm[:, 0].sum(-1) + e_corner[:, 0].sum(-1), S[:, 0, :, 0, 0], x[:, 0], invalid
+        energy, S, St, x, xs = self.rings.step_energy(self.before(k), k, turn)
+        invalid = (St != Status.OK).sum(axis=(1, 2, 3)) + (xs != Status.OK).sum(-1)
+        return energy, S[:, :, 0, 0], x, invalid
 
     def node(self, i, j):
         return self.P[:, i + self.n, j + self.n]

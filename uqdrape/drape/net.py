@@ -159,6 +159,14 @@ class EnergyRings:
                          np.ascontiguousarray(S[r]), pairs, X[r], Xs[r], energy[r])
         return X, Xs, energy
 
+    def step_energy(self, P, k, turn):
+        """The minimiser's objective at ring k for turn angles (R, 4) rad: the step energy
+        (R,) J (arm terms plus corner terms, unplaced-node penalty included), with the ring's
+        chain nodes (R, 4, 2, k, 3), their status, corner nodes (R, 4, 3) and their status."""
+        S, St, arm = self.sides(P, k, turn[:, None, :])
+        X, Xs, corner = self.corners(P, k, S, [(0, 0)])
+        return arm[:, 0].sum(-1) + corner[:, 0].sum(-1), S[:, 0], St[:, 0], X[:, 0], Xs[:, 0]
+
     def run(self, progress=None):
         """Drape ring by ring (one compiled call per ring for the whole block, the block's
         realisations shared among ``threads`` threads; ``progress``,
