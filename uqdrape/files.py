@@ -125,14 +125,15 @@ def is_int(value) -> bool:
 
 
 class Document:
-    """A file being validated: ``label`` names it in messages (default: the path), ``folder``
-    resolves the files it names, ``what`` it is ("study file") for hints; problems raise ``error``."""
+    """A file being validated: ``label`` names it in messages (default: the path), its folder
+    resolves the files it names, ``what`` it is ("study file") for hints; problems raise
+    ``error``. ``path`` None: a document that is not a file of its own (``label`` required)."""
 
     def __init__(self, path, what: str, *, label: str | None = None, error: type[FileFormatError] = FileFormatError):
-        self.path = Path(path)
+        self.path = None if path is None else Path(path)
         self.what = what
         self.label = str(path) if label is None else label
-        self.folder = self.path.resolve().parent
+        self.folder = None if path is None else self.path.resolve().parent
         self.error = error
 
     def read(self) -> dict:
@@ -150,7 +151,7 @@ class Document:
 
     def relative_file(self, key: str, value) -> Path:
         """An existing file named by ``value`` relative to this file's folder."""
-        if not isinstance(value, str) or not value:
+        if not isinstance(value, str) or not value or self.folder is None:
             self.invalid(key, value, f"must be a file name (relative to the {self.what})")
         path = self.folder / value
         if not path.is_file():
