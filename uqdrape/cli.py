@@ -10,29 +10,11 @@ from __future__ import annotations
 
 import argparse
 import errno
-import inspect
 import shlex
 import signal
 import sys
 import threading
 from pathlib import Path
-
-
-def _geometry_help() -> str:
-    from .geometry import KINDS
-
-    lines = []
-    for kind, cls in KINDS.items():
-        sig = inspect.signature(cls.__init__)
-        params = ", ".join(f"{p.name}={p.default!r}" if p.default is not p.empty else p.name
-                           for p in list(sig.parameters.values())[1:])
-        lines.append(f"  {kind:12s} {params}")
-    return "\n".join(lines)
-
-
-def _architectures() -> list[str]:
-    """Shipped architecture names, without importing the (numpy/scipy) material package."""
-    return sorted(p.stem for p in (Path(__file__).parent / "material" / "architectures").glob("*.toml"))
 
 
 def _parse_params(pairs):
@@ -49,76 +31,32 @@ def _parse_params(pairs):
 
 
 def cmd_drape(args) -> int:
-    import numpy as np
+    from .workflow import drape_to_files
 
-    from .conventions import cf_encode
-    from .drape import drape
-    from .ensemble import Progress, write_atomic
-    from .geometry import build
-    from .material import load_material
-    from .report import plot_lines, plot_net
-
-    surface = build(args.geometry, **_parse_params(args.param))
-    material = load_material(args.material) if args.material else None
-    # a ring k/n counter: a bar on a terminal, elsewhere a line every PLAIN_EVERY s of a long drape
-    bar = Progress(args.rings, enabled=args.verbosity > 0, desc="ring", unit="ring", last_line=False)
-    ds = drape(surface, args.spacing, args.rings, orientation=args.orientation, pre_shear=args.pre_shear,
-               skew=args.skew, crossover=tuple(args.crossover), mode=args.mode, material=material,
-               blankholder_force=args.blankholder_force, friction=args.friction,
-               blankholder_model=args.blankholder_model, tolerance=args.tolerance,
-               progress=lambda k: bar.update(k - bar.n))
-    bar.close()
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    encoded, encoding = cf_encode(ds, title=f"uqdrape {args.mode} drape of {surface.describe()}",
-                                  history="uqdrape " + shlex.join(args.argv))
-    nc = write_atomic(encoded, out.with_suffix(".nc"), encoding)
-    net_png = plot_net(ds, out.with_name(out.name + "-net.png"),
-                       title=f"{surface.describe()}, {args.mode} drape, s = {args.spacing} mm")
-    lines_png = plot_lines(ds, out.with_name(out.name + "-lines.png"))
-    valid = float((ds.status == 0).mean())
-    shear = ds.shear.values
-    print(f"wrote {nc}, {net_png}, {lines_png}")
-    print(f"valid nodes {valid:.1%}; shear {np.nanmin(shear):.1f} to {np.nanmax(shear):.1f} deg; "
-          f"energy shear {float(ds.energy_shear[0]):.4g} J, blank-holder {float(ds.energy_blankholder[0]):.4g} J; "
-          f"converged {bool(ds.converged[0])} ({int(ds.iterations[0])} iterations)")
+    written, summary = drape_to_files(
+        args.geometry, _parse_params(args.param), args.spacing, args.rings, args.out, material=args.material,
+        progress=args.verbosity > 0, command="uqdrape " + shlex.join(args.argv), orientation=args.orientation,
+        pre_shear=args.pre_shear, skew=args.skew, crossover=tuple(args.crossover), mode=args.mode,
+        blankholder_force=args.blankholder_force, friction=args.friction,
+        blankholder_model=args.blankholder_model, tolerance=args.tolerance)
+    print("wrote " + ", ".join(map(str, written)))
+    print(summary)
     return 0
 
 
 def cmd_derive(args) -> int:
-    from .material.architecture import derive_card, load_architecture, summed
-    from .material.cards import card_material, card_text
-    from .material.plot import plot_architecture
+    from .workflow import derive_material
 
     if not args.source:
         raise ValueError("derive needs an architecture: uqdrape materials derive ARCH.toml --out CARD.toml")
     if not args.out or Path(args.out).suffix.lower() != ".toml":
         raise ValueError(f"derive needs --out CARD.toml (a .toml path), got {args.out!r}")
-    out = Path(args.out)
-    arch = load_architecture(args.source)
-    terms = summed(arch)
-    doc = derive_card(arch, name=out.stem, source=Path(args.source).name, terms=terms)
-    text = card_text(doc, f"Material card derived by `uqdrape materials derive {Path(args.source).name}`: "
-                          "regenerate it, do not edit it.")
-    material = card_material(text, str(out))  # a card that would not load is not written
-    gamma0 = doc["architecture"]["zero_force_angle_deg"]
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if args.plot:  # the picture first: if it fails, no card is left behind either
-        png = out.with_suffix(".png") if args.plot is True else Path(args.plot)
-        png.parent.mkdir(parents=True, exist_ok=True)
-        plot_architecture(arch, png, terms, gamma0)
-    tmp = out.with_name(out.name + ".tmp")
-    tmp.write_text(text, encoding="utf-8")
-    tmp.replace(out)
-    print(f"wrote {out}: {material.name}, zero-force angle {gamma0:.2f} deg, locking +{material.locking_angle_deg:g} / "
-          f"-{material.locking_angle_neg_deg:g} deg (pre-strain {100 * arch.prestrain:.3g} %, beta {arch.beta:.4g})")
-    if args.plot:
-        print(f"wrote {png}")
+    print(derive_material(args.source, args.out, args.plot))
     return 0
 
 
 def cmd_materials(args) -> int:
-    from .material import available_materials, load_material, plot_material
+    from .workflow import material_list, material_text
 
     if args.name == "derive":
         return cmd_derive(args)
@@ -127,49 +65,21 @@ def cmd_materials(args) -> int:
     if args.plot is True:
         raise ValueError("--plot needs a PNG path when showing a card")
     if not args.name:
-        names = available_materials()
-        width = max(map(len, names))
-        for name in names:
-            print(f"{name:{width}s}  {load_material(name).description}")
+        cards = material_list()
+        width = max(len(name) for name, _ in cards)
+        for name, description in cards:
+            print(f"{name:{width}s}  {description}")
         return 0
-    m = load_material(args.name)
-    print(f"{m.name}: {m.description}\nlocking angle +{m.locking_angle_deg} / -{m.locking_angle_neg_deg} deg, "
-          f"bending stiffness {m.bending_stiffness} N m^2\n{m.note}")
-    if args.plot:
-        print(f"wrote {plot_material(m, args.plot)}")
+    print(material_text(args.name, args.plot))
     return 0
-
-
-def _study_summary(s) -> str:
-    """A few lines saying what a validated study will run."""
-    material = Path(s.fabric.material).name
-    levels = ", ".join(f"{f:g}" for f in s.force_levels)
-    force = f"sweep {levels} N" if s.is_sweep else f"{levels} N"
-    varying = []
-    for name, f in s.uncertainty.fields.items():
-        what = ", ".join(f"{k} {v:g}" for k, v in f.params.items())
-        length = f", L = {f.length_mm[0]:g} x {f.length_mm[1]:g} mm" if f.length_mm else ""
-        varying.append(f"{name} field ({what}; {f.correlation}{length})")
-    varying += [f"{name} ~ {factor.describe()}" for name, factor in s.uncertainty.factors.items()]
-    sens = s.sensitivity.method
-    if sens != "none":
-        sens += f", {s.sensitivity.base_samples} base samples"
-    return "\n".join([
-        f"{s.name}: {s.realizations} realisations, seed {s.seed}, {s.sampling.plan} plan, chunks of {s.chunk_size}",
-        f"  mould {s.geometry.build_mould().describe()}; "
-        f"material {material}; spacing {s.fabric.spacing_mm:g} mm, {s.solver.rings} rings, {s.solver.mode} mode",
-        f"  blank-holder force {force}, friction {s.process.friction:g}, {s.process.blankholder_model} friction model",
-        f"  varying: {'; '.join(varying) if varying else 'nothing (deterministic)'}",
-        f"  sensitivity: {sens}; output: {s.output_dir}",
-    ])
 
 
 def cmd_validate(args) -> int:
     """Print each study's summary; the first invalid file ends the command (exit 2)."""
-    from .study import load_study
+    from .workflow import describe_study, validate_study
 
     for name in args.files:
-        print(_study_summary(load_study(name)))
+        print(describe_study(validate_study(name)))
     return 0
 
 
@@ -177,7 +87,7 @@ def _engine_study(args):
     """The study of ``run`` or ``design``, its output folder replaced by ``--out`` if given."""
     import dataclasses
 
-    from .study import load_study
+    from .workflow import load_study
 
     study = load_study(args.study)
     return dataclasses.replace(study, output_dir=Path(args.out)) if args.out else study
@@ -221,30 +131,12 @@ def cmd_report(args) -> int:
 
 
 def cmd_export(args) -> int:
-    import numpy as np
+    from .workflow import export_result
 
-    from .export import fe_files, flat_files, levels, open_result, vtk_files, write_all
-
-    if "fe" in args.to and not args.mesh:
-        raise ValueError("--to fe needs --mesh FILE (a surface mesh meshio reads: .inp, .msh, .vtu, .stl, ...)")
-    result = Path(args.result)
-    ds, is_ensemble = open_result(result)
-    stem = Path(args.out) if args.out else (result / "export" / result.name if is_ensemble else result.with_suffix(""))
-    levels_ = levels(ds, is_ensemble)
-    for level in levels_ if args.reference is not None else ():
-        level.orientation = args.reference
-    writers = {}  # every file is computed first and written together: all or nothing
-    if "vtk" in args.to:
-        writers.update(vtk_files(levels_, ds, stem))
-    if "fe" in args.to:
-        fe, statuses = fe_files(levels_, ds, args.mesh, stem, args.tolerance)
-        writers.update(fe)
-        counts = [int(n) for n in np.bincount(statuses[0], minlength=3)]
-        print(f"{args.mesh}: {sum(counts)} elements, {counts[0]} on the net, {counts[1]} outside it, "
-              f"{counts[2]} off the mould (flagged in map_status and *ELSET UQDRAPE_UNMAPPED)")
-    if "flat" in args.to:
-        writers.update(flat_files(levels_, stem))
-    written = write_all(writers)
+    written, notes = export_result(args.result, args.to, out=args.out, mesh=args.mesh, tolerance=args.tolerance,
+                                   reference=args.reference)
+    for note in notes:
+        print(note)
     print("wrote " + ", ".join(map(str, written)))
     return 0
 
@@ -259,6 +151,8 @@ def _engine_options(p: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .workflow.text import architectures, geometry_help
+
     p = argparse.ArgumentParser(
         prog="uqdrape",
         description="Uncertainty quantification of kinematic drape of dry textile preforms. "
@@ -275,7 +169,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "  uqdrape drape --geometry hemisphere --param radius=100 --spacing 5 --rings 20\n"
                     "  uqdrape drape --mode energy --material ebxhd936_like --blankholder-force 126 \\\n"
                     "      --friction 0.2 --geometry nose_cone --spacing 5 --rings 30",
-        epilog="geometry kinds and their parameters (mm, degrees):\n" + _geometry_help())
+        epilog="geometry kinds and their parameters (mm, degrees):\n" + geometry_help())
     d.add_argument("--geometry", default="hemisphere", help="mould kind (see below; default hemisphere)")
     d.add_argument("--param", action="append", metavar="KEY=VALUE",
                    help="a shape parameter of the mould, repeatable (e.g. --param radius=80)")
@@ -368,7 +262,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "  uqdrape materials ebxhd936_like --plot ebx.png\n"
                     "  uqdrape materials derive fge106hd --out fge.toml --plot\n"
                     "  uqdrape materials derive my_fabric.toml --out cards/my_fabric.toml\n\n"
-                    "Shipped architectures: " + ", ".join(_architectures()))
+                    "Shipped architectures: " + ", ".join(architectures()))
     m.add_argument("name", nargs="?", help="a card name or path, or the word derive")
     m.add_argument("source", nargs="?", help="derive: an architecture TOML file or a shipped architecture name")
     m.add_argument("--out", metavar="CARD.toml", help="derive: the card to write")
@@ -395,7 +289,7 @@ class _Version(argparse.Action):
         super().__init__(option_strings, dest, nargs=0, help="print the version and exit")
 
     def __call__(self, parser, namespace, values, option_string=None):
-        from .conventions import version_text
+        from .workflow.text import version_text
 
         print(version_text())
         parser.exit()

@@ -25,9 +25,6 @@ from . import ring
 from .energy import MM_TO_M, bending_energy
 from .status import Status
 
-#: Per quadrant: its i-family arm and side, its j-family arm and side, its signs (si, sj).
-QUADRANTS = dict(zip(("++", "-+", "--", "+-"), ring.CORNERS))
-
 
 class NetProblem:
     """Validated, broadcast inputs of a batch of R drapes (see ``uqdrape.drape.drape``)."""

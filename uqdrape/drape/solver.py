@@ -14,14 +14,13 @@ import xarray as xr
 
 from .. import __version__
 from .._jit import on_threads
-from ..schema import SOLVER_INPUTS
+from ..schema import MODES, QUADRANTS, SOLVER_INPUTS
 from .energy import BlankHolder
 from .kernels import net_node_mean, net_shear
-from .net import QUADRANTS, EnergyRings, NetProblem, build_geodesic
+from .net import EnergyRings, NetProblem, build_geodesic
 from .ring import boundary_blankholder
 from .status import Status
 
-MODES = ("geodesic", "energy")
 #: Realisations solved and post-processed together per block (the solver is compiled per
 #: realisation; the block bounds the memory of the Dataset's temporaries).
 BLOCK = 1024

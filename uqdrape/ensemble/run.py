@@ -34,8 +34,7 @@ from dask.callbacks import Callback
 from .. import __version__
 from ..conventions import cf_encode
 from ..schema import at_level
-from ..study import Study
-from ..drape import placement_failures
+from ..study import Study, identity
 from ..stochastic.inputs import positive_int
 from .chunk import drape_inputs, write_atomic
 from .inputs import inputs_from_design, sampled_inputs
@@ -92,13 +91,6 @@ def _drape(study: Study, r, force: float, design_rows):
     return drape_inputs(study, r, inputs, force=force)
 
 
-def _identity(manifest: dict) -> dict:
-    """What must match for chunks to be reused: the study without its chunk size."""
-    study = json.loads(json.dumps(manifest["study"]))
-    study["study"].pop("chunk_size", None)
-    return study
-
-
 def _prepare(out: Path, manifest: dict, resume: bool) -> None:
     """Check a previous run in ``out`` can be resumed, or clear it; then record this run.
     Called under the folder's run lock, so a ``.part`` file here is a killed run's."""
@@ -114,7 +106,7 @@ def _prepare(out: Path, manifest: dict, resume: bool) -> None:
             raise ValueError(f"{folder} holds chunk files but {out} has no run manifest; "
                              "they cannot be checked against this study: run with resume=False (--no-resume)")
     else:
-        before, now = _identity(old), _identity(manifest)
+        before, now = identity(old["study"]), identity(manifest["study"])
         if before != now:
             changed = sorted(f"{section}.{key}" for section in set(before) | set(now)
                              for key in set(before.get(section, {})) | set(now.get(section, {}))
@@ -169,7 +161,7 @@ def compute_tasks(tasks: list, sizes: list, scheduler: str | None, workers: int 
 def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance: dict | None = None,
                  attrs: dict | None = None, scheduler: str | None = None, workers: int | None = None,
                  chunk_size: int | None = None, resume: bool = True, progress: bool = True,
-                 verbose: bool = False) -> Path:
+                 verbose: bool = False, preflight=None) -> Path:
     """Drape a study's realisations into chunk files; return the output folder (open it
     with ``open_ensemble``).
 
@@ -186,6 +178,11 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
                  deletes the folder's chunk files first
     progress     show progress on stderr: realisations done, rate and ETA (a bar on a
                  terminal, a plain line every 30 s elsewhere); ``verbose`` adds a line per chunk
+    preflight    ``preflight(drapes, first, force)``, called before the output folder is
+                 touched with the number of drapes still to write and the first of them
+                 (realisation, force level): the application layer's checks of memory,
+                 disk and placement (``uqdrape.workflow.preflight``); it raises to stop
+                 the run
 
     Local worker processes are spawned and import the calling script, so a script needs
     the usual ``if __name__ == "__main__":`` guard. Cluster workers need uqdrape installed
@@ -205,13 +202,16 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
     chunks = plan_chunks(study, chunk_size, None if design_rows is None else len(design_rows))
     manifest = {"study": provenance, "chunk_size": chunk_size, "chunks": [c.name for c in chunks],
                 "uqdrape_version": __version__}
+    if preflight is not None:
+        done = {p.name for p in (out / CHUNKS).glob("*.nc")} if resume else set()
+        todo = [c for c in chunks if c.name not in done]
+        if todo:
+            preflight(sum(c.stop - c.start for c in todo), todo[0].start, todo[0].force)
     with run_lock(out):
         earlier = (read_manifest(out) or {}).get("wall_time_s", 0.0) if resume else 0.0
         _prepare(out, manifest, resume)
         folder = out / CHUNKS
         todo = [c for c in chunks if not (folder / c.name).is_file()]
-        if todo:
-            _preflight(study, todo[0], design_rows)
         try:
             _drape_chunks(study, chunks, todo, folder, provenance, attrs, design_rows, scheduler, workers,
                           progress, verbose)
@@ -222,19 +222,6 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
         # interrupted call records nothing)
         write_manifest(out, {**manifest, "wall_time_s": round(earlier + time.perf_counter() - start, 1)})
     return out
-
-
-def _preflight(study: Study, chunk: Chunk, design_rows) -> None:
-    """Drape the first realisation of ``chunk`` here, before any worker starts, and stop
-    if more than the study's failure budget of its nodes cannot be placed: such a run
-    would only write NaNs (the crossover off the mould, a net larger than the mould)."""
-    r = np.arange(chunk.start, chunk.start + 1)
-    rows = None if design_rows is None else design_rows[r]
-    failed, why = placement_failures(_drape(study, r, chunk.force, rows)["status"].values[0])
-    if failed > study.solver.failure_budget:
-        raise ValueError(f"study {study.name!r} ({study.path}): {failed:.0%} of the nodes of realisation {chunk.start} "
-                         f"cannot be placed, more than solver.failure_budget = {study.solver.failure_budget:g} "
-                         f"({why}): use fewer rings, a smaller spacing or move the crossover")
 
 
 def _drape_chunks(study, chunks, todo, folder, provenance, attrs, design_rows, scheduler, workers, progress,

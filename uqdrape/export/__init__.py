@@ -18,9 +18,9 @@ together), so a failed export leaves nothing half-written.
 from .directions import fibre_directions, fibre_frame
 from .fe import export_fe, fe_files
 from .files import write_all
-from .flat import export_flat, flat_files, flat_positions
+from .flat import export_flat, flat_files
 from .result import Level, levels, open_result
 from .vtk import export_vtk, vtk_files
 
 __all__ = ["open_result", "levels", "Level", "fibre_directions", "fibre_frame", "export_vtk", "export_fe",
-           "export_flat", "flat_positions", "vtk_files", "fe_files", "flat_files", "write_all"]
+           "export_flat", "vtk_files", "fe_files", "flat_files", "write_all"]

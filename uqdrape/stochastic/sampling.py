@@ -19,6 +19,14 @@ from scipy.stats import qmc
 from .factors import normal
 
 PLANS = ("monte_carlo", "latin_hypercube", "sobol")
+#: Sensitivity designs (SALib's methods), and the sizes below which their indices cannot
+#: rank factors. Sobol': scipy's Sobol' sequence is balanced only for powers of 2 (it
+#: warns otherwise), and below 64 base samples the bootstrap intervals of S1/ST are
+#: typically wider than +-0.2. Morris: fewer than 10 trajectories leave mu_star's
+#: bootstrap interval meaningless (Campolongo et al. 2007 use 10-20).
+METHODS = ("sobol", "morris")
+SOBOL_MIN_BASE_SAMPLES = 64
+MORRIS_MIN_TRAJECTORIES = 10
 
 _STANDARD_NORMAL = normal(0.0, 1.0)
 
@@ -81,3 +89,37 @@ def realization_normals(study_seed: int, realizations, sizes) -> tuple[np.ndarra
         for arr, s in zip(out, sizes):
             arr[k] = rng.standard_normal(s)
     return tuple(out)
+
+
+def check_method(method) -> str:
+    """``method`` if it is a sensitivity design of METHODS, else ValueError."""
+    if method not in METHODS:
+        raise ValueError(f"method={method!r} is not supported; valid: {', '.join(METHODS)}")
+    return method
+
+
+def check_base_samples(method: str, base_samples) -> int:
+    """``base_samples`` as an int if it is a usable design size for ``method`` (Sobol': a
+    power of 2 >= SOBOL_MIN_BASE_SAMPLES; Morris: >= MORRIS_MIN_TRAJECTORIES trajectories),
+    else ValueError giving the minimum."""
+    method = check_method(method)
+    if isinstance(base_samples, bool) or not isinstance(base_samples, (int, np.integer)):
+        raise ValueError(f"base_samples={base_samples!r} must be an integer")
+    n = int(base_samples)
+    if method == "sobol":
+        if n < SOBOL_MIN_BASE_SAMPLES:
+            raise ValueError(
+                f"base_samples={n} is too small for Sobol': the minimum is "
+                f"{SOBOL_MIN_BASE_SAMPLES} (and it must be a power of 2)"
+            )
+        if n & (n - 1):
+            lower = 1 << (n.bit_length() - 1)
+            raise ValueError(
+                f"base_samples={n} must be a power of 2 for Sobol' (e.g. {lower} or {2 * lower})"
+            )
+    elif n < MORRIS_MIN_TRAJECTORIES:
+        raise ValueError(
+            f"base_samples={n} is too small for Morris: the minimum is "
+            f"{MORRIS_MIN_TRAJECTORIES} trajectories"
+        )
+    return n

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,8 +20,21 @@ from .. import material as _material
 from .. import stochastic as _stochastic
 from ..schema import SOLVER_INPUTS
 
-#: Scalar factors of [uncertainty.<factor>] -> the study-file setting each one overrides.
-FACTOR_SETTINGS = {name: inp.setting for name, inp in SOLVER_INPUTS.items()}
+#: Where a study file fixes each scalar solver input (``uqdrape.schema.SOLVER_INPUTS``,
+#: the solver's names): (section, key, index of the element of a list key or None).
+SETTING_KEYS = {
+    "blankholder_force": ("process", "blankholder_force_N", None),
+    "friction": ("process", "friction", None),
+    "orientation": ("fabric", "orientation_deg", None),
+    "crossover_x": ("fabric", "crossover", 0),
+    "crossover_y": ("fabric", "crossover", 1),
+    "pre_shear": ("fabric", "pre_shear_deg", None),
+    "skew": ("fabric", "skew_deg", None),
+}
+assert set(SETTING_KEYS) == set(SOLVER_INPUTS), "every solver input has its study-file setting"
+#: Scalar factors of [uncertainty.<factor>] -> the dotted study-file setting each one overrides.
+FACTOR_SETTINGS = {name: f"{section}.{key}" + ("" if index is None else f"[{index}]")
+                   for name, (section, key, index) in SETTING_KEYS.items()}
 #: Random fields of [uncertainty.<field>] and the study-file keys of their own parameters.
 FIELD_KEYS = {"spacing": ("cv",), "zero_angle": ("mean_deg", "sd_deg"), "stitch_prestrain": ("mean", "sd")}
 FIELDS = tuple(FIELD_KEYS)
@@ -226,9 +240,9 @@ class Study:
         blank-holder force is ``force`` for one level of a sweep, else the only level."""
         if name == "blankholder_force":
             return self.force_levels[0] if force is None else float(force)
-        inp = SOLVER_INPUTS[name]
-        value = getattr(getattr(self, inp.section), inp.key)
-        return value if inp.index is None else value[inp.index]
+        section, key, index = SETTING_KEYS[name]
+        value = getattr(getattr(self, section), key)
+        return value if index is None else value[index]
 
     def to_dict(self) -> dict:
         """The study with defaults filled, in the file's own layout, as plain JSON types
@@ -272,6 +286,18 @@ def _plain(value):
     if isinstance(value, Path):
         return str(value)
     return value
+
+
+def identity(doc: dict) -> dict:
+    """What must match for stored drapes to be reused (a resumed run's chunks, a design's
+    records): the study record ``doc`` (:meth:`Study.to_dict`) without what does not
+    change a drape: the chunk size, the output folder and the [design] section (its
+    candidates are keyed by their own settings)."""
+    doc = json.loads(json.dumps(doc))
+    doc["study"].pop("chunk_size", None)
+    for section in ("output", "design"):
+        doc.pop(section, None)
+    return doc
 
 
 def from_dict(doc: dict, path) -> Study:

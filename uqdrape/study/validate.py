@@ -21,7 +21,7 @@ Sections and keys (units: mm, N, degrees)::
                    needs a card derived from an architecture; not together with zero_angle
     [uncertainty.<factor>]    dist + parameters, factor in FACTOR_SETTINGS
     [sampling]     plan = "monte_carlo"
-    [sensitivity]  method = "none", base_samples, qoi = all of QOIS
+    [sensitivity]  method = "none", base_samples, qoi = SENSITIVITY_QOIS (any of uqdrape.schema.QOI_ATTRS)
     [design]       variables ("force" | "sectors"), sectors (>= 2, for "sectors"), force_bounds_N = [lo, hi]
                    (the total force, or each sector's), friction_bounds = [lo, hi], budget_N (total force),
                    objective (DESIGN_OBJECTIVES), statistic = "upper" | "estimate", target, confidence = 0.95,
@@ -59,8 +59,6 @@ error too, because it usually means another key was forgotten.
 from __future__ import annotations
 
 import inspect
-import os
-import shutil
 import json
 import math
 import re
@@ -72,17 +70,25 @@ import numpy as np
 from .. import geometry as _geometry
 from .. import material as _material
 from .. import stochastic as _stochastic
-from ..drape import BLANKHOLDER_MODELS, MODES, drape, placement_failures
 from ..experimental import read_experimental
-from ..schema import SOLVER_INPUTS
-from ..stats import QOIS
+from ..schema import BLANKHOLDER_MODELS, MAX_RINGS, MODES, QOI_ATTRS, SENSITIVITY_QOIS, SOLVER_INPUTS
 from .spec import (DESIGN_OBJECTIVES, DESIGN_STATISTICS, DESIGN_VARIABLES, DIST_KEYS, FACTOR_SETTINGS, FIELD_KEYS,
                    FIELDS, SECTIONS, SENSITIVITY_METHODS, Design, Fabric, Geometry, Process, RandomField, Report,
                    Sampling, Sensitivity, Solver, Study, Uncertainty, prestrain_map)
 
 
 class StudyError(ValueError):
-    """A problem in a study file; the message names the file, the key, the value and what is valid."""
+    """A problem in a study file; the message names the file, the key, the value and what
+    is valid, and ``key`` is the dotted key (None for the file as a whole)."""
+
+    def __init__(self, message: str, key: str | None = None):
+        super().__init__(message)
+        self.key = key
+
+
+def study_error(path, key: str, value, why: str) -> StudyError:
+    """The error for ``key = value`` of study file ``path``: ``<file>: <key> = <value> is invalid: <why>``."""
+    return StudyError(f"{path}: {key} = {_fmt(value)} is invalid: {why}", key)
 
 
 # factor distributions offered in a study file (a constant is the fixed setting itself)
@@ -125,14 +131,14 @@ class _Source:
         self.label = str(path)
         self.folder = path.resolve().parent
 
-    def fail(self, text: str):
-        raise StudyError(f"{self.label}: {text}")
+    def fail(self, text: str, key: str | None = None):
+        raise StudyError(f"{self.label}: {text}", key)
 
     def invalid(self, key: str, value, why: str):
-        self.fail(f"{key} = {_fmt(value)} is invalid: {why}")
+        raise study_error(self.label, key, value, why)
 
     def missing(self, key: str, why: str):
-        self.fail(f"{key} is missing: {why}")
+        self.fail(f"{key} is missing: {why}", key)
 
     def relative_file(self, key: str, value) -> Path:
         """An existing file named relative to the study file."""
@@ -366,12 +372,11 @@ def _solver(src: _Source, doc: dict) -> Solver:
         max_iterations=t.number("max_iterations", 30, integer=True, ge=1),
         failure_budget=t.number("failure_budget", 0.5, ge=0),
     )
+    if solver.rings > MAX_RINGS:
+        t.invalid("rings", f"rings must be an integer in [1, {MAX_RINGS}]: (2 rings + 1)^2 nodes, "
+                           f"{(2 * MAX_RINGS + 1) ** 2:,} at most")
     if solver.failure_budget > 1:
         t.invalid("failure_budget", "failure_budget is a fraction of the nodes, in [0, 1]")
-    nodes = (2 * solver.rings + 1) ** 2
-    if nodes * WORKING_BYTES_PER_NODE > _memory() / 2:
-        t.invalid("rings", f"one drape of {nodes:,} nodes needs about {nodes * WORKING_BYTES_PER_NODE / 2**30:.3g} "
-                  f"GiB, more than half of this machine's {_memory() / 2**30:.3g} GiB")
     return solver
 
 
@@ -513,13 +518,9 @@ def _sensitivity(src: _Source, doc: dict, uncertainty: Uncertainty) -> Sensitivi
             t.invalid("base_samples", 'base_samples is only used by a sensitivity method: set method = '
                       '"sobol" or "morris", or remove base_samples')
     else:
-        # imported here: SALib is slow to import and only needed for a sensitivity study.
-        # check_base_samples holds the design's minimum and power-of-two rules.
-        from ..sensitivity import check_base_samples
-
         base = t.number("base_samples", integer=True, ge=1)
         try:
-            check_base_samples(method, base)
+            _stochastic.check_base_samples(method, base)
         except ValueError as err:
             src.wrap(err, "sensitivity", {"base_samples": ("sensitivity.base_samples", base)})
         if len(uncertainty.varying) < 2:
@@ -527,9 +528,10 @@ def _sensitivity(src: _Source, doc: dict, uncertainty: Uncertainty) -> Sensitivi
             src.invalid("sensitivity.method", method,
                         f"a sensitivity analysis needs at least two [uncertainty.*] inputs (found: {found}); "
                         "indices of a single input are 1 by construction")
-    hint = f"qoi must be a non-empty list of distinct names from {', '.join(QOIS)}"
-    qoi = t.raw("qoi", list(QOIS), hint)
-    if not isinstance(qoi, list) or not qoi or len(set(map(repr, qoi))) != len(qoi) or any(q not in QOIS for q in qoi):
+    hint = f"qoi must be a non-empty list of distinct names from {', '.join(QOI_ATTRS)}"
+    qoi = t.raw("qoi", list(SENSITIVITY_QOIS), hint)
+    if (not isinstance(qoi, list) or not qoi or len(set(map(repr, qoi))) != len(qoi)
+            or any(q not in QOI_ATTRS for q in qoi)):
         t.invalid("qoi", hint)
     return Sensitivity(method, base, tuple(qoi))
 
@@ -628,63 +630,7 @@ def _output(src: _Source, doc: dict, name: str) -> tuple[Path, bool]:
     float32 = t.raw("float32", False, "float32 must be true or false")
     if not isinstance(float32, bool):
         t.invalid("float32", "float32 must be true or false")
-    existing = _nearest_existing(Path(directory))
-    if not existing.is_dir():
-        src.invalid("output.directory", directory, f"{existing} is a file, not a folder")
-    if not os.access(existing, os.W_OK | os.X_OK):
-        src.invalid("output.directory", directory, f"{existing} is not writable")
     return Path(directory), float32
-
-
-#: Bytes a node costs in a chunk file (x, y, z, shear, locked, status and the cells' values)
-#: and, about, in the solver's working arrays of an energy drape (candidate rings per step).
-STORED_BYTES_PER_NODE = 64
-WORKING_BYTES_PER_NODE = 600
-
-
-def _nominal_placement(src: _Source, mould, fabric: Fabric, solver: Solver) -> None:
-    """Refuse a study whose nominal net (a geodesic drape at the fixed settings) loses more
-    than ``failure_budget`` of its nodes: every realisation would be mostly NaN."""
-    ds = drape(mould, fabric.spacing_mm, solver.rings, orientation=fabric.orientation_deg,
-               pre_shear=fabric.pre_shear_deg, skew=fabric.skew_deg, crossover=fabric.crossover)
-    failed, why = placement_failures(ds["status"].values[0])
-    if failed > solver.failure_budget:
-        src.invalid("solver.rings", solver.rings, f"{failed:.0%} of the nominal net's nodes cannot be placed "
-                    f"(geodesic drape at the fixed settings), more than solver.failure_budget = "
-                    f"{solver.failure_budget:g} ({why}): use fewer rings, a smaller spacing or move the crossover")
-
-
-def _nearest_existing(path: Path) -> Path:
-    """``path`` (absolute) or its nearest ancestor that exists: where the output folder will be made."""
-    path = path.absolute()
-    while not path.exists():
-        path = path.parent
-    return path
-
-
-def _memory() -> int:
-    """This machine's physical memory (bytes)."""
-    return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-
-
-def _resources(src: _Source, realizations: int, chunk_size: int, rings: int, levels: int, output_dir: Path):
-    """Refuse a study whose chunk would not fit in memory or whose ensemble would not fit on
-    the disk of its output folder (estimates, stated in the message; one drape's own size
-    is checked with [solver] rings)."""
-    nodes = (2 * rings + 1) ** 2
-    batch = min(chunk_size, realizations)
-    need = batch * nodes * WORKING_BYTES_PER_NODE
-    if need > _memory() / 2:
-        src.invalid("study.chunk_size", chunk_size,
-                    f"a chunk of {batch} drapes of {nodes:,} nodes needs about {need / 2**30:.3g} GiB, more than "
-                    f"half of this machine's {_memory() / 2**30:.3g} GiB; use a smaller chunk_size")
-    existing = _nearest_existing(output_dir)
-    disk = realizations * levels * nodes * STORED_BYTES_PER_NODE
-    free = shutil.disk_usage(existing).free
-    if disk > free:
-        src.invalid("study.realizations", realizations,
-                    f"{realizations * levels:,} drapes of {nodes:,} nodes take about {disk / 2**30:.3g} GiB, "
-                    f"more than the {free / 2**30:.3g} GiB free under {existing}")
 
 
 # ----------------------------------------------------------------------------- public API
@@ -713,9 +659,6 @@ def load_study(path) -> Study:
     design = _design(src, doc, process, uncertainty, sensitivity, head["realizations"])
     report = _report(src, doc, solver.rings)
     output_dir, float32 = _output(src, doc, head["name"])  # checked last, as the sections are ordered
-    _resources(src, head["realizations"], head["chunk_size"], solver.rings, len(process.blankholder_force_N),
-               output_dir)
-    _nominal_placement(src, mould, fabric, solver)
     return Study(
         path=path,
         **head,

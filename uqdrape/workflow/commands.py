@@ -1,0 +1,118 @@
+"""The single-shot commands: one drape to files, material cards (list, show, derive from
+an architecture) and exports of a drape or a run. Each returns what it wrote and a
+summary; the CLI only prints."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..conventions import cf_encode
+from ..drape import drape
+from ..ensemble import Progress, write_atomic
+from ..export import fe_files, flat_files, levels, open_result, vtk_files, write_all
+from ..geometry import build
+from ..material import available_materials, load_material, plot_material
+from ..material.architecture import derive_card, load_architecture, summed
+from ..material.cards import card_material, card_text
+from ..material.plot import plot_architecture
+from ..report import plot_lines, plot_net
+
+
+def drape_to_files(geometry: str, params: dict, spacing: float, rings: int, out, *, material=None,
+                   progress=True, command: str = "uqdrape drape", **options) -> tuple[list[Path], str]:
+    """Drape one net (``uqdrape.drape.drape`` with ``options``) over mould ``geometry``
+    and write ``OUT.nc`` (CF netCDF), ``OUT-net.png`` and ``OUT-lines.png``; return the
+    paths and a one-line summary. ``command`` is recorded as the file's history."""
+    surface = build(geometry, **params)
+    card = load_material(material) if material else None
+    # a ring k/n counter: a bar on a terminal, elsewhere a line every PLAIN_EVERY s of a long drape
+    bar = Progress(rings, enabled=progress, desc="ring", unit="ring", last_line=False)
+    try:
+        ds = drape(surface, spacing, rings, material=card, progress=lambda k: bar.update(k - bar.n), **options)
+    finally:
+        bar.close()
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    mode = options.get("mode", "geodesic")
+    encoded, encoding = cf_encode(ds, title=f"uqdrape {mode} drape of {surface.describe()}", history=command)
+    nc = write_atomic(encoded, out.with_suffix(".nc"), encoding)
+    net_png = plot_net(ds, out.with_name(out.name + "-net.png"),
+                       title=f"{surface.describe()}, {mode} drape, s = {spacing} mm")
+    lines_png = plot_lines(ds, out.with_name(out.name + "-lines.png"))
+    shear = ds.shear.values
+    summary = (f"valid nodes {float((ds.status == 0).mean()):.1%}; shear {np.nanmin(shear):.1f} to "
+               f"{np.nanmax(shear):.1f} deg; energy shear {float(ds.energy_shear[0]):.4g} J, blank-holder "
+               f"{float(ds.energy_blankholder[0]):.4g} J; converged {bool(ds.converged[0])} "
+               f"({int(ds.iterations[0])} iterations)")
+    return [nc, net_png, lines_png], summary
+
+
+def material_list() -> list[tuple[str, str]]:
+    """(name, description) of every shipped material card."""
+    return [(name, load_material(name).description) for name in available_materials()]
+
+
+def material_text(name: str, plot=None) -> str:
+    """What a card says (locking angles, bending stiffness, note); ``plot``: also write its
+    curves to that PNG."""
+    m = load_material(name)
+    text = (f"{m.name}: {m.description}\nlocking angle +{m.locking_angle_deg} / -{m.locking_angle_neg_deg} deg, "
+            f"bending stiffness {m.bending_stiffness} N m^2\n{m.note}")
+    if plot:
+        text += f"\nwrote {plot_material(m, plot)}"
+    return text
+
+
+def derive_material(source: str, out, plot=None) -> str:
+    """Derive a card from architecture ``source`` (a TOML file or a shipped name) into
+    ``out`` (.toml), with the thesis Fig 4.18 picture if ``plot`` (True: next to the
+    card, or a PNG path); a card that would not load is not written. Returns the summary."""
+    out = Path(out)
+    arch = load_architecture(source)
+    terms = summed(arch)
+    doc = derive_card(arch, name=out.stem, source=Path(source).name, terms=terms)
+    text = card_text(doc, f"Material card derived by `uqdrape materials derive {Path(source).name}`: "
+                          "regenerate it, do not edit it.")
+    material = card_material(text, str(out))
+    gamma0 = doc["architecture"]["zero_force_angle_deg"]
+    out.parent.mkdir(parents=True, exist_ok=True)
+    png = None
+    if plot:  # the picture first: if it fails, no card is left behind either
+        png = out.with_suffix(".png") if plot is True else Path(plot)
+        png.parent.mkdir(parents=True, exist_ok=True)
+        plot_architecture(arch, png, terms, gamma0)
+    tmp = out.with_name(out.name + ".tmp")
+    tmp.write_text(text, encoding="utf-8")
+    tmp.replace(out)
+    summary = (f"wrote {out}: {material.name}, zero-force angle {gamma0:.2f} deg, locking "
+               f"+{material.locking_angle_deg:g} / -{material.locking_angle_neg_deg:g} deg (pre-strain "
+               f"{100 * arch.prestrain:.3g} %, beta {arch.beta:.4g})")
+    return summary + (f"\nwrote {png}" if png else "")
+
+
+def export_result(result, to, *, out=None, mesh=None, tolerance=None, reference=None) -> tuple[list[Path], list[str]]:
+    """Export a drape file or a run folder ``result`` as ``to`` (some of "vtk", "fe",
+    "flat"); every file is computed first and written together, all or nothing. Returns
+    the paths and the lines to tell the user (the FE mapping counts)."""
+    if "fe" in to and not mesh:
+        raise ValueError("--to fe needs --mesh FILE (a surface mesh meshio reads: .inp, .msh, .vtu, .stl, ...)")
+    result = Path(result)
+    ds, is_ensemble = open_result(result)
+    stem = Path(out) if out else (result / "export" / result.name if is_ensemble else result.with_suffix(""))
+    levels_ = levels(ds, is_ensemble)
+    for level in levels_ if reference is not None else ():
+        level.orientation = reference
+    writers, notes = {}, []
+    if "vtk" in to:
+        writers.update(vtk_files(levels_, ds, stem))
+    if "fe" in to:
+        fe, statuses = fe_files(levels_, ds, mesh, stem, tolerance)
+        writers.update(fe)
+        counts = [int(n) for n in np.bincount(statuses[0], minlength=3)]
+        notes.append(f"{mesh}: {sum(counts)} elements, {counts[0]} on the net, {counts[1]} outside it, "
+                     f"{counts[2]} off the mould (flagged in map_status and *ELSET UQDRAPE_UNMAPPED)")
+    if "flat" in to:
+        writers.update(flat_files(levels_, stem))
+    return write_all(writers), notes
