@@ -235,6 +235,28 @@ def test_bad_architecture_is_one_line_naming_the_key_and_writes_nothing(tmp_path
     assert not out.exists() and not out.with_suffix(".png").exists()
 
 
+@pytest.mark.parametrize("old, new, key, words", [
+    ("[stitch]\n", "[stitch]\nlenght_mm = 2.5\n", "stitch.lenght_mm",
+     ["valid keys in [stitch]: length_mm, gauge, lapping, stiffness_N, tension_curve"]),
+    ("length_mm = 2.5 ", "# ", "stitch.length_mm", ["stitch.length_mm is missing: stitch.length_mm is the stitch length"]),
+    ('prestrain = "calibrate"', 'prestrain = "fit"', "stitch.prestrain", ['prestrain must be a number or "calibrate"']),
+    ("lapping = [1, -1]", "lapping = [1, -1.0]", "stitch.lapping", ["stitch.lapping = [1, -1.0] is invalid"]),
+    ("zero_force_angle_deg = -2.3 ", "zero_force_angle_deg = -80 ", "calibration", ["the fit failed", "must lie in"]),
+    ("[compaction]", "[compactio]", "compactio", ["unknown key compactio; valid keys in the file's top level: name",
+                                                  "compaction, crossover, calibration"]),
+])
+def test_architecture_errors_carry_the_file_key(tmp_path, old, new, key, words):
+    from uqdrape.files import FileFormatError
+
+    assert old in GOOD
+    path = tmp_path / "bad.toml"
+    path.write_text(GOOD.replace(old, new, 1), encoding="utf-8")
+    with pytest.raises(FileFormatError) as err:
+        load_architecture(path)
+    message = str(err.value)
+    assert message.startswith(f"{path}: ") and err.value.key == key and all(w in message for w in words), message
+
+
 # -- stochastic architecture: a stitch pre-strain field mapped to gamma0 per cell ----------
 STUDY = """
 [study]

@@ -36,11 +36,11 @@ import csv
 import io
 import json
 import math
-import tomllib
 from importlib import resources
 from pathlib import Path
 
-from .model import Material
+from ..files import Document, Table, parse_toml
+from .model import Material, MaterialError
 
 _CARD_KEYS = {
     "name": str,
@@ -71,9 +71,8 @@ def load_material(name_or_path) -> Material:
     text = str(name_or_path)
     shipped = available_materials()
     if text in shipped:
-        cards = _cards_dir()
-        return _material_from_toml(cards.joinpath(text + ".toml").read_text(encoding="utf-8"),
-                                   f"material card {text!r}", text, cards)
+        path = Path(str(_cards_dir().joinpath(text + ".toml")))
+        return _material_from_toml(Document(path, "material card"), path.stem)
     path = Path(name_or_path)
     suffix = path.suffix.lower()
     if suffix not in (".toml", ".csv"):
@@ -86,73 +85,53 @@ def load_material(name_or_path) -> Material:
     if suffix == ".csv":
         curves = _read_csv(path.read_text(encoding="utf-8"), str(path))
         return _build(str(path), {"name": path.stem, **curves})
-    return _material_from_toml(path.read_text(encoding="utf-8"), str(path), path.stem, path.parent)
+    return _material_from_toml(Document(path, "material card"), path.stem)
 
 
 def card_material(text: str, label: str) -> Material:
     """A `Material` from the TOML text of a self-contained card (no [shear] csv); ``label``
     names it in errors and its stem is the default name."""
-    return _material_from_toml(text, label, Path(label).stem, None)
+    source = Document(None, "material card", label=label)
+    return _material_from_toml(source, Path(label).stem, parse_toml(text, label))
 
 
-def _material_from_toml(text, label, stem, base_dir):
-    """Parse a TOML card; `base_dir` (Path or importlib Traversable) resolves a `[shear] csv`."""
-    try:
-        card = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{label}: not valid TOML ({exc})") from None
-    unknown = sorted(set(card) - set(_CARD_KEYS))
-    if unknown:
-        raise ValueError(f"{label}: unknown key(s) {', '.join(unknown)}; valid keys are {', '.join(_CARD_KEYS)}")
+def _material_from_toml(source: Document, stem: str, card: dict | None = None) -> Material:
+    """The card of ``source`` (``card``: its document, if already parsed) as a Material."""
+    card = source.read() if card is None else card
+    top = Table(source, "", card, tuple(_CARD_KEYS))
     props = {}
-    for key, value in card.items():
-        kind = _CARD_KEYS[key]
-        if kind is float:
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise ValueError(f"{label}: {key} must be a number, got {value!r}")
-            props[key] = float(value)
-        elif not isinstance(value, kind):
-            raise ValueError(f"{label}: {key} must be a {'table' if kind is dict else 'string'}, got {value!r}")
-        elif key != "shear":
-            props[key] = value  # "architecture": a derived card's record, kept as read
-    props.setdefault("name", stem)
-    if "shear" not in card:
-        raise ValueError(f"{label}: missing the [shear] table (inline [shear.positive] points or csv = \"file.csv\")")
-    props.update(_shear_curves(card["shear"], label, base_dir))
-    return _build(label, props)
-
-
-def _shear_curves(shear, label, base_dir):
-    """The curve arguments of `Material` from a card's [shear] table."""
-    keys = set(shear)
-    if keys == {"csv"}:
-        rel = shear["csv"]
-        if not isinstance(rel, str):
-            raise ValueError(f"{label}: shear.csv must be a file name, got {rel!r}")
-        source = base_dir.joinpath(rel)
-        if not source.is_file():
-            raise ValueError(f"{label}: shear.csv file {rel!r} not found next to the card")
-        return _read_csv(source.read_text(encoding="utf-8"), f"{label} -> {rel}")
-    if "csv" in keys or not keys <= {"positive", "negative"} or "positive" not in keys:
-        raise ValueError(
-            f"{label}: [shear] must hold either csv = \"file.csv\" or a [shear.positive] table "
-            f"(and optionally [shear.negative]), got keys {', '.join(sorted(keys)) or '(none)'}"
-        )
-    curves = {}
-    for branch in ("positive", "negative"):
-        if branch not in shear:
+    for key, kind in _CARD_KEYS.items():
+        if not top.has(key) or key == "shear":
             continue
-        table = shear[branch]
-        if not isinstance(table, dict) or set(table) != {"angle_deg", "ns"}:
-            got = ", ".join(sorted(table)) if isinstance(table, dict) else repr(table)
-            raise ValueError(f"{label}: shear.{branch} must have exactly the keys angle_deg and ns, got {got}")
-        for key in ("angle_deg", "ns"):
-            values = table[key]
-            if not isinstance(values, list) or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in values):
-                raise ValueError(f"{label}: shear.{branch}.{key} must be a list of numbers, got {values!r}")
-        suffix = "pos" if branch == "positive" else "neg"
-        curves[f"angles_deg_{suffix}"] = table["angle_deg"]
-        curves[f"ns_{suffix}"] = table["ns"]
+        if kind is float:
+            props[key] = top.number(key)
+        elif kind is str:
+            props[key] = top.string(key)
+        else:
+            props[key] = top.table(key).data  # "architecture": a derived card's record, kept as read
+    props.setdefault("name", stem)
+    if not top.has("shear"):
+        source.missing("shear", 'a card needs a [shear] table: [shear.positive] points or csv = "file.csv"')
+    shear = top.table("shear", ("csv", "positive", "negative"))
+    props.update(_shear_curves(shear, source))
+    return _build(source, props, top)
+
+
+def _shear_curves(shear: Table, source: Document) -> dict:
+    """The curve arguments of `Material` from a card's [shear] table."""
+    if shear.has("csv"):
+        if len(shear.data) > 1:
+            shear.invalid("csv", 'give either csv = "file.csv" or [shear.positive] points, not both')
+        path = source.relative_file("shear.csv", shear.data["csv"])
+        return _read_csv(path.read_text(encoding="utf-8"), f"{source.label} -> {shear.data['csv']}")
+    if not shear.has("positive"):
+        source.missing("shear.positive", 'the [shear] table needs [shear.positive] points, or csv = "file.csv"')
+    curves = {}
+    for branch, suffix in (("positive", "pos"), ("negative", "neg")):
+        if shear.has(branch):
+            points = shear.table(branch, ("angle_deg", "ns"))
+            curves[f"angles_deg_{suffix}"] = points.numbers("angle_deg", hint="angle_deg must be a list of numbers (deg)")
+            curves[f"ns_{suffix}"] = points.numbers("ns", hint="ns must be a list of numbers (N/m)")
     return curves
 
 
@@ -183,12 +162,21 @@ def _read_csv(text, label):
     return curves
 
 
-def _build(label, props):
-    """`Material(**props)` with any validation error prefixed by the file it came from."""
+def _build(source, props, top: Table | None = None) -> Material:
+    """`Material(**props)`. A refused property is blamed on ``source``: the label of a CSV
+    file, or the Document of a TOML card (``top`` its top level) naming the key at fault
+    (``shear.csv`` for curves read from a CSV)."""
     try:
         return Material.from_curves(**props)
-    except ValueError as exc:
-        raise ValueError(f"{label}: {exc}") from None
+    except MaterialError as err:
+        if isinstance(source, str):
+            raise ValueError(f"{source}: {err}") from None
+        if err.key.startswith("shear."):
+            shear = top.table("shear")
+            shear.invalid("csv" if shear.has("csv") else err.key.partition(".")[2], str(err))
+        if top.has(err.key):
+            top.invalid(err.key, str(err))
+        source.fail(str(err), err.key)
 
 
 def material_document(material: Material) -> dict:
