@@ -132,7 +132,7 @@ def test_top_level_and_sub_tables(tmp_path):
     assert err.value.key == "stitch.bad" and "valid keys in [stitch]: gauge" in str(err.value)
     with pytest.raises(FileFormatError) as err:
         top.only(("stitch",))
-    assert "unknown key name; valid keys in the top level: stitch" in str(err.value)
+    assert "unknown key name; valid keys in the file's top level: stitch" in str(err.value)
     with pytest.raises(FileFormatError) as err:
         table(tmp_path, {"stitch": 3}, name="").table("stitch")
     assert err.value.key == "stitch" and "stitch = 3 is invalid: stitch must be a table [stitch]" in str(err.value)

@@ -173,7 +173,7 @@ class Table:
 
     def only(self, keys):
         """Reject keys not in ``keys`` (call it later when the valid keys depend on a value)."""
-        where = f"[{self.name}]" if self.name else "the top level"
+        where = f"[{self.name}]" if self.name else "the file's top level"
         for key in self.data:
             if key not in keys:
                 self.doc.fail(f"unknown key {self.dotted(key)}; valid keys in {where}: {', '.join(keys)}",
