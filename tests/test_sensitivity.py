@@ -24,6 +24,8 @@ from uqdrape.sensitivity import (
 )
 from uqdrape.stochastic import constant, lognormal, normal, truncnormal, uniform
 
+from golden import ISHIGAMI_S1, ISHIGAMI_ST
+
 
 def run_sensitivity(problem, evaluate, *, base_samples, method="sobol", seed, qoi_names=None):
     """Sample the design, evaluate ``evaluate(X) -> Y`` once, analyse every QoI (SALib's own
@@ -34,9 +36,6 @@ def run_sensitivity(problem, evaluate, *, base_samples, method="sobol", seed, qo
     return ds
 
 PI = np.pi
-# Ishigami (a=7, b=0.1) analytic indices.
-ISHIGAMI_S1 = np.array([0.3139, 0.4424, 0.0])
-ISHIGAMI_ST = np.array([0.5576, 0.4424, 0.2437])
 
 
 def ishigami_problem(dummy=False):

@@ -35,9 +35,9 @@ from uqdrape.workflow import (
     study_problem,
 )
 
+from golden import ISHIGAMI_S1, ISHIGAMI_ST
+
 FORCES = (0.0, 378.0)
-ISHIGAMI_S1 = np.array([0.3139, 0.4424, 0.0])
-ISHIGAMI_ST = np.array([0.5576, 0.4424, 0.2437])
 
 
 def study_file(tmp_path, name="sens", *, force="[0.0, 378.0]", rings=6, base=128, method="sobol",
