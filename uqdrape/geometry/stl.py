@@ -25,6 +25,7 @@ import numpy as np
 from scipy.interpolate import RectBivariateSpline
 from scipy.ndimage import distance_transform_edt
 
+from ..errors import ParameterError
 from . import compiled
 from .base import Surface
 
@@ -107,13 +108,13 @@ class StlSurface(Surface):
     def __init__(self, path, resolution_mm: float = 2.0):
         self.path = Path(path)
         if not self.path.is_file():
-            raise ValueError(f"path: STL file {str(self.path)!r} does not exist")
+            raise ParameterError("path", f"path: STL file {str(self.path)!r} does not exist")
         try:
             res = float(resolution_mm)
         except (TypeError, ValueError):
             res = float("nan")
         if not (math.isfinite(res) and res > 0):
-            raise ValueError(f"resolution_mm must be a positive length in mm, got {resolution_mm!r}")
+            raise ParameterError("resolution_mm", f"resolution_mm must be a positive length (mm), got {resolution_mm!r}")
         self.resolution_mm = res
         import trimesh
 
@@ -122,15 +123,16 @@ class StlSurface(Surface):
         except Exception as err:  # trimesh raises assorted types on unreadable files
             # (on a file that is neither binary nor ASCII STL, even a missing optional module)
             why = "not a binary or ASCII STL file" if isinstance(err, ImportError) else str(err)
-            raise ValueError(f"path: cannot read {str(self.path)!r} as STL: {why}") from err
+            raise ParameterError("path", f"path: cannot read {str(self.path)!r} as STL: {why}") from err
         if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-            raise ValueError(f"path: {str(self.path)!r} holds no triangles")
+            raise ParameterError("path", f"path: {str(self.path)!r} holds no triangles")
         (xmin, ymin, _), (xmax, ymax, _) = mesh.bounds
         if not (xmax - xmin > 0 and ymax - ymin > 0):
-            raise ValueError(f"path: mesh {str(self.path)!r} has no extent in plan")
+            raise ParameterError("path", f"path: mesh {str(self.path)!r} has no extent in plan")
         points = math.ceil((xmax - xmin) / res + 1) * math.ceil((ymax - ymin) / res + 1)
         if points > MAX_GRID_POINTS:
-            raise ValueError(f"resolution_mm = {res:g} mm makes a height grid of {points:,} points over the "
+            raise ParameterError("resolution_mm",
+                                 f"resolution_mm = {res:g} mm makes a height grid of {points:,} points over the "
                              f"mesh's {xmax - xmin:.4g} x {ymax - ymin:.4g} mm plan, more than {MAX_GRID_POINTS:,}; "
                              "use a coarser resolution")
         self._x = _grid(xmin, xmax, res)
@@ -138,7 +140,7 @@ class StlSurface(Surface):
         top = _top_heights(np.asarray(mesh.triangles, dtype=float), self._x, self._y)
         self._hit = np.isfinite(top)
         if not self._hit.any():
-            raise ValueError(f"path: mesh {str(self.path)!r} covers no grid node at {res} mm")
+            raise ParameterError("path", f"path: mesh {str(self.path)!r} covers no grid node at {res} mm")
         # fill uncovered nodes with their nearest covered node's height
         idx = distance_transform_edt(~self._hit, return_distances=False, return_indices=True)
         filled = top[idx[0], idx[1]]
@@ -163,7 +165,7 @@ def export_stl(surface: Surface, path, half_width: float | None = None, resoluti
     """
     res = float(resolution_mm)
     if not (math.isfinite(res) and res > 0):
-        raise ValueError(f"resolution_mm must be a positive length in mm, got {resolution_mm!r}")
+        raise ParameterError("resolution_mm", f"resolution_mm must be a positive length (mm), got {resolution_mm!r}")
     if half_width is not None:
         w = float(half_width)
         if not (math.isfinite(w) and w > 0):

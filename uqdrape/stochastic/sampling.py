@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import qmc
 
+from ..errors import ParameterError
 from .factors import normal
 
 PLANS = ("monte_carlo", "latin_hypercube", "sobol")
@@ -45,14 +46,15 @@ def sample_uniforms(plan: str, n: int, d: int, seed: int) -> np.ndarray:
     ``"sobol"``: scrambled Sobol' points, n must be a power of two (balance).
     """
     if plan not in PLANS:
-        raise ValueError(f"plan must be one of {PLANS}, got {plan!r}")
+        raise ParameterError("plan", f"plan must be one of {PLANS}, got {plan!r}")
     n, d = _non_negative_int("n", n), _non_negative_int("d", d)
     if n < 1:
-        raise ValueError(f"n (number of realisations) must be >= 1, got {n}")
+        raise ParameterError("n", f"n (number of realisations) must be >= 1, got {n}")
     rng = np.random.default_rng(np.random.SeedSequence(_non_negative_int("seed", seed)))
     m = n.bit_length() - 1
     if plan == "sobol" and n != 1 << m:
-        raise ValueError(f"plan 'sobol' needs a power-of-two n for balance, got n={n} (nearest: {1 << m}, {2 << m})")
+        raise ParameterError(("plan", "n"), f"plan 'sobol' needs a power-of-two n for balance, got n={n} "
+                                            f"(nearest: {1 << m}, {2 << m})")
     if d == 0:
         return np.empty((n, 0))
     if plan == "monte_carlo":
@@ -104,22 +106,22 @@ def check_base_samples(method: str, base_samples) -> int:
     else ValueError giving the minimum."""
     method = check_method(method)
     if isinstance(base_samples, bool) or not isinstance(base_samples, (int, np.integer)):
-        raise ValueError(f"base_samples={base_samples!r} must be an integer")
+        raise ParameterError("base_samples", f"base_samples={base_samples!r} must be an integer")
     n = int(base_samples)
     if method == "sobol":
         if n < SOBOL_MIN_BASE_SAMPLES:
-            raise ValueError(
-                f"base_samples={n} is too small for Sobol': the minimum is "
+            raise ParameterError(
+                "base_samples", f"base_samples={n} is too small for Sobol': the minimum is "
                 f"{SOBOL_MIN_BASE_SAMPLES} (and it must be a power of 2)"
             )
         if n & (n - 1):
             lower = 1 << (n.bit_length() - 1)
-            raise ValueError(
-                f"base_samples={n} must be a power of 2 for Sobol' (e.g. {lower} or {2 * lower})"
+            raise ParameterError(
+                "base_samples", f"base_samples={n} must be a power of 2 for Sobol' (e.g. {lower} or {2 * lower})"
             )
     elif n < MORRIS_MIN_TRAJECTORIES:
-        raise ValueError(
-            f"base_samples={n} is too small for Morris: the minimum is "
+        raise ParameterError(
+            "base_samples", f"base_samples={n} is too small for Morris: the minimum is "
             f"{MORRIS_MIN_TRAJECTORIES} trajectories"
         )
     return n

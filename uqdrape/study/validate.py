@@ -59,10 +59,8 @@ error too, because it usually means another key was forgotten.
 from __future__ import annotations
 
 import inspect
-import json
 import math
 import re
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -71,208 +69,63 @@ from .. import geometry as _geometry
 from .. import material as _material
 from .. import stochastic as _stochastic
 from ..experimental import read_experimental
+from ..files import REQUIRED, Document, FileFormatError, Table, fmt, is_int, is_number
 from ..schema import BLANKHOLDER_MODELS, MAX_RINGS, MODES, QOI_ATTRS, SENSITIVITY_QOIS, SOLVER_INPUTS
 from .spec import (DESIGN_OBJECTIVES, DESIGN_STATISTICS, DESIGN_VARIABLES, DIST_KEYS, FACTOR_SETTINGS, FIELD_KEYS,
                    FIELDS, SECTIONS, SENSITIVITY_METHODS, Design, Fabric, Geometry, Process, RandomField, Report,
                    Sampling, Sensitivity, Solver, Study, Uncertainty, prestrain_map)
 
 
-class StudyError(ValueError):
+class StudyError(FileFormatError):
     """A problem in a study file; the message names the file, the key, the value and what
-    is valid, and ``key`` is the dotted key (None for the file as a whole)."""
-
-    def __init__(self, message: str, key: str | None = None):
-        super().__init__(message)
-        self.key = key
+    is valid, ``path`` is the file and ``key`` the dotted key (None for the file as a whole)."""
 
 
 def study_error(path, key: str, value, why: str) -> StudyError:
     """The error for ``key = value`` of study file ``path``: ``<file>: <key> = <value> is invalid: <why>``."""
-    return StudyError(f"{path}: {key} = {_fmt(value)} is invalid: {why}", key)
+    return StudyError(f"{path}: {key} = {fmt(value)} is invalid: {why}", path, key)
 
 
 # factor distributions offered in a study file (a constant is the fixed setting itself)
 _DISTS = tuple(d for d in _stochastic.DISTRIBUTIONS if d != "constant")
 _NAME_RE = re.compile(r"^[A-Za-z0-9_-]+$")
-_REQUIRED = object()
 
 
-# ----------------------------------------------------------------------------- messages
-
-
-def _fmt(value) -> str:
-    """A value as it would be written in TOML (shortened if long)."""
-    if isinstance(value, bool):
-        text = "true" if value else "false"
-    elif isinstance(value, str):
-        text = json.dumps(value)
-    elif isinstance(value, dict):
-        text = "{ " + ", ".join(f"{k} = {_fmt(v)}" for k, v in value.items()) + " }"
-    elif isinstance(value, (list, tuple)):
-        text = "[" + ", ".join(_fmt(v) for v in value) + "]"
-    else:
-        text = repr(value)
-    return text if len(text) <= 80 else text[:77] + "..."
-
-
-def _is_number(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
-def _is_int(value) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
-
-
-class _Source:
-    """The study file being read: its label for messages and its folder for relative paths."""
+class _Source(Document):
+    """The study file being read (``uqdrape.files.Document``), which also says which study
+    key another module's ParameterError is about."""
 
     def __init__(self, path: Path):
-        self.path = path
-        self.label = str(path)
-        self.folder = path.resolve().parent
+        super().__init__(path, "study file", error=StudyError)
 
-    def fail(self, text: str, key: str | None = None):
-        raise StudyError(f"{self.label}: {text}", key)
-
-    def invalid(self, key: str, value, why: str):
-        raise study_error(self.label, key, value, why)
-
-    def missing(self, key: str, why: str):
-        self.fail(f"{key} is missing: {why}", key)
-
-    def relative_file(self, key: str, value) -> Path:
-        """An existing file named relative to the study file."""
-        if not isinstance(value, str) or not value:
-            self.invalid(key, value, "must be a file name (relative to the study file)")
-        path = self.folder / value
-        if not path.is_file():
-            self.invalid(key, value, f"file not found: {path}")
-        return path
-
-    def wrap(self, err: Exception, section: str, given: dict, required: dict | None = None):
+    def wrap(self, err: ValueError, section: str, given: dict, required: dict | None = None):
         """Re-raise another module's ValueError with file and key context.
 
-        ``given`` maps a name as the other module spells it to (dotted study key, value)
-        for keys present in the file; ``required`` maps names of absent required keys to
-        their dotted keys. The names in the message decide which study key is blamed: a
-        missing required key first, else every present key it names, else ``[section]``.
+        ``given`` maps an argument name as the other module spells it to (dotted study key,
+        value) for keys present in the file; ``required`` maps names of absent required keys
+        to their dotted keys. The error's own ``names`` (``uqdrape.errors.ParameterError``)
+        decide which key is blamed: a missing required key first, else every present key
+        it names, else ``[section]``.
         """
-        msg = str(err)
-
-        def named(name):
-            return re.search(rf"(?<![\w.]){re.escape(name)}(?!\w)", msg) is not None
-
-        for name, key in (required or {}).items():
-            if named(name):
-                self.missing(key, msg)
+        msg, names = str(err), getattr(err, "names", ())
+        for name in names:
+            if name in (required or {}):
+                self.missing(required[name], msg)
         blamed = {}
-        for name, (key, value) in given.items():
-            if named(name):
-                blamed.setdefault(key, value)
+        for name in names:
+            if name in given:
+                blamed.setdefault(*given[name])
         if blamed:
-            lhs = ", ".join(f"{k} = {_fmt(v)}" for k, v in blamed.items())
-            self.fail(f"{lhs} is invalid: {msg}")
-        self.fail(f"[{section}] is invalid: {msg}")
-
-
-class _Table:
-    """One TOML table of the study: rejects unknown keys, reads typed values."""
-
-    def __init__(self, src: _Source, name: str, data, keys=None):
-        self.src, self.name = src, name
-        if not isinstance(data, dict):
-            src.invalid(name, data, f"{name} must be a table [{name}]")
-        self.data = data
-        if keys is not None:
-            self.only(keys)
-
-    def only(self, keys):
-        """Reject keys not in ``keys`` (called later when the valid keys depend on a value)."""
-        for key in self.data:
-            if key not in keys:
-                self.src.fail(f"unknown key {self.dotted(key)}; valid keys in [{self.name}]: {', '.join(keys)}")
-
-    def dotted(self, key: str) -> str:
-        return f"{self.name}.{key}"
-
-    def has(self, key: str) -> bool:
-        return key in self.data
-
-    def invalid(self, key: str, why: str):
-        self.src.invalid(self.dotted(key), self.data[key], why)
-
-    def raw(self, key: str, default, hint: str):
-        if key in self.data:
-            return self.data[key]
-        if default is _REQUIRED:
-            self.src.missing(self.dotted(key), hint)
-        return default
-
-    def number(self, key, default=_REQUIRED, *, integer=False, ge=None, gt=None, lt=None):
-        """A finite number (an int where ``integer``) with optional bounds."""
-        kind = "an integer" if integer else "a number"
-        low = f"{ge} <= " if ge is not None else f"{gt} < " if gt is not None else ""
-        if lt is not None:
-            hint = f"{key} must be {kind} with {low}{key} < {lt}"
-        elif low:
-            hint = f"{key} must be {kind} {'>=' if ge is not None else '>'} {ge if ge is not None else gt}"
-        else:
-            hint = f"{key} must be a finite number" if not integer else f"{key} must be an integer"
-        value = self.raw(key, default, hint)
-        if key not in self.data:
-            return value
-        if not (_is_int(value) if integer else _is_number(value)) or not math.isfinite(value):
-            self.invalid(key, hint)
-        if (ge is not None and value < ge) or (gt is not None and value <= gt) or (lt is not None and value >= lt):
-            self.invalid(key, hint)
-        return value if integer else float(value)
-
-    def string(self, key, default=_REQUIRED, *, choices=None, hint=None, valid=lambda value: True):
-        """A string, one of ``choices`` if given, for which ``valid(value)`` holds if given."""
-        hint = hint or (f"{key} must be one of {', '.join(map(json.dumps, choices))}" if choices
-                        else f"{key} must be a string")
-        value = self.raw(key, default, hint)
-        if not isinstance(value, str) or (choices is not None and value not in choices) or not valid(value):
-            self.invalid(key, hint)
-        return value
-
-    def numbers(self, key, default=_REQUIRED, *, length=None, hint):
-        """A list of finite numbers (of exactly ``length`` if given, else non-empty)."""
-        value = self.raw(key, default, hint)
-        if key not in self.data:
-            return value
-        ok = isinstance(value, list) and len(value) > 0 and (length is None or len(value) == length)
-        if not ok or not all(_is_number(v) and math.isfinite(v) for v in value):
-            self.invalid(key, hint)
-        return tuple(float(v) for v in value)
+            lhs = ", ".join(f"{k} = {fmt(v)}" for k, v in blamed.items())
+            self.fail(f"{lhs} is invalid: {msg}", next(iter(blamed)))
+        self.fail(f"[{section}] is invalid: {msg}", section)
 
 
 # ----------------------------------------------------------------------------- sections
 
 
-def _read_toml(path: Path, src: _Source) -> dict:
-    """The study document. UTF-8 (a byte-order mark is allowed) or UTF-16 with its mark;
-    anything else is refused naming the first byte that is not text."""
-    try:
-        data = path.read_bytes()
-    except OSError as err:
-        src.fail(f"cannot read the study file: {err.strerror or err}")
-    try:
-        if data.startswith((b"\xff\xfe", b"\xfe\xff")):
-            text = data.decode("utf-16")
-        else:
-            text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as err:
-        src.fail(f"not UTF-8 text: byte 0x{data[err.start]:02x} at offset {err.start} ({err.reason}); "
-                 "save the study file as UTF-8")
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        src.fail(f"not valid TOML: {err}")
-
-
 def _study(src: _Source, doc: dict) -> dict:
-    t = _Table(src, "study", doc.get("study", {}), ("name", "seed", "realizations", "chunk_size", "description"))
+    t = Table(src, "study", doc.get("study", {}), ("name", "seed", "realizations", "chunk_size", "description"))
     name = t.string("name", hint="name must be a non-empty string of letters, digits, '-' and '_'",
                     valid=_NAME_RE.match)
     return {
@@ -286,7 +139,7 @@ def _study(src: _Source, doc: dict) -> dict:
 
 def _geometry_section(src: _Source, doc: dict):
     """The mould spec and the built mould (needed for the crossover checks)."""
-    t = _Table(src, "geometry", doc["geometry"])
+    t = Table(src, "geometry", doc["geometry"])
     kind = t.string("kind", choices=tuple(_geometry.KINDS))  # first: it decides the valid keys
     sig = inspect.signature(_geometry.KINDS[kind].__init__)
     shape_keys = [p for p in sig.parameters if p != "self"]
@@ -304,7 +157,7 @@ def _geometry_section(src: _Source, doc: dict):
 
 
 def _fabric(src: _Source, doc: dict, mould) -> Fabric:
-    t = _Table(src, "fabric", doc.get("fabric", {}),
+    t = Table(src, "fabric", doc.get("fabric", {}),
                ("material", "spacing_mm", "orientation_deg", "pre_shear_deg", "skew_deg", "crossover"))
     shipped = _material.available_materials()
     hint = (f"material must be a shipped card ({', '.join(shipped)}) "
@@ -335,12 +188,12 @@ def _fabric(src: _Source, doc: dict, mould) -> Fabric:
 
 
 def _process(src: _Source, doc: dict) -> Process:
-    t = _Table(src, "process", doc.get("process", {}), ("blankholder_force_N", "friction", "sectors",
+    t = Table(src, "process", doc.get("process", {}), ("blankholder_force_N", "friction", "sectors",
                                                                     "blankholder_model"))
     hint = ("blankholder_force_N must be a number >= 0 (N), "
             "or a non-empty list of distinct numbers >= 0 (a sweep)")
-    force = t.raw("blankholder_force_N", _REQUIRED, hint)
-    if _is_number(force):
+    force = t.raw("blankholder_force_N", REQUIRED, hint)
+    if is_number(force):
         levels = (float(force),)
     else:
         levels = t.numbers("blankholder_force_N", hint=hint)
@@ -363,7 +216,7 @@ def _process(src: _Source, doc: dict) -> Process:
 
 
 def _solver(src: _Source, doc: dict) -> Solver:
-    t = _Table(src, "solver", doc.get("solver", {}), ("mode", "rings", "tolerance_deg", "max_iterations",
+    t = Table(src, "solver", doc.get("solver", {}), ("mode", "rings", "tolerance_deg", "max_iterations",
                                                         "failure_budget"))
     solver = Solver(
         mode=t.string("mode", "energy", choices=MODES),
@@ -382,7 +235,7 @@ def _solver(src: _Source, doc: dict) -> Solver:
 
 def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, material: str) -> RandomField:
     section = f"uncertainty.{name}"
-    t = _Table(src, section, data, (*FIELD_KEYS[name], "correlation", "length_mm", "kl_retained"))
+    t = Table(src, section, data, (*FIELD_KEYS[name], "correlation", "length_mm", "kl_retained"))
     if name == "spacing":
         params = {"cv": t.number("cv")}  # its range is checked by SpacingInput
     elif name == "zero_angle":
@@ -424,7 +277,7 @@ def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, materia
 
 def _factor(src: _Source, name: str, data):
     section = f"uncertainty.{name}"
-    t = _Table(src, section, data)
+    t = Table(src, section, data)
     dist = t.string("dist", choices=_DISTS)  # first: it decides the valid keys
     keys = DIST_KEYS[dist]
     t.only(("dist", *keys))
@@ -446,7 +299,7 @@ def _factor(src: _Source, name: str, data):
 
 def _uncertainty(src: _Source, doc: dict, fabric: Fabric, process: Process, solver: Solver, mould) -> Uncertainty:
     names = (*FIELDS, *FACTOR_SETTINGS)
-    t = _Table(src, "uncertainty", doc.get("uncertainty", {}), names)
+    t = Table(src, "uncertainty", doc.get("uncertainty", {}), names)
     fields, factors = {}, {}
     for name in names:  # schema order, not file order: deterministic messages
         if not t.has(name):
@@ -500,7 +353,7 @@ def _describe(mould) -> str:
 
 
 def _sampling(src: _Source, doc: dict, realizations: int, seed: int) -> Sampling:
-    t = _Table(src, "sampling", doc.get("sampling", {}), ("plan",))
+    t = Table(src, "sampling", doc.get("sampling", {}), ("plan",))
     plan = t.string("plan", "monte_carlo", choices=_stochastic.PLANS)
     try:
         _stochastic.sample_uniforms(plan, realizations, 0, seed)  # checks the plan, draws nothing
@@ -510,7 +363,7 @@ def _sampling(src: _Source, doc: dict, realizations: int, seed: int) -> Sampling
 
 
 def _sensitivity(src: _Source, doc: dict, uncertainty: Uncertainty) -> Sensitivity:
-    t = _Table(src, "sensitivity", doc.get("sensitivity", {}), ("method", "base_samples", "qoi"))
+    t = Table(src, "sensitivity", doc.get("sensitivity", {}), ("method", "base_samples", "qoi"))
     method = t.string("method", "none", choices=SENSITIVITY_METHODS)
     base = None
     if method == "none":
@@ -536,7 +389,7 @@ def _sensitivity(src: _Source, doc: dict, uncertainty: Uncertainty) -> Sensitivi
     return Sensitivity(method, base, tuple(qoi))
 
 
-def _bounds(t: _Table, key: str, unit: str):
+def _bounds(t: Table, key: str, unit: str):
     """Two numbers [lo, hi] with 0 <= lo < hi."""
     hint = f"{key} must be two numbers [lo, hi] with 0 <= lo < hi{unit}"
     lo, hi = t.numbers(key, length=2, hint=hint)
@@ -560,7 +413,7 @@ def _design(src: _Source, doc: dict, process: Process, uncertainty: Uncertainty,
     """The [design] section (None without one) and the rules tying it to the study."""
     if "design" not in doc:
         return None
-    t = _Table(src, "design", doc["design"], ("variables", "sectors", "force_bounds_N", "friction_bounds",
+    t = Table(src, "design", doc["design"], ("variables", "sectors", "force_bounds_N", "friction_bounds",
                                               "budget_N", "objective", "statistic", "target", "confidence",
                                               "max_evaluations", "tolerance_N", "validation_realizations",
                                               "max_draw_in_mm"))
@@ -607,11 +460,11 @@ def _design(src: _Source, doc: dict, process: Process, uncertainty: Uncertainty,
 
 
 def _report(src: _Source, doc: dict, rings: int) -> Report:
-    t = _Table(src, "report", doc.get("report", {}), ("histogram_nodes", "experimental_csv"))
+    t = Table(src, "report", doc.get("report", {}), ("histogram_nodes", "experimental_csv"))
     hint = f"histogram_nodes must be a list of [i, j] integer pairs with |i|, |j| <= rings = {rings}"
     nodes = t.raw("histogram_nodes", [], hint)
     ok = isinstance(nodes, list) and all(
-        isinstance(n, list) and len(n) == 2 and all(_is_int(v) and abs(v) <= rings for v in n) for n in nodes)
+        isinstance(n, list) and len(n) == 2 and all(is_int(v) and abs(v) <= rings for v in n) for n in nodes)
     if not ok:
         t.invalid("histogram_nodes", hint)
     csv = None
@@ -625,7 +478,7 @@ def _report(src: _Source, doc: dict, rings: int) -> Report:
 
 
 def _output(src: _Source, doc: dict, name: str) -> tuple[Path, bool]:
-    t = _Table(src, "output", doc.get("output", {}), ("directory", "float32"))
+    t = Table(src, "output", doc.get("output", {}), ("directory", "float32"))
     directory = t.string("directory", f"results/{name}", hint="directory must be a non-empty path", valid=bool)
     float32 = t.raw("float32", False, "float32 must be true or false")
     if not isinstance(float32, bool):
@@ -640,7 +493,7 @@ def load_study(path) -> Study:
     """Read and validate a study file; raises StudyError (first problem found)."""
     path = Path(path)
     src = _Source(path)
-    doc = _read_toml(path, src)
+    doc = src.read()
     for key, value in doc.items():
         if key not in SECTIONS:
             what = f"section [{key}]" if isinstance(value, dict) else f"top-level key {key} (outside any section)"
