@@ -12,13 +12,13 @@ force each drape was run with in ``applied_blankholder_force``.
 from __future__ import annotations
 
 import errno
-import os
 import shutil
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
+from .. import files
 from ..drape import drape
 from ..material import load_material
 from ..schema import SOLVER_INPUTS
@@ -65,25 +65,24 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
 
 def write_atomic(ds: xr.Dataset, path: Path, encoding: dict | None = None, *, keep=None) -> Path | None:
     """Write ``ds`` (with netCDF ``encoding``) to ``path`` via ``<path>.part`` in the same
-    directory and a rename, so ``path`` exists only complete. A leftover ``.part`` (a
-    killed writer) is overwritten, never read; a failed write removes its ``.part`` and
-    raises OSError naming the path and the cause (a full disk is said so: netCDF itself
-    only reports "HDF error"). ``keep()``, if given, is asked before the rename: False
-    drops the finished file (a worker whose run has died) and returns None."""
+    directory and a rename (uqdrape.files.write_atomic), so ``path`` exists only complete.
+    A leftover ``.part`` (a killed writer) is overwritten, never read; a failed write
+    removes its ``.part`` and raises OSError naming the path and the cause (a full disk is
+    said so: netCDF itself only reports "HDF error"). ``keep()``, if given, is asked
+    before the rename: False drops the finished file (a worker whose run has died) and
+    returns None."""
     path = Path(path)
-    part = path.with_name(path.name + ".part")
-    try:
-        ds.to_netcdf(part, engine="netcdf4", encoding=encoding)
-    except BaseException as err:
-        part.unlink(missing_ok=True)
-        named = isinstance(err, OSError) and err.errno is not None  # the OS said what went wrong
-        if named or not isinstance(err, Exception):  # ... or an interrupt: pass it on as it is
-            raise
-        if shutil.disk_usage(path.parent).free < ds.nbytes:
-            raise OSError(errno.ENOSPC, "the disk is full", str(path)) from err
-        raise OSError(errno.EIO, f"netCDF could not write it ({err})", str(path)) from err
-    if keep is not None and not keep():
-        part.unlink(missing_ok=True)
-        return None
-    os.replace(part, path)
-    return path
+
+    def write(part):
+        try:
+            ds.to_netcdf(part, engine="netcdf4", encoding=encoding)
+        except Exception as err:
+            if isinstance(err, OSError) and err.errno is not None:  # the OS said what went wrong
+                raise
+            part.unlink(missing_ok=True)  # first, so that the free space below is without it
+            if shutil.disk_usage(path.parent).free < ds.nbytes:
+                raise OSError(errno.ENOSPC, "the disk is full", str(path)) from err
+            raise OSError(errno.EIO, f"netCDF could not write it ({err})", str(path)) from err
+        return keep is None or bool(keep())
+
+    return files.write_atomic(path, write, keep_suffix=False)

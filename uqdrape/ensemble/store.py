@@ -15,12 +15,12 @@ from __future__ import annotations
 
 import errno
 import json
-import os
 from pathlib import Path
 
 import xarray as xr
 
 from ..conventions import cf_decode
+from ..files import write_text_atomic
 from ..schema import FORCE
 
 MANIFEST = "run.json"
@@ -37,11 +37,8 @@ def read_manifest(output_dir) -> dict | None:
 
 
 def write_manifest(output_dir, manifest: dict) -> None:
-    """Write the manifest atomically (temporary file + rename)."""
-    path = Path(output_dir) / MANIFEST
-    part = path.with_name(path.name + ".part")
-    part.write_text(json.dumps(manifest, indent=1), encoding="utf-8")
-    os.replace(part, path)
+    """Write the manifest atomically (uqdrape.files: temporary file + rename)."""
+    write_text_atomic(Path(output_dir) / MANIFEST, json.dumps(manifest, indent=1))
 
 
 def open_ensemble(output_dir) -> xr.Dataset:

@@ -18,6 +18,7 @@ import xarray as xr
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from ..files import write_text_atomic
 from .figures import panels, save, styled
 from .html import provenance, provenance_line
 
@@ -239,7 +240,7 @@ def write_design_report(ds: xr.Dataset, out_dir, *, surface) -> Path:
         if key in summary:
             summary[key] = json.loads(summary[key])
     summary = json.loads(json.dumps(summary, default=lambda v: np.asarray(v).tolist()))
-    (out / "summary.json").write_text(json.dumps(summary, indent=1), encoding="utf-8")
+    write_text_atomic(out / "summary.json", json.dumps(summary, indent=1))
     figs = "".join(f'<figure><img src="{p.name}" alt="{p.stem}"><figcaption>{html.escape(cap)}</figcaption></figure>'
                    for p, cap in figures)
     page = (f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(ds.attrs['study_name'])}</title>"
@@ -250,5 +251,5 @@ def write_design_report(ds: xr.Dataset, out_dir, *, surface) -> Path:
             f"<p>{html.escape(provenance_line(prov))}</p>"
             f"<p><b>{html.escape(ds.attrs['summary'])}</b></p>{_table(ds)}{figs}</body></html>")
     index = out / "index.html"
-    index.write_text(page, encoding="utf-8")
+    write_text_atomic(index, page)
     return index

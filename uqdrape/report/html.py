@@ -27,6 +27,7 @@ from uqdrape.stats import dominant_factors, headline_numbers, node_statistics, s
 from uqdrape.stats.headline import DESIGN, DETERMINISTIC, RANDOM, SWEPT
 
 from ..experimental import read_experimental
+from ..files import write_text_atomic
 from .plan import PLAN, SENSITIVITY_PLAN, Context, render
 from .sensitivity_figures import INDICES
 
@@ -203,12 +204,12 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None
                                  for k in ("method", "base_samples", "n_evaluations", "conf_level")}
         record["sensitivity"]["largest_ST"] = dominant
     summary_path = out / "summary.json"
-    summary_path.write_text(json.dumps(record, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    write_text_atomic(summary_path, json.dumps(record, indent=2, allow_nan=False) + "\n")
 
     section = "" if sensitivity is None else _sensitivity_section(sensitivity, sens_items)
     page = _page(record, ds, _rows(numbers, extra, dominant), items, study_text, summary_path.name, section)
     index = out / "index.html"
-    index.write_text(page, encoding="utf-8")
+    write_text_atomic(index, page)
     return index
 
 
