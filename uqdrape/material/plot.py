@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..files import write_atomic
+
 
 def _figure(width_in, height_in):
     """A matplotlib Figure on the Agg canvas. matplotlib is imported here, not with the
@@ -16,6 +18,12 @@ def _figure(width_in, height_in):
     fig = Figure(figsize=(width_in, height_in), layout="constrained")
     FigureCanvasAgg(fig)
     return fig
+
+
+def _save(fig, path) -> Path:
+    """Write ``fig`` to ``path`` atomically, in the format its suffix names (PNG without one)."""
+    path = Path(path)
+    return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=120, format=path.suffix[1:] or "png"))
 
 
 def plot_material(material, path):
@@ -46,8 +54,7 @@ def plot_material(material, path):
     ax_f.legend(loc="upper left", title="dashed: locking")
     fig.suptitle(f"{material.name}: φ0 = {material.phi0_deg:g}°, locking +{material.locking_angle_deg:g}° / "
                  f"−{material.locking_angle_neg_deg:g}°")
-    fig.savefig(path, dpi=120)
-    return path
+    return _save(fig, path)
 
 
 def plot_architecture(arch, path, terms=None, gamma0_deg=None):
@@ -89,5 +96,4 @@ def plot_architecture(arch, path, terms=None, gamma0_deg=None):
         ax.legend(loc="upper left", fontsize=8)
     fig.suptitle(f"{arch.name}: stitch {arch.stitch_length_mm:g} mm, gauge {arch.gauge:g}, lapping "
                  f"{tuple(arch.lapping)}, pre-strain {100 * arch.prestrain:.3g} %, β = {arch.beta:.4g}")
-    fig.savefig(path, dpi=120)
-    return path
+    return _save(fig, path)
