@@ -150,6 +150,15 @@ def _engine_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-report", action="store_true", help="skip the report")
 
 
+def _command(sub, name: str, func, *, raw: bool = False, **kwargs) -> argparse.ArgumentParser:
+    """The sub-command ``name`` run by ``func``; ``raw``: its description keeps its own line
+    breaks (examples), else argparse wraps it."""
+    formatter = argparse.RawDescriptionHelpFormatter if raw else argparse.HelpFormatter
+    parser = sub.add_parser(name, formatter_class=formatter, **kwargs)
+    parser.set_defaults(func=func)
+    return parser
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .workflow.text import architectures, geometry_help
 
@@ -159,8 +168,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "Units: mm, N, J, degrees.")
     sub = p.add_subparsers(dest="command", required=True)
 
-    d = sub.add_parser(
-        "drape", formatter_class=argparse.RawDescriptionHelpFormatter,
+    d = _command(
+        sub, "drape", cmd_drape, raw=True,
         help="one deterministic drape: netCDF + pictures",
         description="Drape one pin-jointed net over a mould from a crossover point and write "
                     "OUT.nc (xarray/netCDF), OUT-net.png (the net coloured by shear) and "
@@ -191,12 +200,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "draw-in only (radial, thesis Eq 5.1-5.5)")
     d.add_argument("--tolerance", type=float, default=1e-3, help="minimiser tolerance on turn angles, deg")
     d.add_argument("--out", default="results/drape/drape", help="output path stem (default results/drape/drape)")
-    d.set_defaults(func=cmd_drape)
 
-    r = sub.add_parser("run", help="run a study file: ensemble (netCDF chunks) + report",
-                       description="Sample the study's uncertain inputs, drape every realisation in "
-                                   "parallel with dask, store chunks under the study's output folder "
-                                   "(resuming finished chunks) and write the report.")
+    r = _command(sub, "run", cmd_run, help="run a study file: ensemble (netCDF chunks) + report",
+                 description="Sample the study's uncertain inputs, drape every realisation in parallel with "
+                             "dask, store chunks under the study's output folder (resuming finished chunks) "
+                             "and write the report.")
     r.add_argument("study", help="study file (TOML), e.g. studies/nosecone-zero-angle.toml")
     _engine_options(r)
     r.add_argument("--chunk-size", type=int, help="realisations per chunk (default: the study's)")
@@ -205,29 +213,26 @@ def build_parser() -> argparse.ArgumentParser:
                         "(20 trajectories unless the study is a Morris study), 'none' for the Monte Carlo "
                         "sample; output goes to <output directory>-<method>")
     r.add_argument("--no-resume", action="store_true", help="recompute chunks that already exist")
-    r.set_defaults(func=cmd_run)
 
-    dsg = sub.add_parser("design", help="run a study's [design]: the blank-holder force(s) under uncertainty",
-                        description="Optimise the blank-holder force (total or per sector, optionally the "
-                                    "friction) of a study with a [design] section: every candidate drapes the "
-                                    "study's realisations (common random numbers), the optimum is re-draped on "
-                                    "a fresh sample; writes design.nc and the report (resumes from the designs "
-                                    "already draped). `uqdrape run` on such a study does the same.")
+    dsg = _command(sub, "design", cmd_design,
+                   help="run a study's [design]: the blank-holder force(s) under uncertainty",
+                   description="Optimise the blank-holder force (total or per sector, optionally the friction) "
+                               "of a study with a [design] section: every candidate drapes the study's "
+                               "realisations (common random numbers), the optimum is re-draped on a fresh "
+                               "sample; writes design.nc and the report (resumes from the designs already "
+                               "draped). `uqdrape run` on such a study does the same.")
     dsg.add_argument("study", help="study file (TOML) with a [design] section, e.g. studies/design-nosecone-symmetrise.toml")
     _engine_options(dsg)
-    dsg.set_defaults(func=cmd_design)
 
-    rep = sub.add_parser("report", help="write the report of a finished run")
+    rep = _command(sub, "report", cmd_report, help="write the report of a finished run")
     rep.add_argument("results", help="a run's output folder, e.g. results/nosecone-zero-angle")
     rep.add_argument("--out", help="report folder (default RESULTS/report)")
-    rep.set_defaults(func=cmd_report)
 
-    v = sub.add_parser("validate", help="check study files without running them")
+    v = _command(sub, "validate", cmd_validate, help="check study files without running them")
     v.add_argument("files", nargs="+", help="study files (TOML)")
-    v.set_defaults(func=cmd_validate)
 
-    e = sub.add_parser(
-        "export", formatter_class=argparse.RawDescriptionHelpFormatter,
+    e = _command(
+        sub, "export", cmd_export, raw=True,
         help="write a drape or an ensemble as VTK, FE-mesh orientations or a flat pattern",
         description="Export a result: a drape file (uqdrape drape --out) or a run folder\n"
                     "(uqdrape run; its per-node statistics). One file set per force level of a sweep;\n"
@@ -250,10 +255,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "orientation)")
     e.add_argument("--out", metavar="STEM",
                    help="output path stem (default: the drape file without .nc, or RUN/export/RUN)")
-    e.set_defaults(func=cmd_export)
 
-    m = sub.add_parser(
-        "materials", formatter_class=argparse.RawDescriptionHelpFormatter,
+    m = _command(
+        sub, "materials", cmd_materials, raw=True,
         help="list material cards, show and plot one, or derive one from a fabric architecture",
         description="List the shipped material cards, show one, or derive a card from a fabric "
                     "architecture (thesis ch. 4 stitch and compaction model).\n\n"
@@ -269,7 +273,6 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--plot", metavar="PNG", nargs="?", const=True,
                    help="write the card's N_s and W curves to this PNG; with derive, the contributions "
                         "of each term (thesis Fig 4.18), by default next to the card")
-    m.set_defaults(func=cmd_materials)
 
     p.add_argument("--version", action=_Version)
     p.set_defaults(verbosity=1)

@@ -110,19 +110,19 @@ MODES = ("geodesic", "energy")
 #: on (``uqdrape.drape.energy.BlankHolder``).
 BLANKHOLDER_MODELS = ("slip", "radial")
 
-#: Per-drape quantities of interest -> (units, long_name); computed by
+#: Per-drape quantities of interest -> their CF attributes (units, long_name); computed by
 #: ``uqdrape.stats.qoi`` (the registry), ranked by sensitivity studies, summarised by
 #: designs and reports.
-QOI_ATTRS = {
-    "max_abs_shear": ("degree", "largest absolute node shear"),
-    "mean_shear_positive": ("degree", "mean shear along the max-shear lines of the i*j > 0 quadrants"),
-    "mean_shear_negative": ("degree", "mean shear along the max-shear lines of the i*j < 0 quadrants"),
-    "asymmetry": ("degree", "mean_shear_positive + mean_shear_negative (0 when mirrored)"),
-    "blankholder_energy": ("J", "blank-holder friction energy"),
-    "locked_fraction": ("1", "fraction of the valid cells that are locked"),
-    "any_locked": ("1", "1 if any node of the net is locked, else 0"),
-    "max_draw_in": ("mm", "largest radial draw-in of the held edge"),
-}
+QOI_ATTRS = {name: {"units": units, "long_name": long_name} for name, units, long_name in (
+    ("max_abs_shear", "degree", "largest absolute node shear"),
+    ("mean_shear_positive", "degree", "mean shear along the max-shear lines of the i*j > 0 quadrants"),
+    ("mean_shear_negative", "degree", "mean shear along the max-shear lines of the i*j < 0 quadrants"),
+    ("asymmetry", "degree", "mean_shear_positive + mean_shear_negative (0 when mirrored)"),
+    ("blankholder_energy", "J", "blank-holder friction energy"),
+    ("locked_fraction", "1", "fraction of the valid cells that are locked"),
+    ("any_locked", "1", "1 if any node of the net is locked, else 0"),
+    ("max_draw_in", "mm", "largest radial draw-in of the held edge"),
+)}
 #: The quantities a sensitivity study ranks unless its [sensitivity] qoi says otherwise.
 SENSITIVITY_QOIS = ("max_abs_shear", "mean_shear_positive", "mean_shear_negative", "asymmetry",
                     "blankholder_energy", "locked_fraction")

@@ -181,13 +181,8 @@ class NoseCone(_SquareDomain):
 
     name = "nose_cone"
 
-    def __init__(
-        self,
-        base_radius: float = 225.0,
-        half_angle_deg: float = 35.0,
-        tip_radius: float = 50.0,
-        flange_half_width: float | None = None,
-    ):
+    def __init__(self, base_radius: float = 225.0, half_angle_deg: float = 35.0, tip_radius: float = 50.0,
+                 flange_half_width: float | None = None):
         self.base_radius = _length("base_radius", base_radius)
         self.half_angle_deg = _angle("half_angle_deg", half_angle_deg, 0.0, 90.0)
         self.tip_radius = _length("tip_radius", tip_radius)
@@ -224,14 +219,8 @@ class DoubleDome(_SquareDomain):
 
     name = "double_dome"
 
-    def __init__(
-        self,
-        dome_radius: float = 80.0,
-        base_radius: float = 70.0,
-        centre_distance: float = 120.0,
-        blend: float = 20.0,
-        flange_half_width: float = 200.0,
-    ):
+    def __init__(self, dome_radius: float = 80.0, base_radius: float = 70.0, centre_distance: float = 120.0,
+                 blend: float = 20.0, flange_half_width: float = 200.0):
         self.dome_radius = _length("dome_radius", dome_radius)
         self.base_radius = _length("base_radius", base_radius)
         if self.base_radius >= self.dome_radius:

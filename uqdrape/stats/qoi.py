@@ -64,8 +64,7 @@ def realization_qois(ds: xr.Dataset, qoi=SENSITIVITY_QOIS, k_max: int | None = N
     out = {}
     for name in qoi:
         value = lines[_LINE_QOIS[name]] if name in _LINE_QOIS else _NODE_QOIS[name](ds)
-        units, long_name = QOI_ATTRS[name]
-        out[name] = value.drop_attrs().assign_attrs(units=units, long_name=long_name)
+        out[name] = value.drop_attrs().assign_attrs(QOI_ATTRS[name])
     result = xr.Dataset(out).compute()
     if lines is not None:
         result.attrs["k_max"] = lines.attrs["k_max"]

@@ -512,18 +512,6 @@ def load_study(path) -> Study:
     design = _design(src, doc, process, uncertainty, sensitivity, head["realizations"])
     report = _report(src, doc, solver.rings)
     output_dir, float32 = _output(src, doc, head["name"])  # checked last, as the sections are ordered
-    return Study(
-        path=path,
-        **head,
-        geometry=geometry,
-        fabric=fabric,
-        process=process,
-        solver=solver,
-        uncertainty=uncertainty,
-        sampling=sampling,
-        sensitivity=sensitivity,
-        report=report,
-        output_dir=output_dir,
-        design=design,
-        float32=float32,
-    )
+    return Study(path=path, **head, geometry=geometry, fabric=fabric, process=process, solver=solver,
+                 uncertainty=uncertainty, sampling=sampling, sensitivity=sensitivity, report=report,
+                 output_dir=output_dir, design=design, float32=float32)
