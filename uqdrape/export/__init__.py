@@ -17,7 +17,7 @@ together), so a failed export leaves nothing half-written.
 
 from .directions import fibre_directions, fibre_frame
 from .fe import export_fe, fe_files
-from .files import write_all
+from ..files import write_all
 from .flat import export_flat, flat_files
 from .result import Level, levels, open_result
 from .vtk import export_vtk, vtk_files

@@ -24,7 +24,7 @@ from .. import __version__
 from ..drape.net import net_quads
 from .directions import dot
 from .directions import fibre_directions, fibre_frame
-from .files import write_all
+from ..files import write_all
 from .result import Level, surface_of
 
 SURFACE_CELLS = {"triangle": 3, "triangle6": 3, "triangle7": 3, "quad": 4, "quad8": 4, "quad9": 4}

@@ -13,7 +13,7 @@ import ezdxf
 import numpy as np
 
 from ..drape import flat_positions
-from .files import write_all
+from ..files import write_all
 from .result import Level
 
 

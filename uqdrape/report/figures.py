@@ -28,6 +28,7 @@ from uqdrape.drape.lines import max_shear_lines
 from uqdrape.schema import FORCE, QUADRANTS, REALIZATION, by_force, site_dims
 
 from ..experimental import as_experimental
+from ..files import write_atomic
 
 #: Line style per max-shear quadrant: i*j > 0 (positive-shear) quadrants red, the others blue.
 QUADRANT_STYLE = {
@@ -98,7 +99,7 @@ def save(fig: Figure, path) -> Path:
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=DPI)
     with Image.open(buffer) as image:
-        image.convert("RGB").save(path)
+        write_atomic(path, lambda tmp: image.convert("RGB").save(tmp, format="png"))
     return path
 
 

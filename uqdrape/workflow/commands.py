@@ -12,6 +12,7 @@ from ..conventions import cf_encode
 from ..drape import drape
 from ..ensemble import Progress, write_atomic
 from ..export import fe_files, flat_files, levels, open_result, vtk_files, write_all
+from ..files import write_text_atomic
 from ..geometry import build
 from ..material import available_materials, load_material, plot_material
 from ..material.architecture import derive_card, load_architecture, summed
@@ -83,9 +84,7 @@ def derive_material(source: str, out, plot=None) -> str:
         png = out.with_suffix(".png") if plot is True else Path(plot)
         png.parent.mkdir(parents=True, exist_ok=True)
         plot_architecture(arch, png, terms, gamma0)
-    tmp = out.with_name(out.name + ".tmp")
-    tmp.write_text(text, encoding="utf-8")
-    tmp.replace(out)
+    write_text_atomic(out, text)
     summary = (f"wrote {out}: {material.name}, zero-force angle {gamma0:.2f} deg, locking "
                f"+{material.locking_angle_deg:g} / -{material.locking_angle_neg_deg:g} deg (pre-strain "
                f"{100 * arch.prestrain:.3g} %, beta {arch.beta:.4g})")
