@@ -29,23 +29,8 @@ from pathlib import Path
 
 import xarray as xr
 
-from ..design import (
-    DESIGN_FILE,
-    Evaluator,
-    drape_design,
-    optimise,
-    problem,
-    result_dataset,
-)
-from ..ensemble import (
-    design_variables,
-    local_pool,
-    open_ensemble,
-    read_manifest,
-    run_ensemble,
-    run_lock,
-    write_atomic,
-)
+from ..design import DESIGN_FILE, Evaluator, drape_design, optimise, problem, result_dataset
+from ..ensemble import design_variables, local_pool, open_ensemble, read_manifest, run_ensemble, run_lock, write_atomic
 from ..report import write_design_report, write_report
 from ..sensitivity import map_indices, qoi_indices, study_design
 from ..stats import SENSITIVITY_QOIS, realization_qois
