@@ -75,14 +75,14 @@ FGE_STITCH_LENGTH_MM = 27.833
 FGE_UNIT_AREA_MM2 = 21.1667
 #: closed form: 100 (s_L(θ)/s_L(0) − 1), Eq 4.1, 4.2, 4.6, at θ = 15, 30, 45, 60, −30 deg, % (4 decimals)
 FGE_STITCH_STRAIN_PCT = (2.1011, 3.5161, 4.3559, 4.7704, -6.4891)
-#: regression: produced by commit 33e46c7 (zero pre-strain: the stitch tension's peak, deg and N/m)
-FGE_STITCH_TENSION_PEAK = (27.5, 35.62)
-#: regression: produced by commit 33e46c7 (zero-force angle, deg, at stitch pre-strain 0.005 and 0.01)
-FGE_ZERO_FORCE_ANGLE_DEG = {0.005: -2.975, 0.01: -5.724}
+#: regression: produced by commit 38a9b35 (zero pre-strain: the stitch tension's peak, deg and N/m; 33e46c7: 35.62)
+FGE_STITCH_TENSION_PEAK = (27.5, 35.61959053369167)
+#: regression: produced by commit 38a9b35 (zero-force angle, deg, at pre-strain 0.005, 0.01; 33e46c7: -2.975, -5.724)
+FGE_ZERO_FORCE_ANGLE_DEG = {0.005: -2.9748899567414258, 0.01: -5.7243088750265185}
 #: closed form: acos(V_f0 / V_a), V_f0 = 0.35, V_a = π/(2√3) (hexagonal packing), deg
 FGE_LOCKING_ANGLE_DEG = 67.30
-#: regression: produced by commit 33e46c7 (ratio crossover friction / compaction N_s at 30, 45, 60 deg)
-FGE_CROSSOVER_TO_COMPACTION = {30.0: 0.04560, 45.0: 0.01311, 60.0: 0.003074}
+#: regression: produced by commit 38a9b35 (crossover friction / compaction N_s at 30, 45, 60 deg; 33e46c7: 4 digits)
+FGE_CROSSOVER_TO_COMPACTION = {30.0: 0.045604175743741614, 45.0: 0.013106498105218677, 60.0: 0.003074390634490885}
 #: regression: produced by commit 33e46c7 (+N_s(30 deg) / −N_s(−30 deg), shipped 2.5 and 5 mm stitches)
 FGE_ASYMMETRY_AT_30_DEG = {"fge106hd": 2221, "fge106hd_5mm": 15200}
 #: regression: produced by commit 38a9b35 (grid angle, deg, where the 5 mm stitch reaches 17 % strain)

@@ -4,7 +4,6 @@ rule on a drape file and on ensemble chunks, plus the CF checker where it instal
 import datetime
 import shutil
 import subprocess
-import textwrap
 
 import netCDF4
 import numpy as np
@@ -19,6 +18,8 @@ from uqdrape.workflow import run_study
 from uqdrape.geometry import build
 from uqdrape.material import load_material
 from uqdrape.study import StudyError, load_study
+
+from conftest import write_study
 
 
 @pytest.fixture(scope="module")
@@ -96,37 +97,15 @@ def test_numbers_and_layout_survive_the_encoding(written):
 
 
 def _study(tmp_path, name, float32=None):
-    extra = "" if float32 is None else f"float32 = {float32}"
-    path = tmp_path / f"{name}.toml"
-    path.write_text(textwrap.dedent(f"""
-        [study]
-        name = "{name}"
-        seed = 3
-        realizations = 16
-        chunk_size = 16
-        [geometry]
-        kind = "hemisphere"
-        radius = 50.0
-        [fabric]
-        material = "generic_woven"
-        spacing_mm = 5.0
-        [process]
-        blankholder_force_N = [0.0, 100.0]
-        [solver]
-        mode = "geodesic"
-        rings = 12
-        [uncertainty.spacing]
-        cv = 0.01
-        [output]
-        directory = "{tmp_path / name}"
-        {extra}
-    """))
-    return path
+    """A 16-realisation geodesic sweep with random spacing (output.float32 = ``float32`` if given)."""
+    return write_study(tmp_path, name, study={"realizations": 16, "chunk_size": 16},
+                       process={"blankholder_force_N": [0.0, 100.0]}, solver={"rings": 12},
+                       uncertainty={"spacing": {"cv": 0.01}}, output={"float32": float32})
 
 
 def test_float32_chunks_are_smaller_and_rounded_only(tmp_path):
     full = run_study(_study(tmp_path, "full"), scheduler="synchronous", progress=False)
-    small = run_study(_study(tmp_path, "small", "true"), scheduler="synchronous", progress=False)
+    small = run_study(_study(tmp_path, "small", True), scheduler="synchronous", progress=False)
     size = {p: sum(f.stat().st_size for f in (p / "chunks").glob("*.nc")) for p in (full, small)}
     assert size[small] < 0.6 * size[full]  # HDF5's per-variable overhead weighs on so small a run
     with open_ensemble(full) as a, open_ensemble(small) as b:
@@ -139,7 +118,7 @@ def test_float32_chunks_are_smaller_and_rounded_only(tmp_path):
         assert nc["blankholder_force"].dtype == np.float64  # coordinates keep their precision
         assert nc.getncattr("title").startswith("uqdrape ensemble chunk: study small")
     with pytest.raises(StudyError, match="output.float32"):
-        load_study(_study(tmp_path, "bad", '"yes"'))
+        load_study(_study(tmp_path, "bad", "yes"))
 
 
 def _tables(tmp_path):

@@ -12,7 +12,6 @@ import os
 import signal
 import subprocess
 import sys
-import textwrap
 import time
 from pathlib import Path
 
@@ -28,55 +27,24 @@ from uqdrape.stats import varying_factors
 from uqdrape.study import FACTOR_SETTINGS, load_study
 from uqdrape.workflow import run_study
 
+from conftest import write_study
+
 N = 20
 
 
 def study_file(tmp_path, name="tiny", *, realizations=N, chunk_size=7, mode="geodesic", rings=5,
-               force="100.0", plan="monte_carlo", seed=11, out=None, blankholder_model="slip"):
+               force=100.0, plan="monte_carlo", seed=11, out=None, blankholder_model="slip"):
     """Write a tiny hemisphere study; its output folder is tmp_path/out (or ``out``)."""
-    text = f"""
-        [study]
-        name = "{name}"
-        seed = {seed}
-        realizations = {realizations}
-        chunk_size = {chunk_size}
-
-        [geometry]
-        kind = "hemisphere"
-        radius = 50.0
-
-        [fabric]
-        material = "generic_woven"
-        spacing_mm = 5.0
-
-        [process]
-        blankholder_force_N = {force}
-        friction = 0.2
-        blankholder_model = "{blankholder_model}"
-
-        [solver]
-        mode = "{mode}"
-        rings = {rings}
-
-        [uncertainty.spacing]
-        cv = 0.01
-
-        [uncertainty.zero_angle]
-        sd_deg = 3.0
-
-        [uncertainty.friction]
-        dist = "uniform"
-        bounds = [0.1, 0.3]
-
-        [sampling]
-        plan = "{plan}"
-
-        [output]
-        directory = "{out or tmp_path / 'out'}"
-    """
-    path = tmp_path / f"{name}.toml"
-    path.write_text(textwrap.dedent(text))
-    return path
+    return write_study(
+        tmp_path, name,
+        study={"seed": seed, "realizations": realizations, "chunk_size": chunk_size},
+        process={"blankholder_force_N": force, "friction": 0.2, "blankholder_model": blankholder_model},
+        solver={"mode": mode, "rings": rings},
+        uncertainty={"spacing": {"cv": 0.01}, "zero_angle": {"sd_deg": 3.0},
+                     "friction": {"dist": "uniform", "bounds": [0.1, 0.3]}},
+        sampling={"plan": plan},
+        output={"directory": out or tmp_path / "out"},
+    )
 
 
 def moved(study, folder):
@@ -268,7 +236,7 @@ def test_a_sampled_force_is_stored_per_drape_beside_its_nominal_level(tmp_path):
 @pytest.mark.slow  # end to end: an energy sweep run
 def test_energy_sweep_uses_common_random_numbers(tmp_path):
     path = study_file(tmp_path, name="sweep", mode="energy", rings=4, realizations=6, chunk_size=4,
-                      force="[0.0, 300.0]")
+                      force=[0.0, 300.0])
     out = run_study(path, scheduler="synchronous", progress=False)
     assert sorted(p.name for p in (out / "chunks").iterdir()) == [
         "f000-r0000000-0000003.nc", "f000-r0000004-0000005.nc",
