@@ -164,7 +164,7 @@ def test_compaction_locks_at_67_3_deg_and_crossover_friction_is_small(fge_terms)
         assert r == pytest.approx(expected, rel=1e-6)
     # Fig 4.12: linear in the crossover side
     doubled = summed(fge(crossover_side_mm=2 * 1.87))
-    assert at(doubled, 45.0, "ns_crossover") == pytest.approx(2.0 * at(fge_terms, 45.0, "ns_crossover"), rel=1e-3)
+    assert at(doubled, 45.0, "ns_crossover") == pytest.approx(2.0 * at(fge_terms, 45.0, "ns_crossover"), rel=1e-12)
 
 
 def test_energy_and_shear_force_are_consistent(fge_terms):

@@ -165,7 +165,7 @@ def test_cylinder_with_the_net_along_its_axis_is_shear_free(axis, orientation):
         crossover = crossover[:, ::-1]
     ds = drape(Cylinder(100.0, 400.0, axis), 5.0, 12, orientation=orientation, crossover=crossover)
     assert (ds.status == Status.OK).all()
-    assert np.abs(ds.shear).max() <= 1e-6
+    assert np.abs(ds.shear).max() <= 1e-9  # zero to round-off (measured 4.9e-13 deg)
 
 
 def test_cylinder_at_45_deg():
