@@ -223,8 +223,11 @@ def test_too_small_base_sample_is_refused_with_the_minimum(tmp_path, method, bas
 
 def test_one_group_and_huge_sobol_designs_are_refused(tmp_path):
     # the validator refuses it before anything runs
-    with pytest.raises(StudyError, match=r"sensitivity.method.*at least two \[uncertainty.\*\] inputs \(found: zero_angle\)"):
-        load_study(study_file(tmp_path, name="alone", uncertainty={"zero_angle": {"sd_deg": 5.0}}))
+    alone = study_file(tmp_path, name="alone", uncertainty={"zero_angle": {"sd_deg": 5.0}})
+    with pytest.raises(StudyError) as err:
+        load_study(alone)
+    assert_one_line_error(str(err.value), file=alone, key="sensitivity.method",
+                          valid=["at least two [uncertainty.*] inputs", "(found: zero_angle)"])
     big = {"spacing": {"cv": 0.001}, "zero_angle": {"sd_deg": 5.0}}
     huge = load_study(study_file(tmp_path, name="huge", rings=30, uncertainty=big))
     with pytest.raises(ValueError, match=r"more than scipy's 21201 .*'spacing': 7320, 'zero_angle': 3600"):
