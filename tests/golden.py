@@ -3,7 +3,7 @@
 Every constant has a ``#:`` line above it starting with its kind of source:
 
 - ``closed form:`` a formula anyone can evaluate;
-- ``thesis:`` a number printed in Wiggers (2007), located in /shared/reference/thesis-notes.md;
+- ``thesis:`` a number printed in Wiggers (2007), located in ../shared/reference/thesis-notes.md;
 - ``hand:`` worked by hand in thesis-notes.md ([MY CHECK] entries);
 - ``regression: produced by commit <hash>``: the code's own output on that commit, kept so
   that a change of behaviour shows. A regression value is only as right as the code that
