@@ -31,14 +31,19 @@ def _parse_params(pairs):
 
 
 def cmd_drape(args) -> int:
-    from .workflow import drape_to_files
+    from .workflow import check_drape_inputs, drape_to_files
 
+    options = dict(orientation=args.orientation, pre_shear=args.pre_shear, skew=args.skew,
+                   crossover=tuple(args.crossover), mode=args.mode, blankholder_force=args.blankholder_force,
+                   friction=args.friction, blankholder_model=args.blankholder_model, tolerance=args.tolerance)
+    try:
+        check_drape_inputs(args.spacing, args.rings, options)
+    except ValueError as err:  # a ParameterError: name the flags
+        flags = " and ".join("--" + name.replace("_", "-") for name in getattr(err, "names", ()))
+        raise ValueError(f"{flags}: {err}" if flags else str(err)) from None
     written, summary = drape_to_files(
         args.geometry, _parse_params(args.param), args.spacing, args.rings, args.out, material=args.material,
-        progress=args.verbosity > 0, command="uqdrape " + shlex.join(args.argv), orientation=args.orientation,
-        pre_shear=args.pre_shear, skew=args.skew, crossover=tuple(args.crossover), mode=args.mode,
-        blankholder_force=args.blankholder_force, friction=args.friction,
-        blankholder_model=args.blankholder_model, tolerance=args.tolerance)
+        progress=args.verbosity > 0, command="uqdrape " + shlex.join(args.argv), **options)
     print("wrote " + ", ".join(map(str, written)))
     print(summary)
     return 0

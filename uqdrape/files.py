@@ -52,6 +52,12 @@ def read_toml(path, what: str, *, error: type[FileFormatError] = FileFormatError
     """The TOML document of the file ``path`` (``what`` it is, e.g. "study file", for the
     messages). UTF-8, a byte-order mark allowed, or UTF-16 with its mark; at most
     MAX_TOML_BYTES and MAX_TOML_DEPTH levels deep. Any problem raises ``error``."""
+    return parse_toml(read_text(path, what, error=error), str(path), error=error, path=Path(path))
+
+
+def read_text(path, what: str, *, error: type[FileFormatError] = FileFormatError) -> str:
+    """The text of the file ``path``: UTF-8 (a byte-order mark allowed) or UTF-16 with its
+    mark, at most MAX_TOML_BYTES; anything else raises ``error`` naming the file."""
     path = Path(path)
 
     def fail(text):
@@ -69,7 +75,7 @@ def read_toml(path, what: str, *, error: type[FileFormatError] = FileFormatError
     except UnicodeDecodeError as err:
         fail(f"not UTF-8 text: byte 0x{data[err.start]:02x} at offset {err.start} ({err.reason}); "
              f"save the {what} as UTF-8")
-    return parse_toml(text, str(path), error=error, path=path)
+    return text
 
 
 def parse_toml(text: str, label: str, *, error: type[FileFormatError] = FileFormatError, path=None) -> dict:

@@ -74,15 +74,22 @@ def write_atomic(ds: xr.Dataset, path: Path, encoding: dict | None = None, *, ke
     path = Path(path)
 
     def write(part):
-        try:
-            ds.to_netcdf(part, engine="netcdf4", encoding=encoding)
-        except Exception as err:
-            if isinstance(err, OSError) and err.errno is not None:  # the OS said what went wrong
-                raise
-            part.unlink(missing_ok=True)  # first, so that the free space below is without it
-            if shutil.disk_usage(path.parent).free < ds.nbytes:
-                raise OSError(errno.ENOSPC, "the disk is full", str(path)) from err
-            raise OSError(errno.EIO, f"netCDF could not write it ({err})", str(path)) from err
+        write_netcdf(ds, part, encoding, target=path)
         return keep is None or bool(keep())
 
     return files.write_atomic(path, write, keep_suffix=False)
+
+
+def write_netcdf(ds: xr.Dataset, part: Path, encoding: dict | None = None, *, target: Path) -> None:
+    """Write ``ds`` to the temporary file ``part`` of ``target`` (netCDF4, ``encoding``);
+    a failure removes ``part`` and raises OSError naming ``target`` and the cause (a full
+    disk said so: netCDF itself only reports "HDF error")."""
+    try:
+        ds.to_netcdf(part, engine="netcdf4", encoding=encoding)
+    except Exception as err:
+        if isinstance(err, OSError) and err.errno is not None:  # the OS said what went wrong
+            raise
+        Path(part).unlink(missing_ok=True)  # first, so that the free space below is without it
+        if shutil.disk_usage(Path(target).parent).free < ds.nbytes:
+            raise OSError(errno.ENOSPC, "the disk is full", str(target)) from err
+        raise OSError(errno.EIO, f"netCDF could not write it ({err})", str(target)) from err

@@ -33,6 +33,7 @@ from dask.callbacks import Callback
 
 from .. import __version__
 from ..conventions import cf_encode
+from ..files import read_text
 from ..schema import at_level
 from ..study import Study, identity
 from ..stochastic.inputs import positive_int
@@ -231,7 +232,7 @@ def _drape_chunks(study, chunks, todo, folder, provenance, attrs, design_rows, s
         print(f"{study.name}: {len(chunks) - len(todo)} of {len(chunks)} chunks already done in {folder}",
               file=sys.stderr)
     attrs = {"study_name": study.name, "study_seed": study.seed, "study_realizations": study.realizations,
-             "sampling_plan": study.sampling.plan, "study_toml": Path(study.path).read_text(encoding="utf-8"),
+             "sampling_plan": study.sampling.plan, "study_toml": read_text(study.path, "study file"),
              "study_json": json.dumps(provenance), **(attrs or {})}
     run = dask.delayed(_run_chunk, pure=False)
     sizes = [c.stop - c.start for c in chunks]

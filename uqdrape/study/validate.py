@@ -89,6 +89,9 @@ def study_error(path, key: str, value, why: str) -> StudyError:
 # factor distributions offered in a study file (a constant is the fixed setting itself)
 _DISTS = tuple(d for d in _stochastic.DISTRIBUTIONS if d != "constant")
 _NAME_RE = re.compile(r"^[A-Za-z0-9_-]+$")
+#: How far a random input's values reach, in standard deviations: a few million draws of a
+#: standard normal (a large ensemble's cells) stay within 7 with all but 1e-5 probability.
+REACH_SD = 7.0
 
 
 class _Source(Document):
@@ -251,9 +254,9 @@ def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, materia
                                        f"{table.gamma0_deg[0]:g} deg at every pre-strain up to "
                                        f"{table.max_prestrain:g} (its stitch friction holds the fabric), "
                                        "so this field would change nothing")
-        top = params["mean"] + 7.0 * params["sd"]
+        top = params["mean"] + REACH_SD * params["sd"]
         if top > table.max_prestrain:
-            src.invalid(section, data, f"mean + 7 sd = {top:g} passes the largest mapped pre-strain "
+            src.invalid(section, data, f"mean + {REACH_SD:g} sd = {top:g} passes the largest mapped pre-strain "
                                        f"{table.max_prestrain:g}; use a smaller mean or sd")
     correlation = t.string("correlation", "iid", choices=_stochastic.CORRELATIONS)
     length = None
@@ -263,6 +266,7 @@ def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, materia
                       '"exponential" or "squared_exponential", or remove length_mm')
         length = t.numbers("length_mm", length=2, hint="length_mm must be two numbers [L1, L2] in mm, > 0")
     retained = t.number("kl_retained", 0.95)
+    _reach(src, name, t, params)
     spec = RandomField(name, params, correlation, length, retained,
                        material if name == "stitch_prestrain" else None)
     given = {k: (t.dotted(k), v) for k, v in t.data.items()}
@@ -273,6 +277,20 @@ def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, materia
     except ValueError as err:
         src.wrap(err, section, given, required)
     return spec
+
+
+def _reach(src: _Source, name: str, t: Table, params: dict) -> None:
+    """Refuse a spacing or zero-angle field whose values, out to REACH_SD standard
+    deviations, leave the physical range: a segment length must stay > 0, a cell's
+    zero-energy angle inside (-90, 90) degrees. (The runtime check would otherwise stop a
+    run at the first realisation that goes there.)"""
+    if name == "spacing" and 0 <= params["cv"] < 1 and params["cv"] * REACH_SD >= 1:
+        t.invalid("cv", f"a segment s (1 + cv z) must stay > 0 out to z = -{REACH_SD:g} (the field's reach): "
+                        f"cv must be < {1 / REACH_SD:.3g}")
+    if name == "zero_angle" and abs(params["mean_deg"]) + REACH_SD * abs(params["sd_deg"]) >= 90:
+        t.invalid("sd_deg" if t.has("sd_deg") else "mean_deg",
+                  f"|mean_deg| + {REACH_SD:g} sd_deg = {abs(params['mean_deg']) + REACH_SD * abs(params['sd_deg']):g} "
+                  "degrees: a cell's zero-energy angle must stay inside (-90, 90) degrees out to the field's reach")
 
 
 def _factor(src: _Source, name: str, data):

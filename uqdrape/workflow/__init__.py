@@ -20,7 +20,7 @@ _EXPORTS = {
     "run": ("run_study", "run_design", "run_report", "write_sensitivity", "open_sensitivity", "INDICES_FILE",
             "MAPS_FILE"),
     "preflight": ("load_study", "validate_study", "check_resources", "check_placement", "run_preflight"),
-    "commands": ("drape_to_files", "material_list", "material_text", "derive_material", "export_result"),
+    "commands": ("check_drape_inputs", "drape_to_files", "material_list", "material_text", "derive_material", "export_result"),
     "text": ("geometry_help", "architectures", "describe_study", "version_text"),
 }
 _MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}

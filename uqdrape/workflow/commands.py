@@ -4,28 +4,35 @@ summary; the CLI only prints."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 
 from ..conventions import cf_encode
 from ..drape import drape
-from ..ensemble import Progress, write_atomic
-from ..export import fe_files, flat_files, levels, open_result, vtk_files, write_all
-from ..files import write_text_atomic
+from ..ensemble import Progress, write_netcdf
+from ..export import fe_files, flat_files, levels, open_result, vtk_files
+from ..files import write_all, write_text_atomic
+from ..errors import ParameterError
 from ..geometry import build
 from ..material import available_materials, load_material, plot_material
 from ..material.architecture import derive_card, load_architecture, summed
 from ..material.cards import card_material, card_text
 from ..material.plot import plot_architecture
 from ..report import plot_lines, plot_net
+from ..schema import MAX_RINGS, SOLVER_INPUTS
+from .preflight import WORKING_BYTES_PER_NODE, memory_bytes
 
 
 def drape_to_files(geometry: str, params: dict, spacing: float, rings: int, out, *, material=None,
                    progress=True, command: str = "uqdrape drape", **options) -> tuple[list[Path], str]:
     """Drape one net (``uqdrape.drape.drape`` with ``options``) over mould ``geometry``
-    and write ``OUT.nc`` (CF netCDF), ``OUT-net.png`` and ``OUT-lines.png``; return the
-    paths and a one-line summary. ``command`` is recorded as the file's history."""
+    and write ``OUT.nc`` (CF netCDF), ``OUT-net.png`` and ``OUT-lines.png``, all three or
+    none; return the paths and a one-line summary. The inputs are checked first against
+    the same physical ranges a study's are (``check_drape_inputs``), and the net against
+    this machine's memory. ``command`` is recorded as the file's history."""
+    check_drape_inputs(spacing, rings, options)
     surface = build(geometry, **params)
     card = load_material(material) if material else None
     # a ring k/n counter: a bar on a terminal, elsewhere a line every PLAIN_EVERY s of a long drape
@@ -35,19 +42,48 @@ def drape_to_files(geometry: str, params: dict, spacing: float, rings: int, out,
     finally:
         bar.close()
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     mode = options.get("mode", "geodesic")
     encoded, encoding = cf_encode(ds, title=f"uqdrape {mode} drape of {surface.describe()}", history=command)
-    nc = write_atomic(encoded, out.with_suffix(".nc"), encoding)
-    net_png = plot_net(ds, out.with_name(out.name + "-net.png"),
-                       title=f"{surface.describe()}, {mode} drape, s = {spacing} mm")
-    lines_png = plot_lines(ds, out.with_name(out.name + "-lines.png"))
+    nc = out.with_suffix(".nc")
+    written = write_all({
+        nc: lambda tmp: write_netcdf(encoded, tmp, encoding, target=nc),
+        out.with_name(out.name + "-net.png"): lambda tmp: plot_net(
+            ds, tmp, title=f"{surface.describe()}, {mode} drape, s = {spacing} mm"),
+        out.with_name(out.name + "-lines.png"): lambda tmp: plot_lines(ds, tmp),
+    })
     shear = ds.shear.values
     summary = (f"valid nodes {float((ds.status == 0).mean()):.1%}; shear {np.nanmin(shear):.1f} to "
                f"{np.nanmax(shear):.1f} deg; energy shear {float(ds.energy_shear[0]):.4g} J, blank-holder "
                f"{float(ds.energy_blankholder[0]):.4g} J; converged {bool(ds.converged[0])} "
                f"({int(ds.iterations[0])} iterations)")
-    return [nc, net_png, lines_png], summary
+    return written, summary
+
+
+def check_drape_inputs(spacing: float, rings: int, options: dict) -> None:
+    """Refuse a single drape's inputs outside the physical ranges a study's must keep
+    (``uqdrape.schema``: the solver's scalar inputs, MAX_RINGS) or whose net would need
+    more than half this machine's memory; ParameterError names the drape argument."""
+    if not (isinstance(spacing, (int, float)) and math.isfinite(spacing) and spacing > 0):
+        raise ParameterError("spacing", f"spacing must be a positive length in mm, got {spacing!r}")
+    if not 1 <= rings <= MAX_RINGS:
+        raise ParameterError("rings", f"rings must be an integer in [1, {MAX_RINGS}], got {rings!r}")
+    nodes = (2 * rings + 1) ** 2
+    if nodes * WORKING_BYTES_PER_NODE > memory_bytes() / 2:
+        raise ParameterError("rings", f"rings = {rings}: one drape of {nodes:,} nodes needs about "
+                                      f"{nodes * WORKING_BYTES_PER_NODE / 2**30:.3g} GiB, more than half of this "
+                                      f"machine's {memory_bytes() / 2**30:.3g} GiB")
+    for name, value in options.items():
+        inp = SOLVER_INPUTS.get(name)
+        if inp is not None and np.ndim(value) == 0 and not (math.isfinite(value) and inp.admits(value)):
+            raise ParameterError(name, f"{name} = {value:g} is invalid: {name} {inp.describe_range()}")
+    turn = options.get("pre_shear", 0.0) + options.get("skew", 0.0)
+    if np.ndim(turn) == 0 and not abs(turn) < 90.0:
+        raise ParameterError(("pre_shear", "skew"), f"pre_shear + skew = {turn:g} is invalid: it must lie in "
+                                                    "(-90, 90) degrees")
+    tolerance = options.get("tolerance", 1e-3)
+    if not (math.isfinite(tolerance) and 0 < tolerance <= 1.0):
+        raise ParameterError("tolerance", f"tolerance = {tolerance:g} is invalid: the minimiser's tolerance on "
+                                          "turn angles must lie in (0, 1] degrees")
 
 
 def material_list() -> list[tuple[str, str]]:
