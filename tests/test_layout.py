@@ -124,11 +124,13 @@ def _readme_graph() -> dict[str, set[str]]:
     """The import graph README.md draws: one ``part -> part, part`` line per importing part."""
     text = README.read_text(encoding="utf-8")
     block = text[text.index(GRAPH_START) + len(GRAPH_START):text.index(GRAPH_END)]
-    graph = {}
+    graph, part = {}, None
     for line in block.splitlines():
-        if "->" in line:
-            part, _, targets = line.strip().partition("->")
-            graph[part.strip()] = {t.strip() for t in targets.split(",") if t.strip()}
+        if "->" in line:  # a part and its targets; an indented line without "->" continues them
+            part, _, line = line.partition("->")
+            part = part.strip()
+        if part is not None and line.strip() and not line.startswith("`"):
+            graph.setdefault(part, set()).update(t.strip() for t in line.split(",") if t.strip())
     return graph
 
 

@@ -29,12 +29,13 @@ from pathlib import Path
 import dask
 import errno
 import numpy as np
+import xarray as xr
 from dask.callbacks import Callback
 
 from .. import __version__
 from ..conventions import cf_encode
 from ..files import read_text
-from ..schema import at_level
+from ..schema import FORCE, REALIZATION, at_level
 from ..study import Study, identity
 from ..stochastic.inputs import positive_int
 from .chunk import drape_inputs, write_atomic
@@ -86,6 +87,19 @@ def _run_chunk(study: Study, chunk: Chunk, folder: str, attrs: dict, design_rows
     return str(write_atomic(ds, Path(folder) / chunk.name, encoding, keep=lambda: not orphaned()))
 
 
+def chunk_intact(path: Path, chunk: Chunk) -> bool:
+    """Whether ``path`` is the finished chunk ``chunk``: a netCDF file that opens, holds the
+    node shear and exactly the chunk's realisations at its force level. Reads only the
+    file's metadata and two coordinates."""
+    try:
+        with xr.open_dataset(path, engine="netcdf4", decode_cf=False) as ds:
+            return ("shear" in ds.variables and FORCE in ds.variables and REALIZATION in ds.variables
+                    and ds[FORCE].values.tolist() == [chunk.force]
+                    and ds[REALIZATION].values.tolist() == list(range(chunk.start, chunk.stop)))
+    except (OSError, ValueError, KeyError, RuntimeError):
+        return False
+
+
 def _drape(study: Study, r, force: float, design_rows):
     """Drape realisations ``r`` of the study's sample, or the design rows ``design_rows`` (one per r)."""
     inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows)
@@ -96,7 +110,7 @@ def _prepare(out: Path, manifest: dict, resume: bool) -> None:
     """Check a previous run in ``out`` can be resumed, or clear it; then record this run.
     Called under the folder's run lock, so a ``.part`` file here is a killed run's."""
     folder = out / CHUNKS
-    old = read_manifest(out)
+    old = read_manifest(out) if resume else None
     for path in folder.glob("*.nc.part"):
         path.unlink()
     if not resume:
@@ -212,6 +226,12 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
         earlier = (read_manifest(out) or {}).get("wall_time_s", 0.0) if resume else 0.0
         _prepare(out, manifest, resume)
         folder = out / CHUNKS
+        damaged = [c for c in chunks if (folder / c.name).is_file() and not chunk_intact(folder / c.name, c)]
+        for c in damaged:  # a truncated, swapped or foreign file: drape it again
+            (folder / c.name).unlink()
+        if damaged and progress:
+            print(f"{study.name}: {len(damaged)} chunk file(s) damaged or not this run's, draped again: "
+                  + ", ".join(c.name for c in damaged[:5]) + (", ..." if len(damaged) > 5 else ""), file=sys.stderr)
         todo = [c for c in chunks if not (folder / c.name).is_file()]
         try:
             _drape_chunks(study, chunks, todo, folder, provenance, attrs, design_rows, scheduler, workers,

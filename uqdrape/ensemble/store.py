@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import errno
 import json
+import re
 from pathlib import Path
 
 import xarray as xr
@@ -27,13 +28,45 @@ MANIFEST = "run.json"
 CHUNKS = "chunks"
 
 
+#: A chunk file's name: ``r<first>-<last>.nc``, prefixed ``f<level>-`` in a sweep (and never a path).
+CHUNK_NAME = re.compile(r"^(f\d{3}-)?r\d{7}-\d{7}\.nc$")
+#: Largest run manifest read (bytes): a million chunk names take about 30 MB.
+MAX_MANIFEST_BYTES = 64 * 2**20
+
+
 def read_manifest(output_dir) -> dict | None:
-    """The run manifest of ``output_dir``, or None if there is none."""
+    """The run manifest of ``output_dir``, or None if there is none. A manifest that is not
+    one uqdrape wrote (hand-edited, truncated, another program's) raises OSError naming the
+    file and what is wrong: its chunk names are paths uqdrape will open, so they must be
+    plain chunk file names inside ``chunks/``."""
     path = Path(output_dir) / MANIFEST
     if not path.is_file():
         return None
-    with open(path, encoding="utf-8") as fh:
-        return json.load(fh)
+
+    def corrupt(why):
+        return OSError(errno.EIO, f"not a uqdrape run manifest ({why}); run the study again with --no-resume, "
+                                  "or delete the folder", str(path))
+
+    try:
+        if path.stat().st_size > MAX_MANIFEST_BYTES:
+            raise corrupt(f"larger than {MAX_MANIFEST_BYTES // 2**20} MB")
+        manifest = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError) as err:
+        raise corrupt(f"not JSON text: {type(err).__name__}") from None
+    if not isinstance(manifest, dict):
+        raise corrupt("not a JSON object")
+    study, chunks, size = manifest.get("study"), manifest.get("chunks"), manifest.get("chunk_size")
+    if not (isinstance(study, dict) and all(isinstance(v, dict) for v in study.values())
+            and isinstance(study.get("study"), dict)):
+        raise corrupt('"study" must be the study record, a table of sections')
+    if not (isinstance(chunks, list) and all(isinstance(c, str) and CHUNK_NAME.match(c) for c in chunks)):
+        raise corrupt('"chunks" must be a list of chunk file names such as r0000000-0000063.nc')
+    if isinstance(size, bool) or not isinstance(size, int) or size < 1:
+        raise corrupt('"chunk_size" must be a positive integer')
+    wall = manifest.get("wall_time_s", 0.0)
+    if isinstance(wall, bool) or not isinstance(wall, (int, float)) or not 0 <= wall < 1e9:
+        raise corrupt('"wall_time_s" must be a number of seconds')
+    return manifest
 
 
 def write_manifest(output_dir, manifest: dict) -> None:
