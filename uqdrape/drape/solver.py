@@ -273,7 +273,7 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
     coords = _coords(prob.R, n)
     return xr.Dataset(
         variables, coords=coords,
-        attrs={"spacing_mm": prob.s, "rings": n, "mode": mode, "geometry": prob.surface.describe(),
+        attrs={"spacing_mm": prob.s, "rings": n, "mode": mode, "mould": prob.surface.describe(),
                "material": getattr(material, "name", "none"),
                "locking_angle_deg": float(getattr(material, "locking_angle_deg", np.nan) or np.nan),
                "blankholder_model": prob.blankholder.model,

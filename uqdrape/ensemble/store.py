@@ -114,4 +114,8 @@ def open_ensemble(output_dir) -> xr.Dataset:
                          "run its study again with --no-resume")
     ds = cf_decode(files)
     ds.set_close(files.close)  # closing the result closes the chunk files
+    # the run's own description, not its first chunk's ("realisations 0-15 at 126 N")
+    levels = ", ".join(f"{f:g}" for f in ds[FORCE].values)
+    ds.attrs["title"] = (f"uqdrape ensemble: study {ds.attrs.get('study_name', output_dir.name)}, "
+                         f"{ds.sizes.get('realization', 0)} realisations at {levels} N")
     return ds

@@ -138,7 +138,7 @@ def describe(ds: xr.Dataset) -> str:
     """Short description of a drape Dataset for figure titles: the mould's kind (its
     parameters are on the page), the material card and the drape mode, e.g. "nose cone,
     ebxhd936_like, energy drape"."""
-    geometry = str(ds.attrs.get("geometry", "")).split("(")[0].replace("_", " ")
+    geometry = str(ds.attrs.get("mould", "")).split("(")[0].replace("_", " ")
     mode = ds.attrs.get("mode")
     parts = [geometry, ds.attrs.get("material"), f"{mode} drape" if mode else None]
     return ", ".join(str(p) for p in parts if p not in (None, "", "none"))

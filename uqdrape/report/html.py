@@ -95,6 +95,10 @@ def _rows(numbers: Mapping, extra: Mapping, dominant: list | None) -> list[tuple
         if wr is None or wr["value"] is None:
             rows.append(("max wrinkle risk", "n/a", "no locking angle (a geodesic drape without a material)"
                          if wr is None else "no valid node"))
+        elif wr["value"] == 0:  # no node to name: any would be arbitrary
+            rows.append((f"max wrinkle risk {wr['measure']}", f"0 [0, {wr['upper']:.3f}]",
+                         f"no node at risk in {numbers['realizations']} drapes; the upper limit is the "
+                         f"{wr['interval']}'s for 0 of {numbers['realizations']}"))
         else:
             rows.append((f"max wrinkle risk {wr['measure']}", f"{wr['value']:.3f} [{wr['lower']:.3f}, {wr['upper']:.3f}]",
                          f"{_where(wr)}; {wr['interval']}"))
