@@ -22,6 +22,7 @@ same worker pool as an ensemble.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import sys
 import time
@@ -30,11 +31,12 @@ from pathlib import Path
 import xarray as xr
 
 from ..design import DESIGN_FILE, Evaluator, drape_design, optimise, problem, result_dataset
-from ..ensemble import design_variables, local_pool, open_ensemble, read_manifest, run_ensemble, run_lock, write_atomic
+from ..ensemble import (Progress, design_variables, local_pool, open_ensemble, read_manifest, run_ensemble, run_lock,
+                        write_atomic)
 from ..report import write_design_report, write_report
 from ..sensitivity import map_indices, qoi_indices, study_design
 from ..stats import SENSITIVITY_QOIS, realization_qois
-from ..study import SENSITIVITY_METHODS, Study, from_dict, load_study
+from ..study import SENSITIVITY_METHODS, Study, from_dict, identity, load_study
 from .preflight import check_placement, check_resources, run_preflight
 
 #: Files a sensitivity run writes into its output folder.
@@ -80,28 +82,60 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
                        chunk_size=chunk_size, resume=resume, progress=progress, verbose=verbose,
                        preflight=run_preflight(study, out, chunk_size=chunk_size,
                                                design_rows=None if design is None else design.standard))
-    if design is not None:
+    if design is not None and resume and analysed(out):
+        if progress:
+            print(f"{study.name}: {design.method} indices already analysed in {out}", file=sys.stderr)
+    elif design is not None:
         if progress:
             print(f"{study.name}: analysing {design.method} indices of {design.n_evaluations} evaluations"
                   + (f" at {len(study.force_levels)} force levels" if study.is_sweep else ""), file=sys.stderr)
-        write_sensitivity(out, design, qoi=study.sensitivity.qoi, seed=study.seed)
+        write_sensitivity(out, design, qoi=study.sensitivity.qoi, seed=study.seed, progress=progress)
     return out
 
 
-def write_sensitivity(output_dir, design, *, qoi=None, seed: int) -> tuple[Path, Path]:
+def _run_key(output_dir) -> str:
+    """What a run folder's analysis is of: a digest of its manifest's study identity and
+    chunk names (the drapes are a function of these alone)."""
+    manifest = read_manifest(output_dir) or {}
+    what = {"study": identity(manifest["study"]) if "study" in manifest else None, "chunks": manifest.get("chunks")}
+    return hashlib.sha256(json.dumps(what, sort_keys=True).encode()).hexdigest()
+
+
+def analysed(output_dir) -> bool:
+    """Whether ``output_dir`` holds the sensitivity files of its own finished run (both
+    files, written for the run its manifest describes), so a resume need not redo them."""
+    out = Path(output_dir)
+    keys = []
+    for name in (INDICES_FILE, MAPS_FILE):
+        try:
+            with xr.open_dataset(out / name) as ds:
+                keys.append(ds.attrs.get("run_key"))
+        except (OSError, ValueError):
+            return False
+    return keys[0] == keys[1] == _run_key(out)
+
+
+def write_sensitivity(output_dir, design, *, qoi=None, seed: int, progress: bool = False) -> tuple[Path, Path]:
     """Analyse a finished sensitivity run in ``output_dir`` (its realisations are the
     design's rows): QoI indices to ``sensitivity.nc``, node-shear index maps to
-    ``sensitivity_maps.nc`` (both written whole, then renamed). ``qoi``: names (default
-    ``SENSITIVITY_QOIS``). Returns the two paths."""
+    ``sensitivity_maps.nc`` (both written whole, then renamed, with the attribute
+    ``run_key`` naming the run they are of: see :func:`analysed`). ``qoi``: names (default
+    ``SENSITIVITY_QOIS``); ``progress``: count the analysed nodes on stderr. Returns the
+    two paths."""
     out = Path(output_dir)
     with open_ensemble(out) as ds:
         qois = realization_qois(ds, SENSITIVITY_QOIS if qoi is None else qoi)
         shear = ds["shear"].load()
         study_name = ds.attrs.get("study_name", out.name)
     indices = qoi_indices(design, qois, seed=seed)
-    maps = map_indices(design, shear, seed=seed)
+    nodes = shear.isel({dim: 0 for dim in shear.dims if dim not in ("i", "j")}).size
+    bar = Progress(nodes * shear.sizes.get("blankholder_force", 1), enabled=progress, desc="index maps", unit="node")
+    try:
+        maps = map_indices(design, shear, seed=seed, progress=bar.update)
+    finally:
+        bar.close()
     for result in (indices, maps):
-        result.attrs["study_name"] = study_name
+        result.attrs.update(study_name=study_name, run_key=_run_key(out))
     if "k_max" in qois.attrs:
         indices.attrs["line_k_max"] = qois.attrs["k_max"]
     return write_atomic(indices, out / INDICES_FILE), write_atomic(maps, out / MAPS_FILE)
