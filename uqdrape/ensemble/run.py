@@ -12,6 +12,14 @@ Resume: the run folder's manifest records the study (and, once the run is done, 
 time in s, summed over resumed calls); a rerun of the same study skips
 chunks whose final file exists (a ``.part`` file is an unfinished chunk and is redone).
 
+Extension: ``realizations`` is not part of the resume identity. A finished (or
+interrupted) run resumed with more realisations keeps every chunk of its plan as it is,
+the last partial one included, and adds chunks of ``chunk_size`` from where it stopped;
+realisation r's inputs depend only on the study and r (under the plans of
+``uqdrape.stochastic.sampling.EXTENDABLE_PLANS``), so the result is bitwise that of the larger run from the start.
+Fewer realisations than a run holds, or another number under a plan whose points depend
+on N (latin_hypercube, sobol), are refused.
+
 Given a design matrix (a sensitivity study's rows, ``uqdrape.workflow.study_design``),
 its rows are draped as realisations 0..n-1 instead of the Monte Carlo sample, through
 the same chunks; what the outputs mean is not this package's business.
@@ -21,6 +29,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import re
 import sys
 import time
 from dataclasses import dataclass
@@ -38,6 +47,7 @@ from ..files import read_text
 from ..schema import FORCE, REALIZATION, at_level
 from ..study import Study, identity
 from ..stochastic.inputs import positive_int
+from ..stochastic.sampling import extension_problem
 from .chunk import drape_inputs, write_atomic
 from .inputs import inputs_from_design, sampled_inputs
 from .hygiene import local_pool, orphaned, run_lock
@@ -61,19 +71,49 @@ class Chunk:
     name: str
 
 
-def plan_chunks(study: Study, chunk_size: int, realizations: int | None = None) -> list[Chunk]:
+_RANGE = re.compile(r"r(\d{7})-(\d{7})\.nc$")
+
+
+def plan_chunks(study: Study, chunk_size: int, realizations: int | None = None, kept=()) -> list[Chunk]:
     """The chunks of a study: consecutive ranges of its realisations (default
     ``study.realizations``; a sensitivity design's row count) at each force level, named
-    ``r<first>-<last>.nc``, prefixed ``f<level>-`` in a sweep."""
+    ``r<first>-<last>.nc``, prefixed ``f<level>-`` in a sweep. ``kept``: the chunk names of
+    an earlier run of the same study, whose ranges stay as they are (an extension); the
+    realisations after them are cut into ``chunk_size`` pieces."""
     n = study.realizations if realizations is None else realizations
+    ranges = sorted({tuple(int(v) for v in _RANGE.search(name).groups()) for name in kept})
+    ranges = [(a, b + 1) for a, b in ranges]
+    start = ranges[-1][1] if ranges else 0
+    ranges += [(a, min(a + chunk_size, n)) for a in range(start, n, chunk_size)]
     levels = study.force_levels
     chunks = []
     for k, force in enumerate(levels):
         prefix = f"f{k:03d}-" if len(levels) > 1 else ""
-        for a in range(0, n, chunk_size):
-            b = min(a + chunk_size, n)
-            chunks.append(Chunk(a, b, force, f"{prefix}r{a:07d}-{b - 1:07d}.nc"))
+        chunks += [Chunk(a, b, force, f"{prefix}r{a:07d}-{b - 1:07d}.nc") for a, b in ranges]
     return chunks
+
+
+def _kept_chunks(out: Path, provenance: dict, study: Study, chunk_size: int, n: int, resume: bool) -> list[str]:
+    """The chunk names of an earlier run in ``out`` of the same study (by ``identity``)
+    that this one keeps: all of them, or none without one (or with resume False). Raises
+    ValueError for another chunk size, fewer realisations than the run holds, or more
+    under a plan that does not extend."""
+    old = read_manifest(out) if resume else None
+    if old is None or identity(old["study"]) != identity(provenance):
+        return []  # nothing to keep; another study's folder is refused by _prepare
+    if old["chunk_size"] != chunk_size:
+        raise ValueError(
+            f"{out} was run with chunk_size={old['chunk_size']}; resume with chunk_size={old['chunk_size']} "
+            "or run with resume=False (--no-resume)")
+    held = max((int(_RANGE.search(name).group(2)) + 1 for name in old["chunks"]), default=0)
+    if n < held:
+        raise ValueError(f"{out} holds {held} realisations, more than the {n} asked for: set "
+                         f"study.realizations >= {held}, or run with resume=False (--no-resume)")
+    why = extension_problem(study.sampling, held, n) if n > held else None
+    if why:
+        raise ValueError(f"{out} holds {held} realisations and cannot be extended to {n}: {why}; "
+                         "run with resume=False (--no-resume)")
+    return old["chunks"]
 
 
 def _run_chunk(study: Study, chunk: Chunk, folder: str, attrs: dict, design_rows=None) -> str:
@@ -129,10 +169,6 @@ def _prepare(out: Path, manifest: dict, resume: bool) -> None:
             raise ValueError(
                 f"{out} holds a run of a different study definition (changed: {', '.join(changed)}); "
                 "run with resume=False (--no-resume) to replace it, or set another [output] directory")
-        if old["chunks"] != manifest["chunks"]:
-            raise ValueError(
-                f"{out} was run with chunk_size={old['chunk_size']}; resume with chunk_size={old['chunk_size']} "
-                "or run with resume=False (--no-resume)")
     folder.mkdir(parents=True, exist_ok=True)
     write_manifest(out, manifest)
 
@@ -214,7 +250,8 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
             raise ValueError(f"workers={workers} sets local processes; the cluster at {scheduler} has its own workers")
     out = Path(study.output_dir if output_dir is None else output_dir).absolute()
     provenance = study.to_dict() if provenance is None else provenance
-    chunks = plan_chunks(study, chunk_size, None if design_rows is None else len(design_rows))
+    n = study.realizations if design_rows is None else len(design_rows)
+    chunks = plan_chunks(study, chunk_size, n, _kept_chunks(out, provenance, study, chunk_size, n, resume))
     manifest = {"study": provenance, "chunk_size": chunk_size, "chunks": [c.name for c in chunks],
                 "uqdrape_version": __version__}
     if preflight is not None:

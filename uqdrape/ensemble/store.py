@@ -114,6 +114,9 @@ def open_ensemble(output_dir) -> xr.Dataset:
                          "run its study again with --no-resume")
     ds = cf_decode(files)
     ds.set_close(files.close)  # closing the result closes the chunk files
+    if len(paths) > 1:  # an extended run: the study as its last call ran it (the plan's last chunk)
+        with xr.open_dataset(paths[-1], engine="netcdf4", decode_cf=False) as last:
+            ds.attrs.update({k: v for k, v in last.attrs.items() if k.startswith("study_")})
     # the run's own description, not its first chunk's ("realisations 0-15 at 126 N")
     levels = ", ".join(f"{f:g}" for f in ds[FORCE].values)
     ds.attrs["title"] = (f"uqdrape ensemble: study {ds.attrs.get('study_name', output_dir.name)}, "

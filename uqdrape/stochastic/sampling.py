@@ -20,6 +20,11 @@ from ..errors import ParameterError
 from .factors import normal
 
 PLANS = ("monte_carlo", "latin_hypercube", "sobol")
+#: Plans whose realisation r is the same whatever the number of realisations N, so that a
+#: run extends bitwise: Monte Carlo (every number from realisation r's own stream). A
+#: Latin hypercube's strata and a Sobol' net's balance are those of N points: another N is
+#: another design.
+EXTENDABLE_PLANS = ("monte_carlo",)
 #: Sensitivity designs (SALib's methods), and the sizes below which their indices cannot
 #: rank factors. Sobol': scipy's Sobol' sequence is balanced only for powers of 2 (it
 #: warns otherwise), and below 64 base samples the bootstrap intervals of S1/ST are
@@ -62,6 +67,15 @@ def sample_uniforms(plan: str, n: int, d: int, seed: int) -> np.ndarray:
     if plan == "latin_hypercube":
         return qmc.LatinHypercube(d, rng=rng).random(n)
     return qmc.Sobol(d, scramble=True, rng=rng).random_base2(m)
+
+
+def extension_problem(sampling, held: int, n: int) -> str | None:
+    """Why a run of ``held`` realisations under the plan ``sampling`` (a study's
+    [sampling]) cannot be extended to ``n`` > held, in a few words; None if it can."""
+    if sampling.plan not in EXTENDABLE_PLANS:
+        return (f"sampling.plan = {sampling.plan!r} draws points that depend on study.realizations "
+                f"(extendable: {', '.join(EXTENDABLE_PLANS)})")
+    return None
 
 
 def uniforms_to_normals(u) -> np.ndarray:

@@ -291,10 +291,13 @@ def _plain(value):
 def identity(doc: dict) -> dict:
     """What must match for stored drapes to be reused (a resumed run's chunks, a design's
     records): the study record ``doc`` (:meth:`Study.to_dict`) without what does not
-    change a drape: the chunk size, the output folder and the [design] section (its
-    candidates are keyed by their own settings)."""
+    change a drape: the chunk size, the number of realisations (realisation r is the same
+    in a larger run, so a run extends; ``uqdrape.ensemble.run`` refuses plans where it is
+    not), the output folder and the [design] section (its candidates are keyed by their
+    own settings)."""
     doc = json.loads(json.dumps(doc))
-    doc["study"].pop("chunk_size", None)
+    for key in ("chunk_size", "realizations"):
+        doc["study"].pop(key, None)
     for section in ("output", "design"):
         doc.pop(section, None)
     return doc
