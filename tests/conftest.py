@@ -10,8 +10,6 @@ the 2-core machine. The caches go to the ``__pycache__`` folders, beside numba's
 from __future__ import annotations
 
 import copy
-import json
-import numbers
 import re
 import sys
 from pathlib import Path
@@ -19,6 +17,8 @@ from pathlib import Path
 import pytest
 from matplotlib.figure import Figure
 from PIL import Image
+
+from uqdrape.files import toml_text
 
 sys.dont_write_bytecode = False
 
@@ -81,37 +81,6 @@ def _merged(base: dict, changes: dict) -> dict:
     return base
 
 
-def toml_text(doc: dict) -> str:
-    """TOML text of a study document: its tables of numbers, strings, booleans and arrays,
-    sub-tables as ``[section.name]`` (tomli-w is not a dependency; studies need no more)."""
-    lines = []
-
-    def table(name, body):
-        scalars = {k: v for k, v in body.items() if not isinstance(v, dict)}
-        if scalars or not body:
-            lines.extend([f"[{name}]", *(f"{k} = {toml_value(v)}" for k, v in scalars.items()), ""])
-        for k, v in body.items():
-            if isinstance(v, dict):
-                table(f"{name}.{k}", v)
-
-    for name, body in doc.items():
-        table(name, body)
-    return "\n".join(lines)
-
-
-def toml_value(value) -> str:
-    """TOML text of a number, string, boolean or (nested) array."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, numbers.Integral):
-        return str(int(value))
-    if isinstance(value, numbers.Real):
-        return repr(float(value))  # inf and nan are TOML too
-    if isinstance(value, (str, Path)):
-        return json.dumps(str(value))  # JSON's escapes are TOML basic-string escapes
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(toml_value(v) for v in value) + "]"
-    raise TypeError(f"no TOML for {value!r}")
 
 
 # -- error messages --------------------------------------------------------------------

@@ -29,7 +29,8 @@ from uqdrape.ensemble.hygiene import LOCK, RunLocked
 from uqdrape.study import load_study
 from uqdrape.workflow import run_study
 
-from conftest import assert_one_line_error, study_text, toml_value, write_study
+from conftest import assert_one_line_error, study_text, write_study
+from uqdrape.files import toml_value
 
 
 def _tiny(realizations=6, chunk_size=2, mode="geodesic", rings=4, failure_budget=None):

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import json
 import math
+import numbers
 import os
 import tomllib
 from collections.abc import Callable
@@ -248,6 +249,45 @@ class Table:
 
 
 # ----------------------------------------------------------------------------- writing
+
+
+def toml_text(doc: dict, header: str = "") -> str:
+    """TOML text of a document of tables, numbers, strings, booleans, paths and (nested)
+    arrays: plain keys first, then each table in order (``[a.b]`` for sub-tables), with
+    ``header`` as leading comment lines. The one TOML writer (cards, study blocks, tests);
+    tomli-w would write every array one number a line, which makes a card's curves
+    unreadable."""
+    lines = [f"# {line}" for line in header.splitlines()]
+
+    def emit(table: dict, prefix: str):
+        for key, value in table.items():
+            if not isinstance(value, dict):
+                lines.append(f"{key} = {toml_value(value)}")
+        for key, value in table.items():
+            if isinstance(value, dict):
+                name = f"{prefix}{key}"
+                if any(not isinstance(v, dict) for v in value.values()) or not value:
+                    lines.extend(["", f"[{name}]"] if lines else [f"[{name}]"])
+                emit(value, name + ".")
+
+    emit(doc, "")
+    return "\n".join(lines) + "\n"
+
+
+def toml_value(value) -> str:
+    """TOML text of one value (a number, string, boolean, path or nested array)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, numbers.Integral):
+        return str(int(value))
+    if isinstance(value, numbers.Real):
+        return repr(float(value))  # inf and nan are TOML too
+    if isinstance(value, (str, Path)):
+        return json.dumps(str(value), ensure_ascii=False)  # JSON's escapes are TOML basic-string escapes
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    raise TypeError(f"no TOML for {value!r}")
+
 
 
 def temporary_path(path, *, keep_suffix: bool = True) -> Path:

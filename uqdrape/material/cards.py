@@ -34,12 +34,10 @@ from __future__ import annotations
 
 import csv
 import io
-import json
-import math
 from importlib import resources
 from pathlib import Path
 
-from ..files import Document, Table, parse_toml
+from ..files import Document, Table, parse_toml, toml_text
 from .model import Material, MaterialError
 
 _CARD_KEYS = {
@@ -200,34 +198,6 @@ def material_document(material: Material) -> dict:
     return doc
 
 
-def _toml_value(value) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, str):
-        return json.dumps(value, ensure_ascii=False)
-    if isinstance(value, (int, float)):
-        if isinstance(value, float) and not math.isfinite(value):
-            raise ValueError(f"cannot write the non-finite number {value!r} to a card")
-        return repr(value)
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    raise TypeError(f"cannot write {value!r} to TOML")
-
-
 def card_text(doc: dict, header: str = "") -> str:
-    """TOML text of a card document (plain keys first, then each table in order)."""
-    lines = [f"# {line}" for line in header.splitlines()]
-
-    def emit(table: dict, prefix: str):
-        for key, value in table.items():
-            if not isinstance(value, dict):
-                lines.append(f"{key} = {_toml_value(value)}")
-        for key, value in table.items():
-            if isinstance(value, dict):
-                name = f"{prefix}{key}"
-                if any(not isinstance(v, dict) for v in value.values()) or not value:
-                    lines.extend(["", f"[{name}]"])
-                emit(value, name + ".")
-
-    emit(doc, "")
-    return "\n".join(lines) + "\n"
+    """TOML text of a card document (``uqdrape.files.toml_text``: plain keys first, then each table)."""
+    return toml_text(doc, header)
