@@ -1,19 +1,25 @@
-"""Extendable samples (issue 29): a finished run resumed with more realisations keeps its
-chunks, the last partial one as it is, and adds the new realisations, bitwise the run of
-the larger number from the start; plans whose points depend on N, and fewer realisations
-than a run holds, are refused in one line."""
+"""Extendable samples and runs to a target accuracy (issue 29): a finished run resumed
+with more realisations keeps its chunks, the last partial one as it is, and adds the new
+realisations, bitwise the run of the larger number from the start; plans whose points
+depend on N, and fewer realisations than a run holds, are refused in one line. A
+``[study] target`` run adds rounds until its interval is narrow enough or its budget is
+spent, and says which."""
 
 from __future__ import annotations
 
 import dataclasses
+import json
 
+import numpy as np
 import pytest
 import xarray as xr
+from scipy import stats
 
 from uqdrape.cli import main
 from uqdrape.ensemble import open_ensemble, read_manifest
-from uqdrape.study import load_study
-from uqdrape.workflow import run_study
+from uqdrape.stats import realization_qois
+from uqdrape.study import StudyError, load_study
+from uqdrape.workflow import run_report, run_study
 
 from conftest import assert_one_line_error, write_study
 
@@ -60,3 +66,74 @@ def test_a_plan_that_does_not_extend_and_fewer_realisations_are_refused(tmp_path
     with pytest.raises(ValueError, match=r"holds 16 realisations, more than the 12 asked for: set "
                                          r"study.realizations >= 16"):
         run_study(dataclasses.replace(study, realizations=12), scheduler="synchronous", progress=False)
+
+
+# ----------------------------------------------------------------------------- target runs
+
+
+def target_file(tmp_path, half_width, budget=96, statistic="mean", qoi="max_abs_shear", plan="monte_carlo",
+                realizations=16):
+    folder = tmp_path / "target"
+    folder.mkdir(exist_ok=True)
+    target = {"qoi": qoi, "statistic": statistic, "half_width": half_width}
+    return write_study(folder, "goal", study={"seed": 5, "realizations": realizations, "chunk_size": 8,
+                                              "target": target, "max_realizations": budget},
+                       solver={"mode": "geodesic", "rings": 4}, uncertainty={"spacing": {"cv": 0.02}},
+                       sampling={"plan": plan}, output={"directory": tmp_path / "goal"})
+
+
+def t_half_width(values, confidence=0.95):
+    """Student-t half-width of the mean of ``values``, written out (scipy's t quantile)."""
+    return stats.t.ppf(0.5 + confidence / 2, values.size - 1) * values.std(ddof=1) / np.sqrt(values.size)
+
+
+def test_a_target_run_stops_at_the_first_round_below_its_target(tmp_path, unrasterised):
+    # the half-width of 16 drapes, from the target's own first round with an unreachable target
+    first = run_study(target_file(tmp_path, 1e-9, budget=16), scheduler="synchronous", progress=False)
+    start = read_manifest(first)["target"]
+    assert start["stopped_by"] == "budget" and start["realizations"] == 16
+    goal = start["half_width_reached"] / 2  # about 4x the drapes: a few rounds
+    out = run_study(target_file(tmp_path, goal, budget=512), scheduler="synchronous", progress=False, resume=False)
+    record = read_manifest(out)["target"]
+    rounds = [(r["realizations"], r["half_width"][0]) for r in record["rounds"]]
+    assert len(rounds) >= 2 and record["stopped_by"] == "target"
+    assert all(h > goal for _, h in rounds[:-1]) and rounds[-1][1] <= goal  # stopped at the first one below
+    assert [n for n, _ in rounds] == sorted({n for n, _ in rounds}) and all(n % 8 == 0 for n, _ in rounds)
+    with open_ensemble(out) as ds:
+        values = realization_qois(ds, ["max_abs_shear"])["max_abs_shear"].isel(blankholder_force=0).values
+    assert values.size == record["realizations"] == rounds[-1][0]
+    assert record["half_width_reached"] == pytest.approx(t_half_width(values), rel=1e-12)
+    summary = json.loads(run_report(out).with_name("summary.json").read_text())
+    assert summary["attrs"]["target_stopped_by"] == "target"
+    assert summary["attrs"]["target_rounds"] == str([n for n, _ in rounds])  # list attributes as text
+    # run again: it resumes where it stopped, one round with nothing to drape
+    again = read_manifest(run_study(target_file(tmp_path, goal, budget=512), scheduler="synchronous",
+                                    progress=False))["target"]
+    assert [r["realizations"] for r in again["rounds"]] == [rounds[-1][0]] and again["stopped_by"] == "target"
+
+
+def test_a_target_run_stops_at_its_budget(tmp_path):
+    out = run_study(target_file(tmp_path, 1e-9, budget=40, statistic="probability", qoi="any_locked"),
+                    scheduler="synchronous", progress=False)
+    record = read_manifest(out)["target"]
+    assert record["stopped_by"] == "budget" and [r["realizations"] for r in record["rounds"]] == [16, 32, 40]
+    # nothing locks on this dome: P = 0 with the Wilson upper limit z^2 / (n + z^2), half of it
+    z = stats.norm.ppf(0.975)
+    assert record["rounds"][-1]["estimate"] == [0.0]
+    assert record["half_width_reached"] == pytest.approx(z**2 / (40 + z**2) / 2, rel=1e-12)
+
+
+@pytest.mark.parametrize("changes, key, valid", [
+    ({"max_realizations": None}, "study.target", ("max_realizations",)),
+    ({"statistic": "probability"}, "study.target.statistic", ("any_locked",)),
+    ({"plan": "latin_hypercube"}, "sampling.plan", ("monte_carlo",)),
+    ({"budget": 8}, "study.max_realizations", (">= 16",)),
+])
+def test_target_keys_are_checked(tmp_path, changes, key, valid):
+    budget = changes.pop("budget", 96)
+    path = target_file(tmp_path, 0.1, budget=budget, **{k: v for k, v in changes.items() if k != "max_realizations"})
+    if "max_realizations" in changes:
+        path.write_text(path.read_text().replace("max_realizations = 96\n", ""))
+    with pytest.raises(StudyError) as err:
+        load_study(path)
+    assert_one_line_error(str(err.value), file=path, key=key, valid=valid)

@@ -55,6 +55,10 @@ DESIGN_OBJECTIVES = {"p_locked": ("any_locked", "probability"),
                      "q95_max_draw_in": ("max_draw_in", "quantile95")}
 #: What a design minimises of its objective: the upper confidence limit or the estimate.
 DESIGN_STATISTICS = ("upper", "estimate")
+#: Statistics a [study] target can be about -> the QoIs (``uqdrape.schema.QOI_ATTRS``) they
+#: apply to (None: any): the mean (Student-t interval; across randomisations under rqmc)
+#: and the probability of a 0/1 quantity (Wilson score interval).
+TARGET_STATISTICS = {"mean": None, "probability": ("any_locked",)}
 #: Study-file parameter names of each factor distribution; "bounds" = [lower, upper].
 DIST_KEYS = {"normal": ("mean", "sd"), "truncnormal": ("mean", "sd", "bounds"),
              "uniform": ("bounds",), "lognormal": ("mean", "sd")}
@@ -197,6 +201,17 @@ class Design:
 
 
 @dataclass(frozen=True)
+class Target:
+    """Run until the ``confidence`` interval of ``statistic`` (TARGET_STATISTICS) of the QoI
+    ``qoi`` has a half-width of at most ``half_width`` (the QoI's unit) at every force level."""
+
+    qoi: str
+    statistic: str
+    half_width: float
+    confidence: float = 0.95
+
+
+@dataclass(frozen=True)
 class Report:
     histogram_nodes: tuple[tuple[int, int], ...]
     experimental_csv: Path | None
@@ -225,6 +240,9 @@ class Study:
     design: Design | None = None
     #: chunks store floats as float32 with zlib (``uqdrape.conventions.cf_encode``)
     float32: bool = False
+    #: [study] target: run in rounds until it is met or ``max_realizations`` are drawn
+    target: Target | None = None
+    max_realizations: int | None = None
 
     @property
     def force_levels(self) -> tuple[float, ...]:
@@ -247,7 +265,7 @@ class Study:
     def to_dict(self) -> dict:
         """The study with defaults filled, in the file's own layout, as plain JSON types
         (``json.dumps`` it for a netCDF attribute or a provenance record)."""
-        doc = {"study": {f.name: getattr(self, f.name) for f in _HEADER}}
+        doc = {"study": {f.name: _plain(getattr(self, f.name)) for f in _HEADER if getattr(self, f.name) is not None}}
         doc["geometry"] = {"kind": self.geometry.kind, **self.geometry.params}
         for section in _PLAIN:
             doc[section] = {f.name: _plain(getattr(getattr(self, section), f.name))
@@ -274,11 +292,14 @@ class Study:
 _PLAIN = ("fabric", "process", "solver", "sampling", "sensitivity", "report")
 #: The [study] header: Study fields between ``path`` and ``geometry``.
 _HEADER = tuple(f for f in dataclasses.fields(Study) if f.name in ("name", "seed", "realizations", "chunk_size",
-                                                                    "description"))
+                                                                    "description", "target", "max_realizations"))
 
 
 def _plain(value):
-    """A spec value as JSON types: tuples -> lists, paths -> strings, None entries dropped."""
+    """A spec value as JSON types: tuples -> lists, paths -> strings, dataclasses -> dicts,
+    None entries dropped."""
+    if dataclasses.is_dataclass(value):
+        return _plain(dataclasses.asdict(value))
     if isinstance(value, dict):
         return {k: _plain(v) for k, v in value.items() if v is not None}
     if isinstance(value, (tuple, list)):
@@ -293,10 +314,10 @@ def identity(doc: dict) -> dict:
     records): the study record ``doc`` (:meth:`Study.to_dict`) without what does not
     change a drape: the chunk size, the number of realisations (realisation r is the same
     in a larger run, so a run extends; ``uqdrape.ensemble.run`` refuses plans where it is
-    not), the output folder and the [design] section (its candidates are keyed by their
+    not) and the target that chose it, the output folder and the [design] section (its candidates are keyed by their
     own settings)."""
     doc = json.loads(json.dumps(doc))
-    for key in ("chunk_size", "realizations"):
+    for key in ("chunk_size", "realizations", "target", "max_realizations"):
         doc["study"].pop(key, None)
     for section in ("output", "design"):
         doc.pop(section, None)
@@ -328,8 +349,11 @@ def from_dict(doc: dict, path) -> Study:
                 entry["lower"], entry["upper"] = entry.pop("bounds")
             factors[name] = _stochastic.make_factor(dist, **entry)
     geometry = dict(doc["geometry"])
+    head = dict(doc["study"])
+    if "target" in head:
+        head["target"] = Target(**head["target"])
     return Study(
-        path=Path(path), **doc["study"],
+        path=Path(path), **head,
         geometry=Geometry(geometry.pop("kind"), geometry),
         fabric=section(Fabric, doc["fabric"]),
         process=section(Process, process),

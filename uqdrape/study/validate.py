@@ -5,7 +5,11 @@
 
 Sections and keys (units: mm, N, degrees)::
 
-    [study]        name, seed, realizations, chunk_size = 64, description = ""
+    [study]        name, seed, realizations, chunk_size = 64, description = "",
+                   target = {qoi, statistic ("mean" | "probability"), half_width, confidence = 0.95}
+                   and max_realizations (both or neither): run in rounds from ``realizations``
+                   until the statistic's interval half-width is at most half_width at every
+                   force level, or max_realizations are drawn (uqdrape.workflow.target)
     [geometry]     kind + that kind's shape parameters (see uqdrape.geometry.KINDS)
     [fabric]       material, spacing_mm, orientation_deg = 0, pre_shear_deg = 0, skew_deg = 0, crossover = [0, 0]
     [process]      blankholder_force_N (a number, or a list: a sweep), friction = 0.2, sectors,
@@ -58,6 +62,7 @@ error too, because it usually means another key was forgotten.
 """
 from __future__ import annotations
 
+import dataclasses
 import inspect
 import math
 import re
@@ -70,10 +75,11 @@ from .. import material as _material
 from .. import stochastic as _stochastic
 from ..experimental import read_experimental
 from ..files import REQUIRED, Document, FileFormatError, Table, fmt, is_int, is_number
+from ..stochastic.sampling import EXTENDABLE_PLANS
 from ..schema import BLANKHOLDER_MODELS, MAX_RINGS, MODES, QOI_ATTRS, SENSITIVITY_QOIS, SOLVER_INPUTS
 from .spec import (DESIGN_OBJECTIVES, DESIGN_STATISTICS, DESIGN_VARIABLES, DIST_KEYS, FACTOR_SETTINGS, FIELD_KEYS,
-                   FIELDS, SECTIONS, SENSITIVITY_METHODS, Design, Fabric, Geometry, Process, RandomField, Report,
-                   Sampling, Sensitivity, Solver, Study, Uncertainty, prestrain_map)
+                   FIELDS, SECTIONS, SENSITIVITY_METHODS, TARGET_STATISTICS, Design, Fabric, Geometry, Process,
+                   RandomField, Report, Sampling, Sensitivity, Solver, Study, Target, Uncertainty, prestrain_map)
 
 
 class StudyError(FileFormatError):
@@ -128,16 +134,48 @@ class _Source(Document):
 
 
 def _study(src: _Source, doc: dict) -> dict:
-    t = Table(src, "study", doc.get("study", {}), ("name", "seed", "realizations", "chunk_size", "description"))
+    t = Table(src, "study", doc.get("study", {}), ("name", "seed", "realizations", "chunk_size", "description",
+                                                    "target", "max_realizations"))
     name = t.string("name", hint="name must be a non-empty string of letters, digits, '-' and '_'",
                     valid=_NAME_RE.match)
-    return {
+    head = {
         "name": name,
         "seed": t.number("seed", integer=True, ge=0, lt=2**63),
         "realizations": t.number("realizations", integer=True, ge=1),
         "chunk_size": t.number("chunk_size", 64, integer=True, ge=1),
         "description": t.string("description", ""),
     }
+    if t.has("target") != t.has("max_realizations"):
+        given, absent = ("target", "max_realizations") if t.has("target") else ("max_realizations", "target")
+        t.invalid(given, f"a run to a target needs both study.target and study.max_realizations (its budget): "
+                         f"add {absent} or remove {given}")
+    if t.has("target"):
+        head["target"] = _target(t.table("target", ("qoi", "statistic", "half_width", "confidence")))
+        head["max_realizations"] = t.number("max_realizations", integer=True, ge=head["realizations"])
+    return head
+
+
+def _target(t: Table) -> Target:
+    qoi = t.string("qoi", choices=tuple(QOI_ATTRS))
+    statistic = t.string("statistic", choices=tuple(TARGET_STATISTICS))
+    applies = TARGET_STATISTICS[statistic]
+    if applies is not None and qoi not in applies:
+        t.invalid("statistic", f"statistic {statistic!r} is of a 0/1 quantity: qoi must be one of {', '.join(applies)}")
+    return Target(qoi, statistic, t.number("half_width", gt=0), t.number("confidence", 0.95, gt=0, lt=1))
+
+
+def _target_rules(src: _Source, head: dict, sampling: Sampling, sensitivity: Sensitivity, design) -> None:
+    """A target run extends its own Monte Carlo (or randomised QMC) sample: refuse it
+    with a plan that does not extend, a sensitivity design or a [design]."""
+    if "target" not in head:
+        return
+    if sampling.plan not in EXTENDABLE_PLANS:
+        src.invalid("sampling.plan", sampling.plan, f"a [study] target run adds realisations in rounds: the plan "
+                                                    f"must be one of {', '.join(EXTENDABLE_PLANS)}")
+    if sensitivity.method != "none" or design is not None:
+        src.invalid("study.target", dataclasses.asdict(head["target"]),
+                    'a [study] target is for a sample of the study (sensitivity method = "none", no [design]): '
+                    'remove it')
 
 
 def _geometry_section(src: _Source, doc: dict):
@@ -528,6 +566,7 @@ def load_study(path) -> Study:
     sampling = _sampling(src, doc, head["realizations"], head["seed"])
     sensitivity = _sensitivity(src, doc, uncertainty)
     design = _design(src, doc, process, uncertainty, sensitivity, head["realizations"])
+    _target_rules(src, head, sampling, sensitivity, design)
     report = _report(src, doc, solver.rings)
     output_dir, float32 = _output(src, doc, head["name"])  # checked last, as the sections are ordered
     return Study(path=path, **head, geometry=geometry, fabric=fabric, process=process, solver=solver,

@@ -38,6 +38,7 @@ from ..sensitivity import map_indices, qoi_indices, study_design
 from ..stats import SENSITIVITY_QOIS, realization_qois
 from ..study import SENSITIVITY_METHODS, Study, from_dict, identity, load_study
 from .preflight import check_placement, check_resources, run_preflight
+from .target import run_to_target
 
 #: Files a sensitivity run writes into its output folder.
 INDICES_FILE = "sensitivity.nc"
@@ -53,7 +54,8 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
     SALib design and write sensitivity.nc; "none": the Monte Carlo sample. Another method
     than the study's writes to ``<output_dir>-<method>``. The other arguments are those of
     ``uqdrape.ensemble.run_ensemble``. A study with a [design] section runs its design
-    (:func:`run_design`); ``method`` must then be None.
+    (:func:`run_design`); ``method`` must then be None. A study with a ``[study] target``
+    (and no sensitivity method) runs in rounds until it is met (``uqdrape.workflow.target``).
     """
     study = study if isinstance(study, Study) else load_study(study)
     if study.design is not None:
@@ -77,6 +79,13 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
         provenance["sensitivity"]["base_samples"] = design.meta["base_samples"]
         attrs = dict(design_method=design.method, design_base_samples=design.meta["base_samples"],
                      design_evaluations=design.n_evaluations)
+    if design is None and study.target is not None:
+        def run_round(sample, again):
+            return run_ensemble(sample, output_dir=out, scheduler=scheduler, workers=workers, chunk_size=chunk_size,
+                                resume=again, progress=progress, verbose=verbose,
+                                preflight=run_preflight(sample, out, chunk_size=chunk_size))
+        return run_to_target(study, run_round, step=chunk_size or study.chunk_size, resume=resume,
+                             progress=progress)
     out = run_ensemble(study, design_rows=None if design is None else design.standard, output_dir=out,
                        provenance=provenance, attrs=attrs, scheduler=scheduler, workers=workers,
                        chunk_size=chunk_size, resume=resume, progress=progress, verbose=verbose,
@@ -195,9 +204,14 @@ def run_report(output_dir, out_dir=None) -> Path:
     if design.is_file():
         return write_design_report(ds, report, surface=study.geometry.build_mould())
     sensitivity = open_sensitivity(output_dir)
+    manifest = read_manifest(output_dir)
+    target = manifest.get("target") or {}  # a target run: what stopped it, for the page's attributes
+    ds.attrs.update({f"target_{k}": v for k, v in target.items() if k not in ("forces", "rounds")})
+    if target:
+        ds.attrs["target_rounds"] = [r["realizations"] for r in target["rounds"]]
     return write_report(ds, report, title=study.name,
                         description=study.description or None, study_text=ds.attrs.get("study_toml"),
                         histogram_nodes=list(study.report.histogram_nodes) or None,
                         experimental_csv=study.report.experimental_csv,
-                        wall_time_s=read_manifest(output_dir).get("wall_time_s"),
+                        wall_time_s=manifest.get("wall_time_s"),
                         **({} if sensitivity is None else dict(zip(("sensitivity", "sensitivity_maps"), sensitivity))))
