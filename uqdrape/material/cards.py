@@ -20,6 +20,10 @@ A TOML card (angles in degrees, N_s in N/m, bending stiffness in N·m²):
     [architecture]                     # cards derived from a fabric architecture only:
     ...                                # inputs, calibration, model version (see
                                        # uqdrape.material.architecture.derive_card)
+    [scatter.positive]                 # cards fitted to shear tests only (see
+    ...                                # uqdrape.material.sheartest.card): the
+    [sheartest]                        # specimens' sd per angle, the fit's record
+    ...
 
 Instead of the inline tables, `[shear] csv = "curves.csv"` names a CSV file (relative to the
 card) in the CSV format below. A bare CSV can also be loaded on its own; the material is then
@@ -51,7 +55,12 @@ _CARD_KEYS = {
     "stitch_direction_deg": float,
     "shear": dict,
     "architecture": dict,
+    "scatter": dict,
+    "sheartest": dict,
 }
+#: Tables a card keeps for its readers, not for `Material`: [scatter] (the specimens' sd
+#: per angle) and [sheartest] (how the curves were fitted: `uqdrape.material.sheartest`).
+_RECORD_KEYS = ("shear", "scatter", "sheartest")
 _CSV_COLUMNS = ("angle_deg", "ns_positive", "ns_negative")
 
 
@@ -99,7 +108,7 @@ def _material_from_toml(source: Document, stem: str, card: dict | None = None) -
     top = Table(source, "", card, tuple(_CARD_KEYS))
     props = {}
     for key, kind in _CARD_KEYS.items():
-        if not top.has(key) or key == "shear":
+        if not top.has(key) or key in _RECORD_KEYS:
             continue
         if kind is float:
             props[key] = top.number(key)
