@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from uqdrape.cli import main
 from uqdrape.material import load_material
 from uqdrape.material.sheartest import BiasExtension, PictureFrame, ShearTestError, fit_card, read_rig
 from uqdrape.material.sheartest.bias_extension import halving_solve
@@ -258,6 +259,23 @@ def test_kappa_below_2_warns(tmp_path):
     assert "Warning: " in result.doc["note"]
 
 
+def test_the_command_writes_the_card_and_its_figure(tmp_path, capsys):
+    rng = np.random.default_rng(5)
+    rig = BiasExtension(225.0, 90.0, 45.0)
+    for i in range(3):
+        write_specimen(tmp_path / f"b{i}.csv", rig, rng, scale=1.0 + 0.05 * (i - 1))
+    path = write_rig(tmp_path / "rig.toml", "bias_extension", [(f"b{i}.csv", "positive") for i in range(3)],
+                     name="be_fabric", height_mm=225.0, width_mm=90.0)
+    card = tmp_path / "out" / "be.toml"
+    assert main(["materials", "fit", str(path), "--out", str(card), "--plot"]) == 0
+    out = capsys.readouterr().out
+    assert f"wrote {card}: be_fabric (positive: 3 specimens to 60 deg" in out
+    assert card.with_suffix(".png").stat().st_size > 10_000
+    material = load_material(card)
+    assert material.name == "be_fabric" and material.locking_angle_deg == 60.0
+    assert main(["materials", str(card)]) == 0
+
+
 # ---------------------------------------------------------------- bad files: one line each
 
 
@@ -310,8 +328,12 @@ BAD_CASES = ["missing column", "not a number", "not finite", "row length", "too 
 
 
 @pytest.mark.parametrize("case", BAD_CASES)
-def test_a_bad_file_gives_one_line_naming_file_and_place(tmp_path, case):
+def test_a_bad_file_gives_one_line_naming_file_and_place(tmp_path, case, capsys):
     path, expect = _bad_case(tmp_path, case)
     with pytest.raises(ShearTestError) as err:
         fit_card(read_rig(path), "x", path.name)
     assert expect in str(err.value) and "\n" not in str(err.value)
+    assert main(["materials", "fit", str(path), "--out", str(tmp_path / "c.toml")]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and expect in lines[0]
+    assert not (tmp_path / "c.toml").exists()

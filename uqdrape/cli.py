@@ -60,13 +60,27 @@ def cmd_derive(args) -> int:
     return 0
 
 
+def cmd_fit(args) -> int:
+    from .workflow import fit_material
+
+    if not args.source:
+        raise ValueError("fit needs a rig file: uqdrape materials fit RIG.toml --out CARD.toml")
+    if not args.out or Path(args.out).suffix.lower() != ".toml":
+        raise ValueError(f"fit needs --out CARD.toml (a .toml path), got {args.out!r}")
+    print(fit_material(args.source, args.out, args.plot))
+    return 0
+
+
 def cmd_materials(args) -> int:
     from .workflow import material_list, material_text
 
     if args.name == "derive":
         return cmd_derive(args)
+    if args.name == "fit":
+        return cmd_fit(args)
     if args.source or args.out:
-        raise ValueError("only `uqdrape materials derive ARCH.toml --out CARD.toml` takes a second argument or --out")
+        raise ValueError("only `uqdrape materials derive ARCH.toml --out CARD.toml` and `uqdrape materials fit "
+                         "RIG.toml --out CARD.toml` take a second argument or --out")
     if args.plot is True:
         raise ValueError("--plot needs a PNG path when showing a card")
     if not args.name:
@@ -139,10 +153,19 @@ def cmd_export(args) -> int:
     from .workflow import export_result
 
     written, notes = export_result(args.result, args.to, out=args.out, mesh=args.mesh, tolerance=args.tolerance,
-                                   reference=args.reference)
+                                   reference=args.reference, flavours=args.flavour, trim=args.trim, ply=args.ply)
     for note in notes:
         print(note)
     print("wrote " + ", ".join(map(str, written)))
+    return 0
+
+
+def cmd_calibrate(args) -> int:
+    from .workflow import calibrate_fibre_angles
+
+    print(calibrate_fibre_angles(args.points, args.out, args.plot, family=args.family, criterion=args.criterion,
+                                 level=args.level, fibre1_deg=args.fibre1_deg,
+                                 command="uqdrape " + shlex.join(args.argv)))
     return 0
 
 
@@ -238,20 +261,32 @@ def build_parser() -> argparse.ArgumentParser:
 
     e = _command(
         sub, "export", cmd_export, raw=True,
-        help="write a drape or an ensemble as VTK, FE-mesh orientations or a flat pattern",
+        help="write a drape or an ensemble as VTK, FE-mesh orientations, a flat pattern or a cutting pattern",
         description="Export a result: a drape file (uqdrape drape --out) or a run folder\n"
                     "(uqdrape run; its per-node statistics). One file set per force level of a sweep;\n"
                     "every file of a call is written, or none.\n\n"
                     "  vtk   STEM.vtu (net: shear, status, locked or ensemble statistics, fibre directions,\n"
                     "        fibre deviation) and STEM-mould.vtu\n"
-                    "  fe    STEM-fe.vtu (the mesh with per-element fibre directions and shear) and\n"
-                    "        STEM-orientations.inp (Abaqus *DISTRIBUTION + *ORIENTATION); needs --mesh\n"
-                    "  flat  STEM-flat-nodes.csv, STEM-flat-outline.csv, STEM-flat.dxf (flat blank, mm)\n\n"
+                    "  fe    STEM-fe.vtu (the mesh with per-element yarn directions and angles, shear, area\n"
+                    "        ratio) and per --flavour the solver's cards of both yarns: abaqus\n"
+                    "        STEM-orientations.inp (two *DISTRIBUTION + *ORIENTATION), lsdyna STEM-lsdyna.k\n"
+                    "        (*ELEMENT_SHELL_BETA, two layers), nastran STEM-nastran.bdf (MCID, two layers);\n"
+                    "        needs --mesh\n"
+                    "  flat  STEM-flat-nodes.csv, STEM-flat-outline.csv, STEM-flat.dxf (flat blank, mm)\n"
+                    "  cut   STEM-cut.dxf (layers CUT, ENVELOPE, FIBRE, SEED, LABEL) and STEM-cut.csv: the\n"
+                    "        part's edge (--trim, or the mould's outline) in the flat blank, fabric axes\n\n"
                     "Examples:\n"
                     "  uqdrape export results/drape/nosecone.nc --to vtk flat\n"
-                    "  uqdrape export results/nosecone-zero-angle --to fe --mesh part.inp")
+                    "  uqdrape export results/drape/nosecone.nc --to cut --trim edge.csv --ply P1\n"
+                    "  uqdrape export results/nosecone-zero-angle --to fe --mesh part.inp --flavour abaqus lsdyna")
     e.add_argument("result", help="a drape netCDF file or a run folder")
-    e.add_argument("--to", nargs="+", required=True, choices=("vtk", "fe", "flat"), help="what to write")
+    e.add_argument("--to", nargs="+", required=True, choices=("vtk", "fe", "flat", "cut"), help="what to write")
+    e.add_argument("--flavour", nargs="+", choices=("abaqus", "lsdyna", "nastran"), default=["abaqus"],
+                   help="the FE solvers whose cards --to fe writes (default abaqus)")
+    e.add_argument("--trim", metavar="CSV",
+                   help="the part's edge for --to cut: a closed polyline in plan, x_mm,y_mm a row (default: the "
+                        "mould's own outline, where it has one)")
+    e.add_argument("--ply", help="the ply label on the cutting pattern (default: the result's name)")
     e.add_argument("--mesh", help="surface mesh for --to fe (any format meshio reads), in mm")
     e.add_argument("--tolerance", type=float, metavar="MM",
                    help="how far an element may lie from the mould for --to fe (default: the fibre spacing)")
@@ -263,21 +298,52 @@ def build_parser() -> argparse.ArgumentParser:
 
     m = _command(
         sub, "materials", cmd_materials, raw=True,
-        help="list material cards, show and plot one, or derive one from a fabric architecture",
-        description="List the shipped material cards, show one, or derive a card from a fabric "
-                    "architecture (thesis ch. 4 stitch and compaction model).\n\n"
+        help="list material cards, show and plot one, derive one from a fabric architecture or fit one to "
+             "shear tests",
+        description="List the shipped material cards, show one, derive a card from a fabric "
+                    "architecture (thesis ch. 4 stitch and compaction model), or fit one to picture-frame "
+                    "or bias-extension test files (thesis ch. 3; the rig file's format: "
+                    "uqdrape.material.sheartest.reader).\n\n"
                     "Examples:\n"
                     "  uqdrape materials\n"
                     "  uqdrape materials ebxhd936_like --plot ebx.png\n"
                     "  uqdrape materials derive fge106hd --out fge.toml --plot\n"
-                    "  uqdrape materials derive my_fabric.toml --out cards/my_fabric.toml\n\n"
+                    "  uqdrape materials derive my_fabric.toml --out cards/my_fabric.toml\n"
+                    "  uqdrape materials fit pf_rig.toml --out cards/pf.toml --plot\n\n"
                     "Shipped architectures: " + ", ".join(architectures()))
-    m.add_argument("name", nargs="?", help="a card name or path, or the word derive")
-    m.add_argument("source", nargs="?", help="derive: an architecture TOML file or a shipped architecture name")
-    m.add_argument("--out", metavar="CARD.toml", help="derive: the card to write")
+    m.add_argument("name", nargs="?", help="a card name or path, or the word derive or fit")
+    m.add_argument("source", nargs="?", help="derive: an architecture TOML file or a shipped architecture name; "
+                                             "fit: a shear-test rig file (TOML)")
+    m.add_argument("--out", metavar="CARD.toml", help="derive, fit: the card to write")
     m.add_argument("--plot", metavar="PNG", nargs="?", const=True,
                    help="write the card's N_s and W curves to this PNG; with derive, the contributions "
-                        "of each term (thesis Fig 4.18), by default next to the card")
+                        "of each term (thesis Fig 4.18), with fit the specimens, their normalised curves and "
+                        "the card's band, by default next to the card")
+
+    cal = _command(
+        sub, "calibrate", cmd_calibrate, raw=True,
+        help="fit a study's zero-angle field to measured fibre angles: a [uncertainty.zero_angle] block",
+        description="Fit a Gaussian field (mean, sd, correlation lengths along fibre 1 and 2, a nugget for\n"
+                    "measurement error) to local fibre angles measured on a flat sample, by restricted maximum\n"
+                    "likelihood for each correlation family (iid, exponential, squared_exponential); keep the\n"
+                    "family of least AIC (or BIC) and write it as a study block, its profile-likelihood\n"
+                    "intervals in the comments. A fibre's deviation from nominal is read as the zero-energy\n"
+                    "shear angle gamma0 of that set rotating against the other (uqdrape.calibration.mapping).\n\n"
+                    "CSV columns: x_mm,y_mm,angle_deg,fibre_set[,sd_deg] (angle: plan direction of the fibre,\n"
+                    "deg from x; fibre_set 1 or 2; sd_deg: the point's measurement sd).\n\n"
+                    "Example:\n"
+                    "  uqdrape calibrate points.csv --out zero_angle.toml --plot")
+    cal.add_argument("points", help="CSV of measured fibre angles")
+    cal.add_argument("--out", required=True, metavar="BLOCK.toml", help="the study block to write")
+    cal.add_argument("--plot", metavar="PNG", nargs="?", const=True,
+                     help="write the calibration figure (points, fitted field, predictive check, profile "
+                          "likelihoods), by default next to the block")
+    cal.add_argument("--family", choices=("auto", "iid", "exponential", "squared_exponential"), default="auto",
+                     help="the correlation family; auto (default): the one of least --criterion")
+    cal.add_argument("--criterion", choices=("aic", "bic"), default="aic", help="how auto chooses (default aic)")
+    cal.add_argument("--level", type=float, default=0.9, help="the intervals' confidence level (default 0.9)")
+    cal.add_argument("--fibre1-deg", type=float, default=45.0,
+                     help="nominal plan direction of fibre 1, deg from x (default 45; fibre 2 at +90)")
 
     p.add_argument("--version", action=_Version)
     p.set_defaults(verbosity=1)

@@ -19,7 +19,8 @@ from ..geometry import build
 from ..material import available_materials, load_material, plot_material
 from ..material.architecture import derive_card, load_architecture, summed
 from ..material.cards import card_material, card_text
-from ..material.plot import plot_architecture
+from ..material.plot import plot_architecture, plot_sheartest
+from ..material.sheartest import fit_card, read_rig
 from ..report import plot_lines, plot_net
 from ..schema import MAX_RINGS, SOLVER_INPUTS
 from .preflight import WORKING_BYTES_PER_NODE, memory_bytes
@@ -125,6 +126,31 @@ def derive_material(source: str, out, plot=None) -> str:
                f"+{material.locking_angle_deg:g} / -{material.locking_angle_neg_deg:g} deg (pre-strain "
                f"{100 * arch.prestrain:.3g} %, beta {arch.beta:.4g})")
     return summary + (f"\nwrote {png}" if png else "")
+
+
+def fit_material(rig, out, plot=None) -> str:
+    """Fit a card to the shear tests named by rig file ``rig`` (thesis ch. 3, see
+    ``uqdrape.material.sheartest``) and write it to ``out`` (.toml), with the normalisation
+    figure if ``plot`` (True: next to the card, or a PNG path); a card that would not load
+    is not written. Returns the summary, warnings (kappa < 2) on lines of their own."""
+    out = Path(out)
+    rig_file = read_rig(rig)
+    result = fit_card(rig_file, rig_file.name or out.stem, Path(rig).name)
+    text = card_text(result.doc, f"Material card fitted by `uqdrape materials fit {Path(rig).name}` from shear "
+                                 "tests: regenerate it, do not edit it.")
+    material = card_material(text, str(out))
+    png = None
+    if plot:  # the picture first: if it fails, no card is left behind either
+        png = out.with_suffix(".png") if plot is True else Path(plot)
+        plot_sheartest(result, png)
+    write_text_atomic(out, text)
+    record = result.doc["sheartest"]
+    branches = "; ".join(
+        f"{branch}: {len(record[branch]['files'])} specimens to {material.curve(branch)[0][-1]:g} deg, N_s "
+        f"{material.curve(branch)[1][-1]:.4g} N/m there, fit residual <= {max(record[branch]['residual_rms_n']):.3g} N"
+        for branch in ("positive", "negative") if branch in record)
+    lines = [f"wrote {out}: {material.name} ({branches})", *(f"warning: {w}" for w in result.warnings)]
+    return "\n".join(lines + ([f"wrote {png}"] if png else []))
 
 
 def export_result(result, to, *, out=None, mesh=None, tolerance=None, reference=None) -> tuple[list[Path], list[str]]:
