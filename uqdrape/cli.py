@@ -153,19 +153,10 @@ def cmd_export(args) -> int:
     from .workflow import export_result
 
     written, notes = export_result(args.result, args.to, out=args.out, mesh=args.mesh, tolerance=args.tolerance,
-                                   reference=args.reference, flavours=args.flavour, trim=args.trim, ply=args.ply)
+                                   reference=args.reference)
     for note in notes:
         print(note)
     print("wrote " + ", ".join(map(str, written)))
-    return 0
-
-
-def cmd_calibrate(args) -> int:
-    from .workflow import calibrate_fibre_angles
-
-    print(calibrate_fibre_angles(args.points, args.out, args.plot, family=args.family, criterion=args.criterion,
-                                 level=args.level, fibre1_deg=args.fibre1_deg,
-                                 command="uqdrape " + shlex.join(args.argv)))
     return 0
 
 
@@ -261,32 +252,20 @@ def build_parser() -> argparse.ArgumentParser:
 
     e = _command(
         sub, "export", cmd_export, raw=True,
-        help="write a drape or an ensemble as VTK, FE-mesh orientations, a flat pattern or a cutting pattern",
+        help="write a drape or an ensemble as VTK, FE-mesh orientations or a flat pattern",
         description="Export a result: a drape file (uqdrape drape --out) or a run folder\n"
                     "(uqdrape run; its per-node statistics). One file set per force level of a sweep;\n"
                     "every file of a call is written, or none.\n\n"
                     "  vtk   STEM.vtu (net: shear, status, locked or ensemble statistics, fibre directions,\n"
                     "        fibre deviation) and STEM-mould.vtu\n"
-                    "  fe    STEM-fe.vtu (the mesh with per-element yarn directions and angles, shear, area\n"
-                    "        ratio) and per --flavour the solver's cards of both yarns: abaqus\n"
-                    "        STEM-orientations.inp (two *DISTRIBUTION + *ORIENTATION), lsdyna STEM-lsdyna.k\n"
-                    "        (*ELEMENT_SHELL_BETA, two layers), nastran STEM-nastran.bdf (MCID, two layers);\n"
-                    "        needs --mesh\n"
-                    "  flat  STEM-flat-nodes.csv, STEM-flat-outline.csv, STEM-flat.dxf (flat blank, mm)\n"
-                    "  cut   STEM-cut.dxf (layers CUT, ENVELOPE, FIBRE, SEED, LABEL) and STEM-cut.csv: the\n"
-                    "        part's edge (--trim, or the mould's outline) in the flat blank, fabric axes\n\n"
+                    "  fe    STEM-fe.vtu (the mesh with per-element fibre directions and shear) and\n"
+                    "        STEM-orientations.inp (Abaqus *DISTRIBUTION + *ORIENTATION); needs --mesh\n"
+                    "  flat  STEM-flat-nodes.csv, STEM-flat-outline.csv, STEM-flat.dxf (flat blank, mm)\n\n"
                     "Examples:\n"
                     "  uqdrape export results/drape/nosecone.nc --to vtk flat\n"
-                    "  uqdrape export results/drape/nosecone.nc --to cut --trim edge.csv --ply P1\n"
-                    "  uqdrape export results/nosecone-zero-angle --to fe --mesh part.inp --flavour abaqus lsdyna")
+                    "  uqdrape export results/nosecone-zero-angle --to fe --mesh part.inp")
     e.add_argument("result", help="a drape netCDF file or a run folder")
-    e.add_argument("--to", nargs="+", required=True, choices=("vtk", "fe", "flat", "cut"), help="what to write")
-    e.add_argument("--flavour", nargs="+", choices=("abaqus", "lsdyna", "nastran"), default=["abaqus"],
-                   help="the FE solvers whose cards --to fe writes (default abaqus)")
-    e.add_argument("--trim", metavar="CSV",
-                   help="the part's edge for --to cut: a closed polyline in plan, x_mm,y_mm a row (default: the "
-                        "mould's own outline, where it has one)")
-    e.add_argument("--ply", help="the ply label on the cutting pattern (default: the result's name)")
+    e.add_argument("--to", nargs="+", required=True, choices=("vtk", "fe", "flat"), help="what to write")
     e.add_argument("--mesh", help="surface mesh for --to fe (any format meshio reads), in mm")
     e.add_argument("--tolerance", type=float, metavar="MM",
                    help="how far an element may lie from the mould for --to fe (default: the fibre spacing)")
@@ -319,31 +298,6 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write the card's N_s and W curves to this PNG; with derive, the contributions "
                         "of each term (thesis Fig 4.18), with fit the specimens, their normalised curves and "
                         "the card's band, by default next to the card")
-
-    cal = _command(
-        sub, "calibrate", cmd_calibrate, raw=True,
-        help="fit a study's zero-angle field to measured fibre angles: a [uncertainty.zero_angle] block",
-        description="Fit a Gaussian field (mean, sd, correlation lengths along fibre 1 and 2, a nugget for\n"
-                    "measurement error) to local fibre angles measured on a flat sample, by restricted maximum\n"
-                    "likelihood for each correlation family (iid, exponential, squared_exponential); keep the\n"
-                    "family of least AIC (or BIC) and write it as a study block, its profile-likelihood\n"
-                    "intervals in the comments. A fibre's deviation from nominal is read as the zero-energy\n"
-                    "shear angle gamma0 of that set rotating against the other (uqdrape.calibration.mapping).\n\n"
-                    "CSV columns: x_mm,y_mm,angle_deg,fibre_set[,sd_deg] (angle: plan direction of the fibre,\n"
-                    "deg from x; fibre_set 1 or 2; sd_deg: the point's measurement sd).\n\n"
-                    "Example:\n"
-                    "  uqdrape calibrate points.csv --out zero_angle.toml --plot")
-    cal.add_argument("points", help="CSV of measured fibre angles")
-    cal.add_argument("--out", required=True, metavar="BLOCK.toml", help="the study block to write")
-    cal.add_argument("--plot", metavar="PNG", nargs="?", const=True,
-                     help="write the calibration figure (points, fitted field, predictive check, profile "
-                          "likelihoods), by default next to the block")
-    cal.add_argument("--family", choices=("auto", "iid", "exponential", "squared_exponential"), default="auto",
-                     help="the correlation family; auto (default): the one of least --criterion")
-    cal.add_argument("--criterion", choices=("aic", "bic"), default="aic", help="how auto chooses (default aic)")
-    cal.add_argument("--level", type=float, default=0.9, help="the intervals' confidence level (default 0.9)")
-    cal.add_argument("--fibre1-deg", type=float, default=45.0,
-                     help="nominal plan direction of fibre 1, deg from x (default 45; fibre 2 at +90)")
 
     p.add_argument("--version", action=_Version)
     p.set_defaults(verbosity=1)
