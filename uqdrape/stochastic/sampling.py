@@ -1,6 +1,6 @@
 """Sampling plans (standard uniforms) and per-realisation random streams.
 
-Two sources of randomness, both derived from one study seed:
+Three sources of randomness, all derived from one study seed:
 
 - a *plan*: an (N, d) array of standard uniforms for the d scalar factors (and, in a
   design, the KL mode variables of the fields), drawn in one piece by
@@ -8,7 +8,13 @@ Two sources of randomness, both derived from one study seed:
 - a *realisation stream*: realisation r draws the white noise of its exact fields from
   ``SeedSequence(seed, spawn_key=(r,))``, which is ``SeedSequence(seed).spawn(N)[r]``
   built directly. Realisation r's numbers therefore never depend on chunk size, worker
-  count or N, and never overlap the plan's stream.
+  count or N, and never overlap the plan's stream;
+- a *randomised QMC* plan (``"rqmc"``, :func:`rqmc_uniforms`): K independent scramblings
+  of one Sobol' point set of M = N / K points (a power of two); randomisation k scrambles
+  from ``SeedSequence(seed, spawn_key=(RQMC_KEY, k))`` (a key of two words, so never a
+  realisation's stream), and realisation r is point r mod M of randomisation r // M. A
+  realisation depends on M, not on K, so a run extends by whole randomisations; the
+  spread of the K randomisations' estimates is their error (Owen 1997; L'Ecuyer 2018).
 """
 
 from __future__ import annotations
@@ -20,11 +26,17 @@ from ..errors import ParameterError
 from .factors import normal
 
 PLANS = ("monte_carlo", "latin_hypercube", "sobol")
+#: A study's plans: those of :func:`sample_uniforms` and randomised QMC (:func:`rqmc_uniforms`).
+RQMC = "rqmc"
+STUDY_PLANS = (*PLANS, RQMC)
 #: Plans whose realisation r is the same whatever the number of realisations N, so that a
-#: run extends bitwise: Monte Carlo (every number from realisation r's own stream). A
-#: Latin hypercube's strata and a Sobol' net's balance are those of N points: another N is
+#: run extends bitwise: Monte Carlo (every number from realisation r's own stream) and
+#: randomised QMC with the same points per randomisation (more randomisations). A Latin
+#: hypercube's strata and a Sobol' net's balance are those of N points: another N is
 #: another design.
-EXTENDABLE_PLANS = ("monte_carlo",)
+EXTENDABLE_PLANS = ("monte_carlo", RQMC)
+#: First word of the seed-sequence key of an RQMC randomisation ("RQMC" in ASCII).
+RQMC_KEY = 0x52514D43
 #: Sensitivity designs (SALib's methods), and the sizes below which their indices cannot
 #: rank factors. Sobol': scipy's Sobol' sequence is balanced only for powers of 2 (it
 #: warns otherwise), and below 64 base samples the bootstrap intervals of S1/ST are
@@ -71,11 +83,40 @@ def sample_uniforms(plan: str, n: int, d: int, seed: int) -> np.ndarray:
 
 def extension_problem(sampling, held: int, n: int) -> str | None:
     """Why a run of ``held`` realisations under the plan ``sampling`` (a study's
-    [sampling]) cannot be extended to ``n`` > held, in a few words; None if it can."""
+    [sampling]) cannot be extended to ``n`` > held, in a few words; None if it can. (An
+    rqmc run of the same study identity has the same points per randomisation, and n is
+    a whole number of randomisations: ``rqmc_points``.)"""
     if sampling.plan not in EXTENDABLE_PLANS:
         return (f"sampling.plan = {sampling.plan!r} draws points that depend on study.realizations "
                 f"(extendable: {', '.join(EXTENDABLE_PLANS)})")
     return None
+
+
+def rqmc_points(n: int, randomizations) -> int:
+    """Points per randomisation M = n / randomizations of an rqmc plan of n realisations;
+    ParameterError unless K >= 2 (an error estimate needs two) divides n into a power of two."""
+    if isinstance(randomizations, bool) or not isinstance(randomizations, (int, np.integer)) or randomizations < 2:
+        raise ParameterError("randomizations", f"randomizations must be an integer >= 2 (the error estimate "
+                                               f"is their spread), got {randomizations!r}")
+    m, rest = divmod(_non_negative_int("n", n), int(randomizations))
+    if rest or m < 1 or m & (m - 1):
+        raise ParameterError(("n", "randomizations"),
+                             f"plan 'rqmc' needs n = randomizations x M with M a power of two (a balanced "
+                             f"Sobol' net per randomisation), got n={n}, randomizations={randomizations}")
+    return m
+
+
+def rqmc_uniforms(seed: int, randomization: int, points: int, d: int) -> np.ndarray:
+    """The (points, d) standard uniforms of randomisation ``randomization`` of an rqmc
+    plan: a Sobol' net of ``points`` (a power of two) points in d dimensions, scrambled by
+    scipy's linear matrix scrambling and digital shift (Matousek 1998: the net stays
+    balanced, every point is uniform) from its own seed sequence (module docstring)."""
+    if d > qmc.Sobol.MAXDIM:
+        raise ParameterError("d", f"an rqmc plan of {d} variables needs a Sobol' sequence of {d} dimensions, "
+                                  f"more than scipy's {qmc.Sobol.MAXDIM}")
+    seq = np.random.SeedSequence(_non_negative_int("seed", seed),
+                                 spawn_key=(RQMC_KEY, _non_negative_int("randomization", randomization)))
+    return qmc.Sobol(d, scramble=True, rng=np.random.default_rng(seq)).random_base2(int(points).bit_length() - 1)
 
 
 def uniforms_to_normals(u) -> np.ndarray:

@@ -160,7 +160,11 @@ class Uncertainty:
 
 @dataclass(frozen=True)
 class Sampling:
+    """The plan (``uqdrape.stochastic.sampling.STUDY_PLANS``); ``randomizations`` K of an
+    rqmc plan (its realisations are K scramblings of one Sobol' net), else None."""
+
     plan: str
+    randomizations: int | None = None
 
 
 @dataclass(frozen=True)
@@ -314,9 +318,13 @@ def identity(doc: dict) -> dict:
     records): the study record ``doc`` (:meth:`Study.to_dict`) without what does not
     change a drape: the chunk size, the number of realisations (realisation r is the same
     in a larger run, so a run extends; ``uqdrape.ensemble.run`` refuses plans where it is
-    not) and the target that chose it, the output folder and the [design] section (its candidates are keyed by their
-    own settings)."""
+    not), an rqmc plan's number of randomisations (its points per randomisation stay), the
+    target that chose the size, the output folder and the [design] section (its
+    candidates are keyed by their own settings)."""
     doc = json.loads(json.dumps(doc))
+    sampling = doc.get("sampling", {})
+    if "randomizations" in sampling:  # rqmc: K randomisations of M points; M is what a drape depends on
+        sampling["points"] = doc["study"]["realizations"] // sampling.pop("randomizations")
     for key in ("chunk_size", "realizations", "target", "max_realizations"):
         doc["study"].pop(key, None)
     for section in ("output", "design"):

@@ -24,7 +24,8 @@ Sections and keys (units: mm, N, degrees)::
                    material card's [architecture] (uqdrape.material.architecture.material_zero_force_table);
                    needs a card derived from an architecture; not together with zero_angle
     [uncertainty.<factor>]    dist + parameters, factor in FACTOR_SETTINGS
-    [sampling]     plan = "monte_carlo"
+    [sampling]     plan = "monte_carlo" (or latin_hypercube, sobol, rqmc), randomizations (rqmc only, >= 2:
+                   realizations = randomizations x a power of two; uqdrape.stochastic.sampling)
     [sensitivity]  method = "none", base_samples, qoi = SENSITIVITY_QOIS (any of uqdrape.schema.QOI_ATTRS)
     [design]       variables ("force" | "sectors"), sectors (>= 2, for "sectors"), force_bounds_N = [lo, hi]
                    (the total force, or each sector's), friction_bounds = [lo, hi], budget_N (total force),
@@ -69,13 +70,14 @@ import re
 from pathlib import Path
 
 import numpy as np
+from scipy.stats import qmc
 
 from .. import geometry as _geometry
 from .. import material as _material
 from .. import stochastic as _stochastic
 from ..experimental import read_experimental
 from ..files import REQUIRED, Document, FileFormatError, Table, fmt, is_int, is_number
-from ..stochastic.sampling import EXTENDABLE_PLANS
+from ..stochastic.sampling import EXTENDABLE_PLANS, RQMC, STUDY_PLANS, rqmc_points
 from ..schema import BLANKHOLDER_MODELS, MAX_RINGS, MODES, QOI_ATTRS, SENSITIVITY_QOIS, SOLVER_INPUTS
 from .spec import (DESIGN_OBJECTIVES, DESIGN_STATISTICS, DESIGN_VARIABLES, DIST_KEYS, FACTOR_SETTINGS, FIELD_KEYS,
                    FIELDS, SECTIONS, SENSITIVITY_METHODS, TARGET_STATISTICS, Design, Fabric, Geometry, Process,
@@ -408,14 +410,33 @@ def _describe(mould) -> str:
     return f"{mould.name}, plan x in [{bounds[0]:g}, {bounds[1]:g}], y in [{bounds[2]:g}, {bounds[3]:g}] mm"
 
 
-def _sampling(src: _Source, doc: dict, realizations: int, seed: int) -> Sampling:
-    t = Table(src, "sampling", doc.get("sampling", {}), ("plan",))
-    plan = t.string("plan", "monte_carlo", choices=_stochastic.PLANS)
+def _sampling(src: _Source, doc: dict, realizations: int, seed: int, uncertainty: Uncertainty,
+              solver: Solver, fabric: Fabric) -> Sampling:
+    t = Table(src, "sampling", doc.get("sampling", {}), ("plan", "randomizations"))
+    plan = t.string("plan", "monte_carlo", choices=STUDY_PLANS)
+    given = {"plan": ("sampling.plan", plan), "n": ("study.realizations", realizations)}
+    if plan != RQMC:
+        if t.has("randomizations"):
+            t.invalid("randomizations", f'randomizations is only used by plan = "{RQMC}": set it, or remove '
+                                        "randomizations")
+        try:
+            _stochastic.sample_uniforms(plan, realizations, 0, seed)  # checks the plan, draws nothing
+        except ValueError as err:
+            src.wrap(err, "sampling", given)
+        return Sampling(plan)
+    k = t.number("randomizations", integer=True)
+    given["randomizations"] = ("sampling.randomizations", k)
+    d = len(uncertainty.factors) + sum(f.build_input(solver.rings, fabric.spacing_mm).kl(f.kl_retained).n_variables
+                                       for f in uncertainty.fields.values())
     try:
-        _stochastic.sample_uniforms(plan, realizations, 0, seed)  # checks the plan, draws nothing
+        rqmc_points(realizations, k)
     except ValueError as err:
-        src.wrap(err, "sampling", {"plan": ("sampling.plan", plan), "n": ("study.realizations", realizations)})
-    return Sampling(plan)
+        src.wrap(err, "sampling", given)
+    if d > qmc.Sobol.MAXDIM:
+        src.invalid("sampling.plan", plan, f"an rqmc plan of {d} variables (factors and KL modes) needs more "
+                                           f"Sobol' dimensions than scipy's {qmc.Sobol.MAXDIM}: use a correlated "
+                                           "field or a lower kl_retained")
+    return Sampling(plan, k)
 
 
 def _sensitivity(src: _Source, doc: dict, uncertainty: Uncertainty) -> Sensitivity:
@@ -563,7 +584,7 @@ def load_study(path) -> Study:
     process = _process(src, doc)
     solver = _solver(src, doc)
     uncertainty = _uncertainty(src, doc, fabric, process, solver, mould)
-    sampling = _sampling(src, doc, head["realizations"], head["seed"])
+    sampling = _sampling(src, doc, head["realizations"], head["seed"], uncertainty, solver, fabric)
     sensitivity = _sensitivity(src, doc, uncertainty)
     design = _design(src, doc, process, uncertainty, sensitivity, head["realizations"])
     _target_rules(src, head, sampling, sensitivity, design)

@@ -84,7 +84,7 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
             return run_ensemble(sample, output_dir=out, scheduler=scheduler, workers=workers, chunk_size=chunk_size,
                                 resume=again, progress=progress, verbose=verbose,
                                 preflight=run_preflight(sample, out, chunk_size=chunk_size))
-        return run_to_target(study, run_round, step=chunk_size or study.chunk_size, resume=resume,
+        return run_to_target(study, run_round, chunk_size=chunk_size or study.chunk_size, resume=resume,
                              progress=progress)
     out = run_ensemble(study, design_rows=None if design is None else design.standard, output_dir=out,
                        provenance=provenance, attrs=attrs, scheduler=scheduler, workers=workers,

@@ -76,21 +76,30 @@ def level_intervals(out, target, replicates: int | None):
     return {float(f): interval(values.sel({FORCE: f}).values, target, replicates) for f in values[FORCE].values}
 
 
-def run_to_target(study, run_round, *, step: int, replicates=None, resume: bool = True, progress: bool = True):
+def _resized(study, n: int, points: int | None):
+    """The study with n realisations (n / points randomisations of an rqmc plan)."""
+    sampling = study.sampling if points is None else dataclasses.replace(study.sampling, randomizations=n // points)
+    return dataclasses.replace(study, realizations=n, sampling=sampling)
+
+
+def run_to_target(study, run_round, *, chunk_size: int, resume: bool = True, progress: bool = True):
     """Run ``study`` (with a ``target``) in rounds: ``run_round(study_of_n, resume)`` drapes
     the study with n realisations into its output folder (resume True: extending what is
-    there) and returns the folder. ``step``: the realisations a round adds at least;
-    ``replicates(n)``: the randomisations of n drapes of an rqmc plan (None: independent).
-    ``resume`` False starts afresh, True from the realisations an earlier target run of
-    the folder reached. Writes the ``target`` record into the manifest; returns the folder."""
+    there) and returns the folder. A round adds at least ``chunk_size`` realisations (one
+    randomisation of an rqmc plan). ``resume`` False starts afresh, True from the
+    realisations an earlier target run of the folder reached. Writes the ``target`` record
+    into the manifest; returns the folder."""
     target, budget = study.target, study.max_realizations
+    points = study.realizations // study.sampling.randomizations if study.sampling.randomizations else None
+    step = points or chunk_size
+    budget -= budget % points if points else 0  # whole randomisations
     n, rounds = study.realizations, []
     earlier = (read_manifest(study.output_dir) or {}).get("target") if resume else None
     if earlier:
         n = max(n, earlier["realizations"])
     while True:
-        out = run_round(dataclasses.replace(study, realizations=n), resume or bool(rounds))
-        levels = level_intervals(out, target, None if replicates is None else replicates(n))
+        out = run_round(_resized(study, n, points), resume or bool(rounds))
+        levels = level_intervals(out, target, None if points is None else n // points)
         half = max(h for _, h in levels.values())
         rounds.append({"realizations": n, "estimate": [e for e, _ in levels.values()],
                        "half_width": [h for _, h in levels.values()]})
@@ -102,7 +111,7 @@ def run_to_target(study, run_round, *, step: int, replicates=None, resume: bool 
         n = next_realizations(n, half, target.half_width, step, budget)
     stop = STOPS[0] if half <= target.half_width else STOPS[1]
     manifest = read_manifest(out)
-    write_manifest(out, {**manifest, "target": {**dataclasses.asdict(target), "max_realizations": budget,
+    write_manifest(out, {**manifest, "target": {**dataclasses.asdict(target), "max_realizations": study.max_realizations,
                                                 "stopped_by": stop, "realizations": n, "half_width_reached": half,
                                                 "forces": list(levels), "rounds": rounds}})
     return out
