@@ -253,6 +253,42 @@ def test_an_ncf_card_has_both_branches_from_the_tests_each_way(tmp_path):
         assert np.all(np.abs(ns - scale * ns_true(theta) - friction) <= point_noise(rig, theta)), branch
 
 
+def test_unloading_rows_are_not_fitted(tmp_path):
+    rig = PictureFrame(145.0, 45.0)
+    path = write_specimen(tmp_path / "s0.csv", rig, np.random.default_rng(0))
+    loaded = fit_card(read_rig(write_rig(tmp_path / "rig.toml", "picture_frame", [("s0.csv", "positive")],
+                                         side_mm=145.0)), "x", "rig.toml").doc["shear"]
+    rows = path.read_text(encoding="utf-8").splitlines()
+    theta = np.deg2rad(np.linspace(62.0, 30.0, 200))  # unloading: half the force on the way back
+    back = zip(0.5 * rig.crosshead_force(ns_true, theta), rig.displacement(theta))
+    path.write_text("\n".join(rows + [f"{f:.6f},{d:.6f}" for f, d in back]) + "\n", encoding="utf-8")
+    unloaded = fit_card(read_rig(tmp_path / "rig.toml"), "x", "rig.toml").doc["shear"]
+    assert unloaded == loaded
+
+
+@pytest.mark.parametrize("change, expect", [
+    ("ns_sd = [1.0, -1.0, 2.0]", "scatter.positive.ns_sd = [1.0, -1.0, 2.0] is invalid: ns_sd must be >= 0"),
+    ("ns_sd = [1.0, 2.0]", "ns_sd must be 3 numbers >= 0 (N/m), one per angle"),
+    ("angle_deg = [0, 10, 20]", "angle_deg must be the angles of [shear.positive]"),
+    ("specimens = 1", "scatter.positive.specimens = 1 is invalid: specimens must be an integer >= 2"),
+    ("[scatter.negative]", "unknown key scatter.negative; valid keys in [scatter]: positive"),
+])
+def test_a_card_refuses_a_bad_scatter_table(change, expect):
+    from uqdrape.material.cards import card_material
+
+    shear = ["[shear.positive]", "angle_deg = [0, 10, 30]", "ns = [0, 5, 20]", "[scatter.positive]"]
+    scatter = {"angle_deg": "[0, 10, 30]", "ns_sd": "[0.0, 1.0, 2.0]", "specimens": "3"}
+    lines = shear + [f"{k} = {v}" for k, v in scatter.items()]
+    assert card_material("\n".join(lines), "ok.toml").curve("positive")[1][-1] == 20.0
+    key, _, value = change.partition(" = ")
+    if value:
+        scatter[key] = value
+    lines = shear + [f"{k} = {v}" for k, v in scatter.items()] + ([] if value else [change])
+    with pytest.raises(ValueError) as err:
+        card_material("\n".join(lines), "bad.toml")
+    assert str(err.value).startswith("bad.toml: ") and expect in str(err.value)
+
+
 def test_kappa_below_2_warns(tmp_path):
     result = fitted(tmp_path, BiasExtension(162.0, 90.0, 45.0))  # κ = 1.8
     assert len(result.warnings) == 1 and "kappa = 1.8 < 2" in result.warnings[0]

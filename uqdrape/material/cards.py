@@ -121,7 +121,24 @@ def _material_from_toml(source: Document, stem: str, card: dict | None = None) -
         source.missing("shear", 'a card needs a [shear] table: [shear.positive] points or csv = "file.csv"')
     shear = top.table("shear", ("csv", "positive", "negative"))
     props.update(_shear_curves(shear, source))
+    if top.has("scatter"):
+        _check_scatter(top.table("scatter", tuple(b for b in ("positive", "negative") if shear.has(b))), shear)
     return _build(source, props, top)
+
+
+def _check_scatter(scatter: Table, shear: Table) -> None:
+    """A [scatter.<branch>] table (cards fitted to shear tests): the specimens' sd of N_s
+    (N/m, >= 0) at the angles of [shear.<branch>], from ``specimens`` >= 2 tests."""
+    for branch in scatter.data:
+        table = scatter.table(branch, ("angle_deg", "ns_sd", "specimens"))
+        angles = table.numbers("angle_deg", hint="angle_deg must be a list of numbers (deg)")
+        if list(angles) != [float(a) for a in shear.data.get(branch, {}).get("angle_deg", [])]:
+            table.invalid("angle_deg", f"angle_deg must be the angles of [shear.{branch}]")
+        sd = table.numbers("ns_sd", length=len(angles), hint=f"ns_sd must be {len(angles)} numbers >= 0 (N/m), "
+                                                             "one per angle")
+        if min(sd) < 0.0:
+            table.invalid("ns_sd", "ns_sd must be >= 0 (N/m)")
+        table.number("specimens", integer=True, ge=2)
 
 
 def _shear_curves(shear: Table, source: Document) -> dict:

@@ -4,7 +4,8 @@ and cut to its valid range; the specimens of a branch averaged, their sd recorde
 Per specimen (rules recorded in the card's [sheartest] table):
 
 1. θ: the measured angle where the CSV has one, else the kinematic θ of the rig
-   (picture frame Eq 3.5, bias extension Eq 3.19).
+   (picture frame Eq 3.5, bias extension Eq 3.19). Rows after the largest θ are the
+   unloading and are not used.
 2. Valid range: from 0 to the smallest of max_angle_deg, the largest θ tested and, with a
    measured angle, the divergence angle (`fit.divergence_end`: measured and kinematic θ
    apart by more than max_divergence_deg).
@@ -87,7 +88,8 @@ def fit_specimen(specimen: Specimen, options: dict) -> SpecimenFit:
             ends["divergence"] = diverged
     rule = min(ends, key=ends.get)
     end = ends[rule]
-    used = (theta >= np.deg2rad(options["jump_deg"])) & (theta <= end)
+    loading = np.arange(theta.size) <= np.argmax(theta)
+    used = loading & (theta >= np.deg2rad(options["jump_deg"])) & (theta <= end)
     if used.sum() < MIN_ROWS:
         raise ShearTestError(
             f"{data.path}: only {int(used.sum())} rows have shear between jump_deg = {options['jump_deg']:g} and the "
