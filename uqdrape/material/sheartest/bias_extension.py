@@ -58,8 +58,6 @@ class BiasExtension:
     width_mm: float
     phi0_deg: float
 
-    test = "bias_extension"
-
     @property
     def phi0(self) -> float:
         return np.deg2rad(self.phi0_deg)

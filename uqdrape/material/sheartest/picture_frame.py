@@ -31,8 +31,6 @@ class PictureFrame:
     side_mm: float
     phi0_deg: float
 
-    test = "picture_frame"
-
     @property
     def phi0(self) -> float:
         return np.deg2rad(self.phi0_deg)

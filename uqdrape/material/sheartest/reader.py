@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import csv
 import io
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -104,7 +104,7 @@ class RigFile:
     test: str
     phi0_deg: float
     fit: dict
-    specimens: list = field(default_factory=list)
+    specimens: list
 
 
 def read_test_csv(path, columns: dict) -> TestData:
