@@ -16,7 +16,7 @@ from uqdrape import __version__
 from uqdrape.conventions import cf_decode, cf_encode
 from uqdrape.drape import drape
 from uqdrape.ensemble import open_ensemble
-from uqdrape.workflow import run_study
+from uqdrape.workflow import run_report, run_study
 from uqdrape.geometry import build
 from uqdrape.material import load_material
 from uqdrape.study import StudyError, load_study
@@ -156,7 +156,8 @@ def test_cf_checker_finds_no_errors_or_warnings(written, tmp_path):
     if not cfchecks.is_file():
         _missing(f"{cfchecks} does not exist")
     study = run_study(_study(tmp_path, "chunks"), scheduler="synchronous", progress=False)
-    for path in (written[1], next((study / "chunks").glob("*.nc"))):
+    statistics = Path(run_report(study)).parent / "statistics.nc"  # the report's per-node statistics
+    for path in (written[1], next((study / "chunks").glob("*.nc")), statistics):
         out = subprocess.run([cfchecks, *_tables(tmp_path), "-v", "1.8", str(path)], capture_output=True, text=True,
                              timeout=120).stdout
         assert "ERRORS detected: 0" in out and "WARNINGS given: 0" in out, out

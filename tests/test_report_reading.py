@@ -42,3 +42,14 @@ def test_the_page_describes_the_run_not_its_first_chunk(riskless):
     assert "uqdrape ensemble: study tiny, 6 realisations at 50 N" in page
     assert "realisations 0-1" not in page  # chunk 0's own title
     assert "<th>mould</th><td>hemisphere(" in page and "<th>geometry</th>" not in page
+
+
+def test_the_per_node_statistics_are_a_cf_netcdf_file_on_the_mean_positions(riskless):
+    import xarray as xr
+
+    with xr.open_dataset(riskless / "statistics.nc") as st:
+        assert st.attrs["Conventions"] == "CF-1.8" and st.attrs["title"] == "uqdrape per-node statistics: tiny"
+        for name in ("mean", "sd", "quantile_value", "wrinkle_probability"):
+            assert st[name].encoding["coordinates"] == "x y z", name
+        assert st["mean"].attrs["units"] == "degree" and st["x"].attrs["units"] == "mm"
+        assert int(st["count"].max()) == 6 and float(st["wrinkle_probability"].max()) == 0.0

@@ -29,7 +29,8 @@ from uqdrape.stats import (
 from uqdrape.stats.headline import DESIGN, DETERMINISTIC, RANDOM, SWEPT
 
 from ..experimental import read_experimental
-from ..files import write_text_atomic
+from ..conventions import cf_encode
+from ..files import write_atomic, write_text_atomic
 from .page import figures_html, page, provenance, provenance_line
 from .plan import PLAN, SENSITIVITY_PLAN, Context, render
 from .sensitivity_figures import INDICES
@@ -38,6 +39,8 @@ from .sensitivity_figures import INDICES
 THESIS_HISTOGRAM_NODE = 6
 #: Attributes shown elsewhere on the page (the study file) or too long for the table.
 _HIDDEN_ATTRS = ("study_toml", "study_json")
+#: The per-node statistics file a report writes beside its page.
+STATISTICS_FILE = "statistics.nc"
 _KIND_TEXT = {
     RANDOM: "a random sample: every ensemble statistic applies",
     DETERMINISTIC: "one drape per blank-holder level: no spread statistics",
@@ -183,12 +186,33 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None
         record["sensitivity"]["largest_ST"] = dominant
     summary_path = out / "summary.json"
     write_text_atomic(summary_path, json.dumps(record, indent=2, allow_nan=False) + "\n")
+    write_statistics(ds, node_stats, exceedance, out / STATISTICS_FILE, title)
 
     section = "" if sensitivity is None else _sensitivity_section(sensitivity, sens_items)
     page = _page(record, ds, _rows(numbers, extra, dominant), items, study_text, summary_path.name, section)
     index = out / "index.html"
     write_text_atomic(index, page)
     return index
+
+
+def write_statistics(ds: xr.Dataset, node_stats: xr.Dataset, exceedance: xr.Dataset | None, path, title: str):
+    """The per-node statistics of ensemble ``ds`` as a CF netCDF file: the shear's mean, sd,
+    skewness, quantiles and their confidence limits (deg), the count of valid drapes and,
+    for a random sample, the wrinkle risk with its limits, on the mean node positions x,
+    y, z (mm; the ``coordinates`` of every node variable), per blank-holder level."""
+    stats = node_stats.assign({name: ds[name].mean(REALIZATION).assign_attrs(ds[name].attrs)
+                               for name in ("x", "y", "z")})
+    for name in ("mean", "sd", "mean_lower", "mean_upper", "quantile_value", "quantile_lower", "quantile_upper"):
+        stats[name].attrs.setdefault("units", "degree")
+    if exceedance is not None:
+        risk = exceedance[["probability", "probability_lower", "probability_upper"]]
+        stats = stats.assign({f"wrinkle_{k}": v.assign_attrs(units="1", long_name=f"{exceedance.attrs['risk']}"
+                                                                                   f" ({k.replace('_', ' ')})")
+                              for k, v in risk.data_vars.items()})
+    stats = stats.compute()
+    stats.attrs = {k: v for k, v in ds.attrs.items() if k not in _HIDDEN_ATTRS}
+    encoded, encoding = cf_encode(stats, title=f"uqdrape per-node statistics: {title}", history="uqdrape report")
+    return write_atomic(path, lambda tmp: encoded.to_netcdf(tmp, engine="netcdf4", encoding=encoding))
 
 
 def _json_attr(value):
