@@ -204,8 +204,9 @@ def test_friction_kept_starts_the_curve_at_the_jump(tmp_path):
     assert np.all(np.abs(error) <= point_noise(rig, theta))
 
 
-def test_picture_frame_and_bias_extension_of_one_material_give_one_card(tmp_path):
-    pf_rig, be_rig = PictureFrame(145.0, 45.0), BiasExtension(225.0, 90.0, 45.0)
+@pytest.mark.parametrize("kappa", [2.0, 2.5, 3.0])
+def test_picture_frame_and_bias_extension_of_one_material_give_one_card(tmp_path, kappa):
+    pf_rig, be_rig = PictureFrame(145.0, 45.0), BiasExtension(90.0 * kappa, 90.0, 45.0)
     (tmp_path / "pf").mkdir()
     (tmp_path / "be").mkdir()
     theta_pf, pf = card_curve(fitted(tmp_path / "pf", pf_rig, seed=1))
