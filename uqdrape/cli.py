@@ -153,7 +153,7 @@ def cmd_export(args) -> int:
     from .workflow import export_result
 
     written, notes = export_result(args.result, args.to, out=args.out, mesh=args.mesh, tolerance=args.tolerance,
-                                   reference=args.reference)
+                                   reference=args.reference, flavours=args.flavour, trim=args.trim, ply=args.ply)
     for note in notes:
         print(note)
     print("wrote " + ", ".join(map(str, written)))
@@ -252,20 +252,32 @@ def build_parser() -> argparse.ArgumentParser:
 
     e = _command(
         sub, "export", cmd_export, raw=True,
-        help="write a drape or an ensemble as VTK, FE-mesh orientations or a flat pattern",
+        help="write a drape or an ensemble as VTK, FE-mesh orientations, a flat pattern or a cutting pattern",
         description="Export a result: a drape file (uqdrape drape --out) or a run folder\n"
                     "(uqdrape run; its per-node statistics). One file set per force level of a sweep;\n"
                     "every file of a call is written, or none.\n\n"
                     "  vtk   STEM.vtu (net: shear, status, locked or ensemble statistics, fibre directions,\n"
                     "        fibre deviation) and STEM-mould.vtu\n"
-                    "  fe    STEM-fe.vtu (the mesh with per-element fibre directions and shear) and\n"
-                    "        STEM-orientations.inp (Abaqus *DISTRIBUTION + *ORIENTATION); needs --mesh\n"
-                    "  flat  STEM-flat-nodes.csv, STEM-flat-outline.csv, STEM-flat.dxf (flat blank, mm)\n\n"
+                    "  fe    STEM-fe.vtu (the mesh with per-element yarn directions and angles, shear, area\n"
+                    "        ratio) and per --flavour the solver's cards of both yarns: abaqus\n"
+                    "        STEM-orientations.inp (two *DISTRIBUTION + *ORIENTATION), lsdyna STEM-lsdyna.k\n"
+                    "        (*ELEMENT_SHELL_BETA, two layers), nastran STEM-nastran.bdf (MCID, two layers);\n"
+                    "        needs --mesh\n"
+                    "  flat  STEM-flat-nodes.csv, STEM-flat-outline.csv, STEM-flat.dxf (flat blank, mm)\n"
+                    "  cut   STEM-cut.dxf (layers CUT, ENVELOPE, FIBRE, SEED, LABEL) and STEM-cut.csv: the\n"
+                    "        part's edge (--trim, or the mould's outline) in the flat blank, fabric axes\n\n"
                     "Examples:\n"
                     "  uqdrape export results/drape/nosecone.nc --to vtk flat\n"
-                    "  uqdrape export results/nosecone-zero-angle --to fe --mesh part.inp")
+                    "  uqdrape export results/drape/nosecone.nc --to cut --trim edge.csv --ply P1\n"
+                    "  uqdrape export results/nosecone-zero-angle --to fe --mesh part.inp --flavour abaqus lsdyna")
     e.add_argument("result", help="a drape netCDF file or a run folder")
-    e.add_argument("--to", nargs="+", required=True, choices=("vtk", "fe", "flat"), help="what to write")
+    e.add_argument("--to", nargs="+", required=True, choices=("vtk", "fe", "flat", "cut"), help="what to write")
+    e.add_argument("--flavour", nargs="+", choices=("abaqus", "lsdyna", "nastran"), default=["abaqus"],
+                   help="the FE solvers whose cards --to fe writes (default abaqus)")
+    e.add_argument("--trim", metavar="CSV",
+                   help="the part's edge for --to cut: a closed polyline in plan, x_mm,y_mm a row (default: the "
+                        "mould's own outline, where it has one)")
+    e.add_argument("--ply", help="the ply label on the cutting pattern (default: the result's name)")
     e.add_argument("--mesh", help="surface mesh for --to fe (any format meshio reads), in mm")
     e.add_argument("--tolerance", type=float, metavar="MM",
                    help="how far an element may lie from the mould for --to fe (default: the fibre spacing)")

@@ -12,7 +12,7 @@ import numpy as np
 from ..conventions import cf_encode
 from ..drape import drape
 from ..ensemble import Progress, write_netcdf
-from ..export import fe_files, flat_files, levels, open_result, vtk_files
+from ..export import cut_files, fe_files, flat_files, levels, open_result, vtk_files
 from ..files import write_all, write_text_atomic
 from ..errors import ParameterError
 from ..geometry import build
@@ -153,10 +153,13 @@ def fit_material(rig, out, plot=None) -> str:
     return "\n".join(lines + ([f"wrote {png}"] if png else []))
 
 
-def export_result(result, to, *, out=None, mesh=None, tolerance=None, reference=None) -> tuple[list[Path], list[str]]:
+def export_result(result, to, *, out=None, mesh=None, tolerance=None, reference=None, flavours=("abaqus",),
+                  trim=None, ply=None) -> tuple[list[Path], list[str]]:
     """Export a drape file or a run folder ``result`` as ``to`` (some of "vtk", "fe",
-    "flat"); every file is computed first and written together, all or nothing. Returns
-    the paths and the lines to tell the user (the FE mapping counts)."""
+    "flat", "cut"); every file is computed first and written together, all or nothing.
+    ``flavours``: the FE solvers' cards for "fe"; ``trim``: the part's edge (plan CSV) for
+    "cut" (default: the mould's own outline), ``ply`` its label. Returns the paths and the
+    lines to tell the user (the FE mapping counts)."""
     if "fe" in to and not mesh:
         raise ValueError("--to fe needs --mesh FILE (a surface mesh meshio reads: .inp, .msh, .vtu, .stl, ...)")
     result = Path(result)
@@ -169,11 +172,13 @@ def export_result(result, to, *, out=None, mesh=None, tolerance=None, reference=
     if "vtk" in to:
         writers.update(vtk_files(levels_, ds, stem))
     if "fe" in to:
-        fe, statuses = fe_files(levels_, ds, mesh, stem, tolerance)
+        fe, statuses = fe_files(levels_, ds, mesh, stem, tolerance, flavours)
         writers.update(fe)
         counts = [int(n) for n in np.bincount(statuses[0], minlength=3)]
         notes.append(f"{mesh}: {sum(counts)} elements, {counts[0]} on the net, {counts[1]} outside it, "
-                     f"{counts[2]} off the mould (flagged in map_status and *ELSET UQDRAPE_UNMAPPED)")
+                     f"{counts[2]} off the mould (flagged in map_status and each flavour's unmapped set)")
     if "flat" in to:
         writers.update(flat_files(levels_, stem))
+    if "cut" in to:
+        writers.update(cut_files(levels_, ds, stem, trim=trim, ply=ply or result.stem))
     return write_all(writers), notes
