@@ -160,6 +160,15 @@ def cmd_export(args) -> int:
     return 0
 
 
+def cmd_calibrate(args) -> int:
+    from .workflow import calibrate_fibre_angles
+
+    print(calibrate_fibre_angles(args.points, args.out, args.plot, family=args.family, criterion=args.criterion,
+                                 level=args.level, fibre1_deg=args.fibre1_deg,
+                                 command="uqdrape " + shlex.join(args.argv)))
+    return 0
+
+
 def _engine_options(p: argparse.ArgumentParser) -> None:
     """The options ``run`` and ``design`` share: where the drapes run and where they go."""
     p.add_argument("--scheduler", metavar="ADDRESS",
@@ -310,6 +319,31 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write the card's N_s and W curves to this PNG; with derive, the contributions "
                         "of each term (thesis Fig 4.18), with fit the specimens, their normalised curves and "
                         "the card's band, by default next to the card")
+
+    cal = _command(
+        sub, "calibrate", cmd_calibrate, raw=True,
+        help="fit a study's zero-angle field to measured fibre angles: a [uncertainty.zero_angle] block",
+        description="Fit a Gaussian field (mean, sd, correlation lengths along fibre 1 and 2, a nugget for\n"
+                    "measurement error) to local fibre angles measured on a flat sample, by restricted maximum\n"
+                    "likelihood for each correlation family (iid, exponential, squared_exponential); keep the\n"
+                    "family of least AIC (or BIC) and write it as a study block, its profile-likelihood\n"
+                    "intervals in the comments. A fibre's deviation from nominal is read as the zero-energy\n"
+                    "shear angle gamma0 of that set rotating against the other (uqdrape.calibration.mapping).\n\n"
+                    "CSV columns: x_mm,y_mm,angle_deg,fibre_set[,sd_deg] (angle: plan direction of the fibre,\n"
+                    "deg from x; fibre_set 1 or 2; sd_deg: the point's measurement sd).\n\n"
+                    "Example:\n"
+                    "  uqdrape calibrate points.csv --out zero_angle.toml --plot")
+    cal.add_argument("points", help="CSV of measured fibre angles")
+    cal.add_argument("--out", required=True, metavar="BLOCK.toml", help="the study block to write")
+    cal.add_argument("--plot", metavar="PNG", nargs="?", const=True,
+                     help="write the calibration figure (points, fitted field, predictive check, profile "
+                          "likelihoods), by default next to the block")
+    cal.add_argument("--family", choices=("auto", "iid", "exponential", "squared_exponential"), default="auto",
+                     help="the correlation family; auto (default): the one of least --criterion")
+    cal.add_argument("--criterion", choices=("aic", "bic"), default="aic", help="how auto chooses (default aic)")
+    cal.add_argument("--level", type=float, default=0.9, help="the intervals' confidence level (default 0.9)")
+    cal.add_argument("--fibre1-deg", type=float, default=45.0,
+                     help="nominal plan direction of fibre 1, deg from x (default 45; fibre 2 at +90)")
 
     p.add_argument("--version", action=_Version)
     p.set_defaults(verbosity=1)

@@ -44,16 +44,21 @@ def _pair(value, name: str) -> tuple[float, float]:
     return (float(arr[0]), float(arr[-1]))
 
 
+def correlation_function(lag_mm, correlation: str, length_mm: float | None) -> np.ndarray:
+    """The 1-D correlation c(Δ) of family ``correlation`` at lags ``lag_mm`` (any shape, mm)
+    for the correlation length ``length_mm`` (mm; ignored for "iid"). The lattice fields
+    here and the calibration's scattered points (``uqdrape.calibration``) both use it."""
+    lag = np.abs(np.asarray(lag_mm, dtype=float))
+    if correlation == "iid":
+        return (lag == 0).astype(float)
+    if correlation == "exponential":
+        return np.exp(-lag / length_mm)
+    return np.exp(-((lag / length_mm) ** 2))
+
+
 def _correlation_matrix(n: int, step_mm: float, correlation: str, length_mm: float | None):
     """1-D correlation matrix of n lattice points ``step_mm`` apart."""
-    lag = step_mm * np.arange(n)
-    if correlation == "iid":
-        row = (lag == 0).astype(float)
-    elif correlation == "exponential":
-        row = np.exp(-lag / length_mm)
-    else:
-        row = np.exp(-((lag / length_mm) ** 2))
-    return scipy.linalg.toeplitz(row)
+    return scipy.linalg.toeplitz(correlation_function(step_mm * np.arange(n), correlation, length_mm))
 
 
 def _eigenpairs(matrix):

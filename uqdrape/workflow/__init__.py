@@ -8,6 +8,7 @@
 - ``commands``: one drape to files, material cards (show, derive, fit to shear tests),
   exports;
 - ``text``: the command line's descriptions of moulds, architectures and studies.
+- ``calibrate``: measured fibre angles -> a calibrated ``[uncertainty.zero_angle]`` block.
 
 The names below are imported on first use (PEP 562), so that ``uqdrape --help`` and the
 light commands do not pay for dask, matplotlib and SALib.
@@ -24,6 +25,7 @@ _EXPORTS = {
     "commands": ("check_drape_inputs", "drape_to_files", "material_list", "material_text", "derive_material", "fit_material",
                  "export_result"),
     "text": ("geometry_help", "architectures", "describe_study", "version_text"),
+    "calibrate": ("calibrate_fibre_angles",),
 }
 _MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
 __all__ = sorted(_MODULE_OF)
