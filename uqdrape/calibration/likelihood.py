@@ -73,34 +73,48 @@ class Likelihood:
         sigma[np.diag_indices(self.n)] += nugget2 + self.noise_var
         return sigma
 
-    def _inverse(self, sigma):
-        """(Σ⁻¹, log|Σ|), or None if Σ is not positive definite to working precision."""
+    @staticmethod
+    def _factor(sigma):
+        """(lower Cholesky factor of Σ, log|Σ|), or None if Σ is not positive definite to
+        working precision."""
         factor, info = lapack.dpotrf(sigma, lower=1, clean=1)
         if info != 0:
             return None
-        logdet = 2.0 * np.sum(np.log(np.diag(factor)))
+        return factor, 2.0 * np.sum(np.log(np.diag(factor)))
+
+    def _inverse_of(self, factor):
+        """Σ⁻¹ from its Cholesky factor (potri fills the lower triangle; the factor's upper
+        one is clean, zeros)."""
         inverse, info = lapack.dpotri(factor, lower=1)
         if info != 0:
-            return None
-        inverse += inverse.T  # potri fills the lower triangle; the factor's upper one is clean (zeros)
+            raise np.linalg.LinAlgError("the covariance's Cholesky factor is singular")
+        inverse += inverse.T
         inverse[np.diag_indices(self.n)] *= 0.5
-        return inverse, logdet
+        return inverse
+
+    def _inverse(self, sigma):
+        """(Σ⁻¹, log|Σ|), or None if Σ is not positive definite."""
+        done = self._factor(sigma)
+        return None if done is None else (self._inverse_of(done[0]), done[1])
 
     def __call__(self, theta, gradient: bool = True):
-        """(ℓ, ∂ℓ/∂θ) at θ; (−inf, zeros) where Σ is not positive definite."""
+        """(ℓ, ∂ℓ/∂θ) at θ (∂ℓ/∂θ None unless ``gradient``: the value alone needs only the
+        factor); (−inf, zeros) where Σ is not positive definite."""
         theta = np.asarray(theta, dtype=float)
         c1, c2 = self._correlations(theta)
-        inv = self._inverse(self.covariance(theta, (c1, c2)))
-        if inv is None:
+        done = self._factor(self.covariance(theta, (c1, c2)))
+        if done is None:
             return -np.inf, np.zeros(len(theta))
-        inverse, logdet = inv
-        w = inverse.sum(axis=1)
+        factor, logdet = done
+        solved, _ = lapack.dpotrs(factor, np.column_stack([np.ones(self.n), self.y]), lower=1)
+        w, v = solved[:, 0], solved[:, 1]
         total = w.sum()
         mu = w @ self.y / total
-        alpha = inverse @ self.y - w * mu
+        alpha = v - w * mu
         loglik = -0.5 * (logdet + np.log(total) + alpha @ (self.y - mu) + (self.n - 1) * np.log(2.0 * np.pi))
         if not gradient:
             return loglik, None
+        inverse = self._inverse_of(factor)
         # ∂ℓ/∂θ_k = −½ Σ_ij (∂Σ/∂θ_k)_ij G_ij with G = P − ααᵀ, P = Σ⁻¹ − wwᵀ/1ᵀw
         g = inverse
         g -= np.outer(alpha, alpha)
