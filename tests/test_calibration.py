@@ -142,6 +142,19 @@ def test_table_5_1_sd_interval_is_the_closed_form_chi_square_interval(tmp_path):
     assert [round(sd.lower, 1), round(sd.upper, 1)] == [4.6, 7.2]
 
 
+def test_a_known_measurement_sd_is_taken_out_of_the_field_sd(tmp_path):
+    """Table 5.1 with every point read to sd 2°: the restricted likelihood of iid values
+    depends on σ² + 2² alone, so σ̂ = √(5.6² − 4) and the interval's ends are
+    √(closed-form end² − 4)."""
+    plain = read_points(table_5_1_points(tmp_path))
+    points = AnglePoints(plain.x_mm, plain.y_mm, plain.angle_deg, plain.fibre_set, np.full(38, 2.0), plain.source)
+    sd = calibrate_points(points, family="iid").fit.estimates["sd_deg"]
+    m = TABLE_5_1["n"] - 1
+    closed = TABLE_5_1["sd_deg"] * np.sqrt(m / scipy.stats.chi2.ppf([0.95, 0.05], m))
+    assert sd.value == pytest.approx(math.sqrt(5.6**2 - 4.0), rel=1e-6)
+    assert [sd.lower, sd.upper] == pytest.approx(np.sqrt(closed**2 - 4.0), rel=5e-4)
+
+
 def test_auto_keeps_iid_for_table_5_1_and_the_drawn_family_for_a_field(tmp_path):
     cal = calibrate_points(read_points(table_5_1_points(tmp_path)))
     assert cal.fit.family == "iid" and set(cal.fit.fits) == {"iid", "exponential", "squared_exponential"}
@@ -186,12 +199,13 @@ def test_truth_recovery_quick():
     """24 sets (38 scattered points and 10 x 10 grids, both families): the 90 % intervals
     cover each true value in at least 18 (P = 0.05 at a true 90 %: binomial lower tail)."""
     assert scipy.stats.binom.cdf(17, 24, 0.9) < 0.05
+    total = {k: 0 for k in TRUE_VALUES}
     for family in ("exponential", "squared_exponential"):
-        total = {k: 0 for k in TRUE_VALUES}
         for size in (38, 10):
             hits, _ = _recovery(family, size, range(6))
             total = {k: total[k] + hits[k] for k in total}
-        assert all(h >= 9 for h in total.values()), (family, total)
+    print(total)
+    assert all(h >= 18 for h in total.values()), total
 
 
 @pytest.mark.slow

@@ -40,6 +40,8 @@ MIN_CORRELATED_POINTS = 8
 MIN_POINTS = 3
 #: Profile end-point tolerance: |√deviance − √cut|.
 _ROOT_TOL = 1e-4
+#: Times a profile may restart from a higher optimum it found.
+_RESTARTS = 3
 
 
 @dataclass(frozen=True)
@@ -198,7 +200,7 @@ def _estimates(like: Likelihood, fit: FamilyFit, scale: float, level: float, int
         if not intervals:
             estimates[name] = Estimate(value, value, value)
             continue
-        while True:
+        for _ in range(_RESTARTS + 1):
             search = _ProfileSearch(like, theta, best, k, box)
             ends = [search.end(side, cut) for side, cut in zip((-1, 1), cuts)]
             if search.better is None:
@@ -215,7 +217,7 @@ def _estimates(like: Likelihood, fit: FamilyFit, scale: float, level: float, int
                  "sd_deg": estimates["sd"],
                  **({} if fit.family == "iid" else
                     {"length_1_mm": estimates["length_1"], "length_2_mm": estimates["length_2"],
-                     "nugget_deg": Estimate(*(3 * [math.exp(theta[3])]))})}
+                     "nugget_deg": Estimate(math.exp(theta[3]), math.exp(theta[3]), math.exp(theta[3]))})}
     profiles = {{"sd": "sd_deg", "length_1": "length_1_mm", "length_2": "length_2_mm"}[k]: v
                 for k, v in profiles.items()}
     return estimates, profiles, theta
