@@ -106,6 +106,15 @@ def _depth(value) -> int:
     return deepest
 
 
+def inside(name: str) -> bool:
+    """``name`` is a relative path that stays in the folder it is relative to, read as
+    written (not absolute, no NUL, no leading '..' once 'a/../' pairs are collapsed).
+    Symbolic links inside the folder are the folder owner's and are followed."""
+    if "\0" in name or Path(name).is_absolute() or os.path.isabs(name):
+        return False
+    return os.path.normpath(name).split(os.sep, 1)[0] != os.pardir
+
+
 def fmt(value) -> str:
     """A value as it would be written in TOML (shortened past 80 characters)."""
     if isinstance(value, bool):
@@ -157,9 +166,13 @@ class Document:
         self.fail(f"{key} is missing: {why}", key)
 
     def relative_file(self, key: str, value) -> Path:
-        """An existing file named by ``value`` relative to this file's folder."""
+        """An existing file named by ``value`` relative to this file's folder, and inside it:
+        a file read as data names only files beside or below itself (see inside)."""
         if not isinstance(value, str) or not value or self.folder is None:
             self.invalid(key, value, f"must be a file name (relative to the {self.what})")
+        if not inside(value):
+            self.invalid(key, value, f"must name a file in {self.folder} (the {self.what}'s folder) or below it: "
+                                     "absolute paths and '..' are not followed; copy the file there")
         path = self.folder / value
         if not path.is_file():
             self.invalid(key, value, f"file not found: {path}")

@@ -41,7 +41,7 @@ import io
 from importlib import resources
 from pathlib import Path
 
-from ..files import Document, Table, parse_toml, toml_text
+from ..files import Document, Table, parse_toml, read_text, toml_text
 from .model import Material, MaterialError
 
 _CARD_KEYS = {
@@ -90,7 +90,7 @@ def load_material(name_or_path) -> Material:
     if not path.is_file():
         raise ValueError(f"{path}: material file not found")
     if suffix == ".csv":
-        curves = _read_csv(path.read_text(encoding="utf-8"), str(path))
+        curves = _read_csv(read_text(path, "material CSV"), str(path))
         return _build(str(path), {"name": path.stem, **curves})
     return _material_from_toml(Document(path, "material card"), path.stem)
 
@@ -147,7 +147,7 @@ def _shear_curves(shear: Table, source: Document) -> dict:
         if len(shear.data) > 1:
             shear.invalid("csv", 'give either csv = "file.csv" or [shear.positive] points, not both')
         path = source.relative_file("shear.csv", shear.data["csv"])
-        return _read_csv(path.read_text(encoding="utf-8"), f"{source.label} -> {shear.data['csv']}")
+        return _read_csv(read_text(path, "shear CSV"), f"{source.label} -> {shear.data['csv']}")
     if not shear.has("positive"):
         source.missing("shear.positive", 'the [shear] table needs [shear.positive] points, or csv = "file.csv"')
     curves = {}
@@ -160,16 +160,22 @@ def _shear_curves(shear: Table, source: Document) -> dict:
 
 
 def _read_csv(text, label):
-    """Curve arguments of `Material` from CSV text (header angle_deg,ns_positive[,ns_negative])."""
+    """Curve arguments of `Material` from CSV text (header angle_deg,ns_positive[,ns_negative]).
+    A file whose first line is not that header is not echoed (it may be any file named by
+    mistake, or by someone else's card); past the header a bad cell is quoted (40 characters
+    at most)."""
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
-    rows = list(csv.reader(io.StringIO("\n".join(lines))))
+    try:
+        rows = list(csv.reader(io.StringIO("\n".join(lines))))
+    except csv.Error as err:
+        raise ValueError(f"{label}: not a curve CSV ({err})") from None
     if not rows:
         raise ValueError(f"{label}: empty CSV; expected a header {','.join(_CSV_COLUMNS)}")
     header = [h.strip() for h in rows[0]]
     if header not in (list(_CSV_COLUMNS[:2]), list(_CSV_COLUMNS)):
         raise ValueError(
-            f"{label}: CSV header must be angle_deg,ns_positive or angle_deg,ns_positive,ns_negative, "
-            f"got {','.join(header)}"
+            f"{label}: not a curve CSV: its first line that is not a # comment must be the header "
+            "angle_deg,ns_positive or angle_deg,ns_positive,ns_negative"
         )
     columns = {name: [] for name in header}
     for lineno, row in enumerate(rows[1:], start=2):
@@ -179,7 +185,7 @@ def _read_csv(text, label):
             try:
                 columns[name].append(float(cell))
             except ValueError:
-                raise ValueError(f"{label}: data row {lineno}, column {name}: {cell.strip()!r} is not a number") from None
+                raise ValueError(f"{label}: data row {lineno}, column {name}: {cell.strip()[:40]!r} is not a number") from None
     curves = {"angles_deg_pos": columns["angle_deg"], "ns_pos": columns["ns_positive"]}
     if "ns_negative" in columns:
         curves.update(angles_deg_neg=columns["angle_deg"], ns_neg=columns["ns_negative"])

@@ -44,7 +44,12 @@ uqdrape.stochastic). A factor overrides its fixed setting in the ensemble; the f
 value stays the nominal one.
 
 Paths in the file (stl ``path``, a material card, ``experimental_csv``) are relative to
-the study file; ``output.directory`` is relative to the current working directory.
+the study file and must stay in its folder or below (absolute paths and '..' are refused:
+a study read as data reads nothing its folder does not hold). ``output.directory`` is
+relative to the current working directory, as ``results/<study name>`` is meant to be, and
+a relative one must stay inside it ('..' climbing out is refused); an absolute directory is
+taken as written and shown by ``uqdrape validate``; ``--out DIR`` on the command line
+replaces it and may be anywhere.
 
 Errors. Every problem raises :class:`StudyError` naming the file, the dotted key, the
 bad value and what is valid, in one line, e.g. ``studies/x.toml:
@@ -76,7 +81,7 @@ from .. import geometry as _geometry
 from .. import material as _material
 from .. import stochastic as _stochastic
 from ..experimental import read_experimental
-from ..files import REQUIRED, Document, FileFormatError, Table, fmt, is_int, is_number
+from ..files import REQUIRED, Document, FileFormatError, Table, fmt, inside, is_int, is_number
 from ..stochastic.sampling import EXTENDABLE_PLANS, RQMC, STUDY_PLANS, rqmc_points
 from ..schema import BLANKHOLDER_MODELS, MAX_RINGS, MODES, QOI_ATTRS, SENSITIVITY_QOIS, SOLVER_INPUTS
 from .spec import (DESIGN_OBJECTIVES, DESIGN_STATISTICS, DESIGN_VARIABLES, DIST_KEYS, FACTOR_SETTINGS, FIELD_KEYS,
@@ -556,7 +561,11 @@ def _report(src: _Source, doc: dict, rings: int) -> Report:
 
 def _output(src: _Source, doc: dict, name: str) -> tuple[Path, bool]:
     t = Table(src, "output", doc.get("output", {}), ("directory", "float32"))
-    directory = t.string("directory", f"results/{name}", hint="directory must be a non-empty path", valid=bool)
+    directory = t.string("directory", f"results/{name}", hint="directory must be a non-empty path without NUL",
+                         valid=lambda d: bool(d) and "\0" not in d)
+    if not Path(directory).is_absolute() and not inside(directory):
+        t.invalid("directory", "a relative directory is taken from the current folder and must stay in it "
+                               "('..' climbing out is refused); write the absolute path")
     float32 = t.raw("float32", False, "float32 must be true or false")
     if not isinstance(float32, bool):
         t.invalid("float32", "float32 must be true or false")
