@@ -6,7 +6,8 @@ them again and prints, per case, the largest node difference (mm), the largest n
 difference (deg), the largest turn-angle difference (deg) and whether the converged flags
 and node statuses are equal. Cases: geodesic hemisphere / nose cone / double dome / STL
 (random orientation, crossover, segment lengths), energy nose-cone drapes (ebxhd936_like,
-20 rings, random gamma0 sd 5 deg) at 0 / 126 / 378 N under both blank-holder models.
+20 rings, random gamma0 sd 5 deg) at 0 / 126 / 378 N under both blank-holder models, and energy hemisphere and double-dome
+drapes (15 rings) at the same three forces.
 """
 
 import sys
@@ -29,10 +30,10 @@ def _geodesic(surface, rings, R, seed):
                  seg_j=5.0 * (1 + 0.01 * rng.standard_normal((R, 2 * n + 1, 2 * n))))
 
 
-def _energy(model, R=6, rings=20, seed=5):
+def _energy(model, R=6, rings=20, seed=5, surface=None):
     rng = np.random.default_rng(seed)
     force = np.repeat([0.0, 126.0, 378.0], R // 3)
-    return drape(build("nose_cone"), 5.0, rings, mode="energy", material=load_material("ebxhd936_like"),
+    return drape(surface or build("nose_cone"), 5.0, rings, mode="energy", material=load_material("ebxhd936_like"),
                  gamma0=rng.normal(0.0, 5.0, (R, 2 * rings, 2 * rings)), blankholder_force=force,
                  friction=0.2, blankholder_model=model)
 
@@ -44,6 +45,8 @@ CASES = {
     "geodesic_stl": lambda: _geodesic(StlSurface(STL, 1.0), 10, 8, 4),
     "energy_nose_cone_slip": lambda: _energy("slip"),
     "energy_nose_cone_radial": lambda: _energy("radial"),
+    "energy_hemisphere": lambda: _energy("slip", 3, 15, 6, build("hemisphere", radius=100.0)),
+    "energy_double_dome": lambda: _energy("slip", 3, 15, 7, build("double_dome")),
 }
 
 

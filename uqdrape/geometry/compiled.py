@@ -16,6 +16,9 @@ SADDLE       [half, R]
 STL          header [x0, dx, nx, y0, dy, ny, xmin, xmax, ymin, ymax, ntx, nty], then the
              spline knots tx, ty, the bicubic B-spline coefficients (row-major over
              (ntx - 4, nty - 4)) and the covered-node mask (nx * ny, 1.0 = covered)
+
+Every kind is also an implicit surface for the node solver (``gap``, ``surface_normal``,
+``on_mould``): a height field through its closed form, phi = z - h(x, y).
 """
 
 from __future__ import annotations
@@ -169,11 +172,28 @@ def inside(kind, p, x, y):
 
 
 @jit
-def normal(kind, p, x, y):
-    """Unit upward normal (3,) at (x, y)."""
-    _, hx, hy = height_gradient(kind, p, x, y)
-    s = math.sqrt(hx * hx + hy * hy + 1.0)
-    return np.array([-hx / s, -hy / s, 1.0 / s])
+def gap(kind, p, x, y, z):
+    """The mould as an implicit surface at the point (x, y, z) (mm): (phi, dphi/dx, dphi/dy,
+    dphi/dz), phi = 0 on the mould, > 0 on the side the fabric comes from, its gradient the
+    outward normal (not unit). A height field is phi = z - h(x, y), gradient (-hx, -hy, 1)."""
+    h, hx, hy = height_gradient(kind, p, x, y)
+    return z - h, -hx, -hy, 1.0
+
+
+@jit
+def surface_normal(kind, p, x, y, z):
+    """Unit outward normal (3-tuple) of the mould at the surface point (x, y, z) (mm): the
+    tangent plane a node's arm step and fold check use."""
+    _, gx, gy, gz = gap(kind, p, x, y, z)
+    s = math.sqrt(gx * gx + gy * gy + gz * gz)
+    return (gx / s, gy / s, gz / s)
+
+
+@jit
+def on_mould(kind, p, x, y, z):
+    """True where the surface point (x, y, z) (mm) lies on the mould (a height field: its
+    plan position inside the domain)."""
+    return inside(kind, p, x, y)
 
 
 @jit
@@ -196,6 +216,21 @@ def evaluate(kernel, x, y):
     h, hx, hy = np.empty(x.size), np.empty(x.size), np.empty(x.size)
     _evaluate_many(kernel[0], kernel[1], x, y, h, hx, hy)
     return h.reshape(shape), hx.reshape(shape), hy.reshape(shape)
+
+
+@jit
+def _gap_many(kind, p, x, y, z, out):
+    for m in range(x.size):
+        out[m, 0], out[m, 1], out[m, 2], out[m, 3] = gap(kind, p, x[m], y[m], z[m])
+
+
+def evaluate_gap(kernel, x, y, z):
+    """(phi, dphi/dx, dphi/dy, dphi/dz) arrays at broadcast points (mm): ``gap`` per point."""
+    x, y, z = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float), np.asarray(z, float))
+    shape = x.shape
+    out = np.empty((x.size, 4))
+    _gap_many(kernel[0], kernel[1], *(np.ascontiguousarray(a).ravel() for a in (x, y, z)), out)
+    return tuple(out[:, c].reshape(shape) for c in range(4))
 
 
 def evaluate_inside(kernel, x, y):
