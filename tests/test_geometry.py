@@ -217,7 +217,7 @@ def test_saddle_curvature():
 
 def test_registry_names():
     assert set(KINDS) == {
-        "plate", "cylinder", "hemisphere", "cone", "nose_cone", "double_dome", "saddle", "stl"
+        "plate", "cylinder", "hemisphere", "cone", "nose_cone", "double_dome", "saddle", "stl", "mesh"
     }
     for kind, cls in KINDS.items():
         assert cls.name == kind
@@ -226,7 +226,7 @@ def test_registry_names():
 
 
 def test_build_rejects_bad_kind_and_parameters():
-    with pytest.raises(ValueError, match=r"unknown geometry kind 'sphere'; valid: plate, .*stl"):
+    with pytest.raises(ValueError, match=r"unknown geometry kind 'sphere'; valid: plate, .*stl, mesh"):
         build("sphere")
     with pytest.raises(
         ValueError,

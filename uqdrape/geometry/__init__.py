@@ -11,12 +11,13 @@ import inspect
 
 from .analytic import Cone, Cylinder, DoubleDome, Hemisphere, NoseCone, Plate, Saddle
 from .base import Surface
+from .mesh import MeshError, MeshSurface
 from .stl import StlSurface, export_stl
 
 #: geometry kind (as written in a study file) -> Surface class
 KINDS: dict[str, type] = {
     cls.name: cls
-    for cls in (Plate, Cylinder, Hemisphere, Cone, NoseCone, DoubleDome, Saddle, StlSurface)
+    for cls in (Plate, Cylinder, Hemisphere, Cone, NoseCone, DoubleDome, Saddle, StlSurface, MeshSurface)
 }
 
 
@@ -50,6 +51,8 @@ __all__ = [
     "DoubleDome",
     "Saddle",
     "StlSurface",
+    "MeshSurface",
+    "MeshError",
     "export_stl",
     "KINDS",
     "build",

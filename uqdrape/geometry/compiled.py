@@ -16,9 +16,10 @@ SADDLE       [half, R]
 STL          header [x0, dx, nx, y0, dy, ny, xmin, xmax, ymin, ymax, ntx, nty], then the
              spline knots tx, ty, the bicubic B-spline coefficients (row-major over
              (ntx - 4, nty - 4)) and the covered-node mask (nx * ny, 1.0 = covered)
+MESH         a triangle mesh with its bounding-volume hierarchy (``meshquery``)
 
 Every kind is also an implicit surface for the node solver (``gap``, ``surface_normal``,
-``on_mould``): a height field through its closed form, phi = z - h(x, y).
+``on_mould``): a height field through its closed form, a mesh through its signed distance.
 """
 
 from __future__ import annotations
@@ -28,8 +29,9 @@ import math
 import numpy as np
 
 from .._jit import jit
+from . import meshquery
 
-PLATE, HEMISPHERE, CYLINDER, CONE, NOSE_CONE, DOUBLE_DOME, SADDLE, STL = range(8)
+PLATE, HEMISPHERE, CYLINDER, CONE, NOSE_CONE, DOUBLE_DOME, SADDLE, STL, MESH = range(9)
 
 #: Smallest radius used to form x / r on surfaces of revolution (mm).
 R_EPS = 1e-12
@@ -151,12 +153,16 @@ def height_gradient(kind, p, x, y):
         return 0.0, 0.0, 0.0
     if kind == SADDLE:
         return (x * x - y * y) / (2 * p[1]), x / p[1], -y / p[1]
+    if kind == MESH:
+        return meshquery.top(p, x, y)
     return _stl(p, x, y)
 
 
 @jit
 def inside(kind, p, x, y):
-    """True where plan point (x, y) (mm) lies in the mould's domain."""
+    """True where plan point (x, y) (mm) lies in the mould's domain (a mesh: under its top)."""
+    if kind == MESH:
+        return math.isfinite(meshquery.top(p, x, y)[0])
     if kind == CYLINDER:
         a, c = (x, y) if p[2] == 0.0 else (y, x)
         return abs(a) <= 0.5 * p[1] and abs(c) <= p[3] * p[0]
@@ -175,7 +181,11 @@ def inside(kind, p, x, y):
 def gap(kind, p, x, y, z):
     """The mould as an implicit surface at the point (x, y, z) (mm): (phi, dphi/dx, dphi/dy,
     dphi/dz), phi = 0 on the mould, > 0 on the side the fabric comes from, its gradient the
-    outward normal (not unit). A height field is phi = z - h(x, y), gradient (-hx, -hy, 1)."""
+    outward normal (not unit). A height field is phi = z - h(x, y), gradient (-hx, -hy, 1);
+    a mesh its signed distance (``meshquery.signed_distance``)."""
+    if kind == MESH:
+        phi, g = meshquery.signed_distance(p, x, y, z)
+        return phi, g[0], g[1], g[2]
     h, hx, hy = height_gradient(kind, p, x, y)
     return z - h, -hx, -hy, 1.0
 
@@ -183,7 +193,10 @@ def gap(kind, p, x, y, z):
 @jit
 def surface_normal(kind, p, x, y, z):
     """Unit outward normal (3-tuple) of the mould at the surface point (x, y, z) (mm): the
-    tangent plane a node's arm step and fold check use."""
+    tangent plane a node's arm step uses: the normalised gradient of a height field, a mesh's
+    interpolated vertex normal (continuous, so an arm steps as over the smooth part)."""
+    if kind == MESH:
+        return meshquery.normal(p, x, y, z)
     _, gx, gy, gz = gap(kind, p, x, y, z)
     s = math.sqrt(gx * gx + gy * gy + gz * gz)
     return (gx / s, gy / s, gz / s)
@@ -192,7 +205,10 @@ def surface_normal(kind, p, x, y, z):
 @jit
 def on_mould(kind, p, x, y, z):
     """True where the surface point (x, y, z) (mm) lies on the mould (a height field: its
-    plan position inside the domain)."""
+    plan position inside the domain; a mesh: on it within its tolerance, not on the tangent
+    plane continuing it past an open edge)."""
+    if kind == MESH:
+        return meshquery.on_mesh(p, x, y, z)
     return inside(kind, p, x, y)
 
 
