@@ -10,6 +10,13 @@ arm node in the normal plane of the steered direction; a filled node lies on the
 where the two spheres around its placed neighbours meet. ``_solve_on_circle`` finds the
 root nearest the circle's reference direction by safeguarded Newton, falling back to a
 bracketing search where Newton does not settle (kinks, steep walls).
+
+Where the circle cuts the surface more than once (a fold, the far side of a thin flange or
+wall, a sheet's other face), the root kept is the nearest one on the sheet the net is on:
+the circle's parameter is oriented so that, on that sheet, phi increases with t (the circle
+leaves the mould through its outer side), so a crossing where phi falls is the surface
+seen from inside and is never taken. A node with no such root is NO_INTERSECTION, not
+placed on another face.
 """
 
 from __future__ import annotations
@@ -53,8 +60,9 @@ def _gap(kind, par, c, u, v, rho, t):
 
 
 @jit
-def _bracket(kind, par, c, u, v, rho, tol):
-    """Sign change nearest t = 0 on a grid of circle angles, then Illinois false position.
+def _bracket(kind, par, c, u, v, rho, tol, up):
+    """Sign change nearest t = 0 on a grid of circle angles where phi rises with ``up`` * t
+    (the sheet's outward crossing), then Illinois false position.
 
     The grid's gaps are evaluated lazily, interval by interval outwards from t = 0."""
     grid = _BRACKET_GRID
@@ -66,7 +74,7 @@ def _bracket(kind, par, c, u, v, rho, tol):
             if not seen[e]:
                 g[e] = _gap(kind, par, c, u, v, rho, grid[e])[1]
                 seen[e] = True
-        if np.sign(g[s]) * np.sign(g[s + 1]) <= 0:
+        if np.sign(g[s]) * np.sign(g[s + 1]) <= 0 and (g[s + 1] - g[s]) * up > 0:
             pick, found = s, True
             break
     a, b = grid[pick], grid[pick + 1]
@@ -98,12 +106,14 @@ def _bracket(kind, par, c, u, v, rho, tol):
 
 
 @jit
-def _solve_on_circle(kind, par, c, u, v, rho, tol):
-    """Point of the circle ``c + rho (cos t u + sin t v)`` on the surface, |t| < THETA_MAX.
+def _solve_on_circle(kind, par, c, u, v, rho, tol, up):
+    """Point of the circle ``c + rho (cos t u + sin t v)`` on the surface, |t| < THETA_MAX,
+    where phi rises with ``up`` * t (+-1: the net's own sheet, see the module docstring).
 
     Returns (q, ok, gradient of phi at q): the root nearest t = 0 by safeguarded Newton
     (steps clipped to 0.2 rad), falling back to a bracketing search when Newton does not
-    settle in _NEWTON_ITERS steps or starts to alternate; ``tol`` is the |phi| accepted (mm).
+    settle in _NEWTON_ITERS steps, starts to alternate or lands on a crossing of the wrong
+    orientation; ``tol`` is the |phi| accepted (mm).
     """
     if not (math.isfinite(c[0] + c[1] + c[2] + u[0] + u[1] + u[2] + v[0] + v[1] + v[2] + rho) and rho > 0):
         return NAN3, False, NAN3
@@ -117,11 +127,11 @@ def _solve_on_circle(kind, par, c, u, v, rho, tol):
             break
         older, last, theta = last, theta, theta + min(max(step, -0.2), 0.2)
         if theta == older:  # a 2-cycle: Newton would alternate until it gives up
-            return _bracket(kind, par, c, u, v, rho, tol)
+            return _bracket(kind, par, c, u, v, rho, tol, up)
         q, g, dg, grad = _gap(kind, par, c, u, v, rho, theta)
-    if abs(g) < tol and abs(theta) < THETA_MAX:
+    if abs(g) < tol and abs(theta) < THETA_MAX and dg * up > 0:
         return q, True, grad
-    return _bracket(kind, par, c, u, v, rho, tol)
+    return _bracket(kind, par, c, u, v, rho, tol, up)
 
 
 @jit
@@ -165,7 +175,7 @@ def arm_node(kind, par, p, direction, turn, length, tol):
     w = _cross(n, t)
     ct, st = math.cos(turn), math.sin(turn)
     t = (ct * t[0] + st * w[0], ct * t[1] + st * w[1], ct * t[2] + st * w[2])
-    q, ok, _ = _solve_on_circle(kind, par, p, t, n, length, tol)
+    q, ok, _ = _solve_on_circle(kind, par, p, t, n, length, tol, 1.0)  # t rises along n: outwards
     parents = math.isfinite(p[0] + p[1] + p[2] + direction[0] + direction[1] + direction[2])
     status = _status(kind, par, q, ok, parents)
     return (q if status == OK else NAN3), status
@@ -189,7 +199,8 @@ def fill(kind, par, a, b, c, la, lb, sign_ij, tol):
     ge = _dot(guess, e)
     u = _unit((guess[0] - ge * e[0], guess[1] - ge * e[1], guess[2] - ge * e[2]))
     v = _cross(e, u)
-    q, ok, grad = _solve_on_circle(kind, par, centre, u, v, rho, tol)
+    # v = e x u points along sign_ij times the outward normal on a right-handed cell
+    q, ok, grad = _solve_on_circle(kind, par, centre, u, v, rho, tol, float(sign_ij))
     parents = math.isfinite(a[0] + a[1] + a[2] + b[0] + b[1] + b[2] + c[0] + c[1] + c[2])
     status = _status(kind, par, q, ok, parents)
     if status == OK:
