@@ -13,9 +13,6 @@ CONE         [half, H, cot(half-angle), base radius]
 NOSE_CONE    [half, base radius, cot(half-angle), tip radius, blend radius, sphere centre z]
 DOUBLE_DOME  [half, dome R, base radius, centre distance, blend, depth, rim slope]
 SADDLE       [half, R]
-STL          header [x0, dx, nx, y0, dy, ny, xmin, xmax, ymin, ymax, ntx, nty], then the
-             spline knots tx, ty, the bicubic B-spline coefficients (row-major over
-             (ntx - 4, nty - 4)) and the covered-node mask (nx * ny, 1.0 = covered)
 MESH         a triangle mesh with its bounding-volume hierarchy (``meshquery``)
 
 Every kind is also an implicit surface for the node solver (``gap``, ``surface_normal``,
@@ -31,11 +28,10 @@ import numpy as np
 from .._jit import jit
 from . import meshquery
 
-PLATE, HEMISPHERE, CYLINDER, CONE, NOSE_CONE, DOUBLE_DOME, SADDLE, STL, MESH = range(9)
+PLATE, HEMISPHERE, CYLINDER, CONE, NOSE_CONE, DOUBLE_DOME, SADDLE, MESH = range(8)
 
 #: Smallest radius used to form x / r on surfaces of revolution (mm).
 R_EPS = 1e-12
-_STL_HEADER = 12
 
 
 @jit
@@ -64,52 +60,6 @@ def _cap(p, x, y, xc):
         return root - depth, k * dx, k * y
     k = -rim / max(r, R_EPS)
     return (base - r) * rim, k * dx, k * y
-
-
-@jit
-def _bspline_basis(t, n_coef, x):
-    """Cubic B-spline basis at x (clipped to the knot span): first index, values, derivatives."""
-    x = min(max(x, t[3]), t[n_coef])
-    l = min(max(np.searchsorted(t, x, side="right") - 1, 3), n_coef - 1)
-    h = np.zeros(4)
-    d = np.zeros(4)
-    h[0] = 1.0
-    for j in range(1, 4):
-        if j == 3:  # degree-2 values give the derivative of the cubic basis
-            for m in range(4):
-                left = h[m - 1] / (t[l + m] - t[l + m - 3]) if m >= 1 else 0.0
-                right = h[m] / (t[l + m + 1] - t[l + m - 2]) if m <= 2 else 0.0
-                d[m] = 3.0 * (left - right)
-        hh = h[:j].copy()
-        h[0] = 0.0
-        for i in range(1, j + 1):
-            xb = t[l + i]
-            xa = t[l + i - j]
-            w = hh[i - 1] / (xb - xa)
-            h[i - 1] += w * (xb - x)
-            h[i] = w * (x - xa)
-    return l - 3, h, d
-
-
-@jit
-def _stl(p, x, y):
-    ntx, nty = int(p[10]), int(p[11])
-    tx = p[_STL_HEADER:_STL_HEADER + ntx]
-    ty = p[_STL_HEADER + ntx:_STL_HEADER + ntx + nty]
-    c = p[_STL_HEADER + ntx + nty:]
-    my = nty - 4
-    ix, bx, dbx = _bspline_basis(tx, ntx - 4, x)
-    iy, by, dby = _bspline_basis(ty, my, y)
-    h = 0.0
-    hx = 0.0
-    hy = 0.0
-    for a in range(4):
-        for b in range(4):
-            coef = c[(ix + a) * my + iy + b]
-            h += bx[a] * by[b] * coef
-            hx += dbx[a] * by[b] * coef
-            hy += bx[a] * dby[b] * coef
-    return h, hx, hy
 
 
 @jit
@@ -153,9 +103,7 @@ def height_gradient(kind, p, x, y):
         return 0.0, 0.0, 0.0
     if kind == SADDLE:
         return (x * x - y * y) / (2 * p[1]), x / p[1], -y / p[1]
-    if kind == MESH:
-        return meshquery.top(p, x, y)
-    return _stl(p, x, y)
+    return meshquery.top(p, x, y)  # MESH
 
 
 @jit
@@ -166,14 +114,6 @@ def inside(kind, p, x, y):
     if kind == CYLINDER:
         a, c = (x, y) if p[2] == 0.0 else (y, x)
         return abs(a) <= 0.5 * p[1] and abs(c) <= p[3] * p[0]
-    if kind == STL:
-        if not (p[6] <= x <= p[7] and p[8] <= y <= p[9]):
-            return False
-        ix = int(np.rint((x - p[0]) / p[1]))
-        iy = int(np.rint((y - p[3]) / p[4]))
-        ntx, nty = int(p[10]), int(p[11])
-        start = _STL_HEADER + ntx + nty + (ntx - 4) * (nty - 4)
-        return p[start + ix * int(p[5]) + iy] > 0.5
     return abs(x) <= p[0] and abs(y) <= p[0]
 
 

@@ -58,6 +58,8 @@ def _read(path: Path):
     name = str(path)
     if not path.is_file():
         raise MeshError(f"path: mesh file {name!r} does not exist")
+    if path.stat().st_size == 0:
+        raise MeshError(f"path: mesh file {name!r} is empty")
     suffix = path.suffix.lower()
     try:
         binary = _binary_stl(path) if suffix == ".stl" else None
@@ -271,6 +273,8 @@ class MeshSurface(Surface):
         if units not in UNITS:
             raise ValueError(f"units must be one of {', '.join(UNITS)}, got {units!r}")
         self.units = units
+        if isinstance(press_direction, str):  # "x,y,z", as a command-line --param gives it
+            press_direction = press_direction.split(",")
         try:
             d = np.asarray(press_direction, float).reshape(3)
         except (TypeError, ValueError):
