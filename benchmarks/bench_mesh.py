@@ -1,5 +1,6 @@
 """Mesh moulds: build time, memory and accuracy of the compiled closest-point hierarchy for
-about 1e4, 1e5 and 1e6 triangles (issue 23).
+about 1e4, 1e5 and 1e6 triangles, and drape time on a meshed against the analytic
+hemisphere (issue 23).
 
 ``python benchmarks/bench_mesh.py [--sizes 1e4 1e5 1e6]`` writes a closed tool (a
 triangulated torus, the same shape at every size) as a binary STL per size and prints per size: faces, the time to read the file, to check and pack it (hierarchy included),
@@ -37,6 +38,36 @@ def _brute_distance(tri, point, bound):
     return np.linalg.norm(closest - point, axis=1).min()
 
 
+def drapes():
+    from uqdrape.drape import drape
+    from uqdrape.geometry import Hemisphere, export_stl
+    from uqdrape.material import load_material
+
+    analytic = Hemisphere(100.0)
+    with tempfile.TemporaryDirectory() as folder:
+        meshed = MeshSurface(export_stl(analytic, Path(folder) / "h.stl", half_width=150.0, resolution_mm=1.0))
+    rng = np.random.default_rng(4)
+    cases = {
+        "geodesic 64 x 18 rings": dict(spacing=5.0, rings=18, orientation=rng.uniform(-20, 20, 64),
+                                       crossover=rng.uniform(-5, 5, (64, 2))),
+        "energy 4 x 18 rings": dict(spacing=5.0, rings=18, mode="energy", material=load_material("ebxhd936_like"),
+                                    blankholder_force=[0.0, 126.0, 252.0, 378.0], friction=0.2),
+    }
+    for label, kw in cases.items():
+        spacing, rings = kw.pop("spacing"), kw.pop("rings")
+        times, nets, its = [], [], []
+        for surface in (analytic, meshed):
+            drape(surface, spacing, 2, **{k: v for k, v in kw.items() if k in ("mode", "material")})  # compile
+            t = time.perf_counter()
+            ds = drape(surface, spacing, rings, **kw)
+            times.append(time.perf_counter() - t)
+            nets.append(np.stack([ds.x.values, ds.y.values, ds.z.values], -1))
+            its.append(int(ds.iterations.sum()))
+        gap = np.nanmax(np.linalg.norm(nets[0] - nets[1], axis=-1))
+        print(f"{label}: analytic {times[0]:.3f} s  mesh ({meshed.faces_count:,} faces) {times[1]:.3f} s  "
+              f"ratio {times[1] / times[0]:.2f}  iterations {its[0]} / {its[1]}  max node gap {gap:.3f} mm")
+
+
 def main(sizes):
     rng = np.random.default_rng(1)
     with tempfile.TemporaryDirectory() as folder:
@@ -62,10 +93,12 @@ def main(sizes):
             ref = np.array([_brute_distance(tri, p, abs(f)) for p, f in zip(off, phi)])
             print(f"faces {faces.shape[0]:>9,}  read {t1 - t0:6.2f} s  check+pack {pack_s:6.2f} s  "
                   f"array {surface.kernel[1].nbytes / 2**20:7.1f} MiB  query {query_us:5.2f} us/point  "
-                  f"max|phi| on faces {np.abs(phi_on).max():.1e} mm  max||phi| - trimesh| {np.abs(np.abs(phi) - ref).max():.1e} mm")
+                  f"max|phi| on faces {np.abs(phi_on).max():.1e} mm  max||phi| - brute| {np.abs(np.abs(phi) - ref).max():.1e} mm")
 
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=float, nargs="+", default=[1e4, 1e5, 1e6])
-    main(parser.parse_args().sizes)
+    parser.add_argument("--drape", action="store_true", help="time drapes on a meshed vs the analytic hemisphere")
+    args = parser.parse_args()
+    drapes() if args.drape else main(args.sizes)
