@@ -202,7 +202,7 @@ def _boxes(tri: np.ndarray, leaves: int) -> np.ndarray:
         width //= 2
 
 
-def pack(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh") -> np.ndarray:
+def pack(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh", edge_blend_mm: float = 2.0) -> np.ndarray:
     """The packed array of ``meshquery`` for a checked mesh (mm, outward-wound faces):
     faces sorted into the hierarchy's order, neighbours, vertex normals, crease flags."""
     tri = vertices[faces]
@@ -237,6 +237,8 @@ def pack(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh") -> np.ndar
     head[[mq.OFF_V, mq.OFF_F, mq.OFF_NB, mq.OFF_VN, mq.OFF_VB, mq.OFF_BOX]] = offsets
     head[mq.ON_TOL] = ON_TOLERANCE * size
     head[mq.SCALE] = size
+    head[mq.COS_CREASE] = math.cos(math.radians(CREASE_DEG))
+    head[mq.EDGE_BLEND] = edge_blend_mm
     return np.concatenate([head] + [np.asarray(p, float).ravel() for p in parts])
 
 
@@ -259,6 +261,11 @@ class MeshSurface(Surface):
     ``press_direction`` the direction (in the file's frame) that becomes +z: the tool's "up",
                         towards the incoming blank; the mesh is turned by the shortest arc
                         onto it, and drapes, exports and reports are in this solver frame
+    ``edge_blend_mm``   half-width (mm) of the band either side of a sharp edge (faces meeting
+                        beyond CREASE_DEG) where a node's tangent plane turns from one face's
+                        to the other's, as over a rounded edge; nodes stay on the sharp mesh.
+                        At least a fifth of the fibre spacing, so that a node next to a right-
+                        angled edge finds the next one over it (within 89 deg of its tangent)
 
     A closed mesh is wound outward, an open sheet so that it faces +z. The crossover is
     placed at the top of the mesh over its plan position (the blank's first contact);
@@ -267,7 +274,7 @@ class MeshSurface(Surface):
 
     name = "mesh"
 
-    def __init__(self, path, units: str = "mm", press_direction=(0.0, 0.0, 1.0)):
+    def __init__(self, path, units: str = "mm", press_direction=(0.0, 0.0, 1.0), edge_blend_mm: float = 2.0):
         self.path = Path(path)
         name = str(self.path)
         if units not in UNITS:
@@ -282,6 +289,13 @@ class MeshSurface(Surface):
         if not (np.isfinite(d).all() and np.linalg.norm(d) > 0):
             raise ValueError(f"press_direction must be a non-zero 3-vector, got {press_direction!r}")
         self.press_direction = [float(c) for c in d]
+        try:
+            blend = float(edge_blend_mm)
+        except (TypeError, ValueError):
+            blend = math.nan
+        if not (math.isfinite(blend) and 0 <= blend <= MAX_LENGTH_MM):
+            raise ValueError(f"edge_blend_mm must be a length >= 0 in mm, got {edge_blend_mm!r}")
+        self.edge_blend_mm = blend
         vertices, faces = _read(self.path)
         vertices = vertices * UNITS[units] @ _rotation_to_z(d / np.linalg.norm(d)).T
         extent = float(np.ptp(vertices, 0).max())
@@ -298,13 +312,14 @@ class MeshSurface(Surface):
                             f"face {int(np.flatnonzero(bad)[0])}")
         faces = _oriented(vertices, faces, _edges(faces, name))
         self.faces_count = int(faces.shape[0])
-        self.kernel = (compiled.MESH, pack(vertices, faces, name))
+        self.kernel = (compiled.MESH, pack(vertices, faces, name, blend))
         lo, hi = vertices.min(0), vertices.max(0)
         self.bounds = (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
         self.size = 0.5 * extent
 
     def params(self):
-        return {"path": str(self.path), "units": self.units, "press_direction": self.press_direction}
+        return {"path": str(self.path), "units": self.units, "press_direction": self.press_direction,
+                "edge_blend_mm": self.edge_blend_mm}
 
     def distance(self, points):
         """Unsigned distance (mm) of points (..., 3) from the mesh."""

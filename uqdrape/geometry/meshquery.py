@@ -33,9 +33,10 @@ import numpy as np
 
 from .._jit import jit
 
-#: Header slots of the packed mesh array.
-NV, NF, LEAVES, OFF_V, OFF_F, OFF_NB, OFF_VN, OFF_VB, OFF_BOX, ON_TOL, SCALE = range(11)
-HEADER = 12
+#: Header slots of the packed mesh array: counts, offsets, the on-mesh tolerance (mm), the
+#: mesh's size (mm), cos(crease angle) and the edge blend half-width (mm).
+NV, NF, LEAVES, OFF_V, OFF_F, OFF_NB, OFF_VN, OFF_VB, OFF_BOX, ON_TOL, SCALE, COS_CREASE, EDGE_BLEND = range(13)
+HEADER = 13
 #: Faces per BVH leaf.
 LEAF = 4
 #: Bound on the BVH depth (a complete tree of up to 2**40 leaves).
@@ -223,11 +224,37 @@ def _smooth_normal(p, f, w):
 
 @jit
 def normal(p, x, y, z):
-    """Smooth unit normal of the mesh at its point closest to (x, y, z)."""
+    """Unit normal of the mesh at its point closest to (x, y, z): the interpolated normal,
+    turned towards the bisector of a sharp edge (faces meeting beyond the crease angle) within
+    EDGE_BLEND of it, as if the edge were rounded for the tangent plane alone, so that a node
+    on or next to the edge steps over it (the next node may lie a right angle round)."""
     f, _, w, _, _ = closest(p, x, y, z)
     if f < 0:
         return (math.nan, math.nan, math.nan)
-    return _smooth_normal(p, f, w)
+    n = _smooth_normal(p, f, w)
+    nf = _face_normal(p, f)
+    a, b, c = _face(p, f)
+    e1, e2 = _sub(b, a), _sub(c, a)
+    cr = (e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0])
+    area2 = math.sqrt(_dot(cr, cr))
+    corners = (a, b, c)
+    best, near = math.inf, -1
+    for k in range(3):  # edge k runs from corner k to k + 1; its distance is w[k + 2] times its height
+        g = int(p[int(p[OFF_NB]) + 3 * f + k])
+        if g < 0 or _dot(nf, _face_normal(p, g)) >= p[COS_CREASE]:
+            continue
+        e = _sub(corners[(k + 1) % 3], corners[k])
+        d = w[(k + 2) % 3] * area2 / math.sqrt(_dot(e, e))
+        if d < best:
+            best, near = d, g
+    if near < 0 or best >= p[EDGE_BLEND]:
+        return n
+    m = _face_normal(p, near)
+    u = best / p[EDGE_BLEND]
+    s0, s1, s2 = (1 - u) * 0.5 * (nf[0] + m[0]) + u * n[0], (1 - u) * 0.5 * (nf[1] + m[1]) + u * n[1], \
+        (1 - u) * 0.5 * (nf[2] + m[2]) + u * n[2]
+    s = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+    return (s0 / s, s1 / s, s2 / s)
 
 
 @jit
