@@ -339,3 +339,32 @@ def test_a_node_on_a_sharp_edge_steps_over_it(tmp_path):
     np.testing.assert_allclose(P[n + 10:, n], np.column_stack([np.full(11, 50.0), np.zeros(11),
                                                                  -S * np.arange(11)]), atol=1e-9)
     assert float((ds.status == 0).mean()) > 0.75
+
+
+def test_exports_of_a_mesh_drape_follow_the_walls(tmp_path):
+    """VTK export of the box drape: fibre directions tangent to the mesh on its walls too
+    (|d . n| at round-off, the normal being the mesh's own, not a height field's) and the
+    mould written as the mesh's triangles."""
+    import meshio
+
+    from uqdrape.drape import drape
+    from uqdrape.export import export_vtk, levels, open_result
+
+    box = trimesh.creation.box(extents=(100.0, 100.0, 60.0))
+    box.apply_translation((0.0, 0.0, -30.0))
+    surface = MeshSurface(_save(box, tmp_path / "box.stl"))
+    ds = drape(surface, S, 14)
+    ds.to_netcdf(tmp_path / "box.nc")
+    result, ensemble = open_result(tmp_path / "box.nc")
+    (tmp_path / "out").mkdir()
+    export_vtk(levels(result, ensemble), result, tmp_path / "out" / "box")
+    net = meshio.read(tmp_path / "out" / "box.vtu")
+    wall = np.abs(net.points[:, 0]) > 50.0 - 1e-9
+    assert wall.sum() >= 4 * 2  # the arms' wall nodes and their neighbours
+    n = surface.normal_at(net.points)
+    for name in ("fibre1", "fibre2"):
+        d = net.point_data[name]
+        assert np.abs((d * n).sum(1)).max() < 1e-12, name
+    mould = meshio.read(tmp_path / "out" / "box-mould.vtu")
+    # every face with a corner near the net: all but the bottom two (z = -60, far below it)
+    assert mould.cells[0].type == "triangle" and len(mould.cells[0].data) == 10

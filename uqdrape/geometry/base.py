@@ -61,6 +61,12 @@ class Surface:
         n = np.stack([-hx, -hy, np.ones_like(hx)], axis=-1)
         return n / np.linalg.norm(n, axis=-1, keepdims=True)
 
+    def normal_at(self, points):
+        """Unit outward normal (..., 3) at points (..., 3) mm on the mould: a height field's
+        normal at their plan position (a mesh overrides it: walls have no plan position)."""
+        points = np.asarray(points, float)
+        return self.normal(points[..., 0], points[..., 1])
+
     def describe(self) -> str:
         p = ", ".join(f"{k}={v}" for k, v in self.params().items())
         return f"{self.name}({p})"

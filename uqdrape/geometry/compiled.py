@@ -189,6 +189,21 @@ def evaluate_gap(kernel, x, y, z):
     return tuple(out[:, c].reshape(shape) for c in range(4))
 
 
+@jit
+def _normal_many(kind, p, x, y, z, out):
+    for m in range(x.size):
+        out[m, 0], out[m, 1], out[m, 2] = surface_normal(kind, p, x[m], y[m], z[m])
+
+
+def evaluate_normal(kernel, points):
+    """``surface_normal`` (..., 3) at points (..., 3) mm."""
+    points = np.asarray(points, float)
+    flat = np.ascontiguousarray(points.reshape(-1, 3))
+    out = np.empty(flat.shape)
+    _normal_many(kernel[0], kernel[1], flat[:, 0].copy(), flat[:, 1].copy(), flat[:, 2].copy(), out)
+    return out.reshape(points.shape)
+
+
 def evaluate_inside(kernel, x, y):
     """Boolean array: (x, y) inside the domain of ``kernel = (kind, params)``."""
     x, y = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float))

@@ -321,6 +321,20 @@ class MeshSurface(Surface):
         return {"path": str(self.path), "units": self.units, "press_direction": self.press_direction,
                 "edge_blend_mm": self.edge_blend_mm}
 
+    def normal_at(self, points):
+        """The solver's unit normal (..., 3) at points (..., 3) mm on the mesh (NaN in, NaN out)."""
+        return compiled.evaluate_normal(self.kernel, points)
+
+    def triangles(self):
+        """The mesh in the solver frame: vertices (nv, 3) mm, faces (nf, 3) in the hierarchy's
+        order and the vertex normals (nv, 3), read back from the packed array."""
+        p = self.kernel[1]
+        nv, nf = int(p[mq.NV]), int(p[mq.NF])
+        v = p[int(p[mq.OFF_V]):int(p[mq.OFF_V]) + 3 * nv].reshape(nv, 3)
+        f = p[int(p[mq.OFF_F]):int(p[mq.OFF_F]) + 3 * nf].reshape(nf, 3).astype(np.int64)
+        vn = p[int(p[mq.OFF_VN]):int(p[mq.OFF_VN]) + 3 * nv].reshape(nv, 3)
+        return v, np.where(f < 0, -f - 1, f), vn
+
     def distance(self, points):
         """Unsigned distance (mm) of points (..., 3) from the mesh."""
         return np.abs(self.gap(points[..., 0], points[..., 1], points[..., 2])[0])

@@ -132,7 +132,9 @@ def _box_distance2(p, node, q):
 def closest(p, x, y, z):
     """Closest point of the mesh to (x, y, z): (face, point, barycentric weights, region,
     squared distance); ties go to the face met first in a fixed traversal order (nearer
-    child box first)."""
+    child box first); face -1 for a non-finite point."""
+    if not math.isfinite(x + y + z):
+        return -1, (math.nan, math.nan, math.nan), (0.0, 0.0, 0.0), 0, math.nan
     q = (x, y, z)
     leaves = int(p[LEAVES])
     nf = int(p[NF])
