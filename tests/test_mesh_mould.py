@@ -368,3 +368,24 @@ def test_exports_of_a_mesh_drape_follow_the_walls(tmp_path):
     mould = meshio.read(tmp_path / "out" / "box-mould.vtu")
     # every face with a corner near the net: all but the bottom two (z = -60, far below it)
     assert mould.cells[0].type == "triangle" and len(mould.cells[0].data) == 10
+
+
+def test_report_maps_of_a_mesh_mould_are_drawn_on_the_flat_blank(tmp_path):
+    """Wall nodes share plan positions, so the maps of a mesh drape put node (i, j) at
+    (i s, j s) of the flat blank; a height field's maps keep the mean plan positions."""
+    from uqdrape.drape import drape
+    from uqdrape.geometry import Hemisphere
+    from uqdrape.report.ensemble_figures import map_labels, mean_positions
+
+    box = trimesh.creation.box(extents=(100.0, 100.0, 60.0))
+    box.apply_translation((0.0, 0.0, -30.0))
+    ds = drape(MeshSurface(_save(box, tmp_path / "box.stl")), S, 14)
+    pos = mean_positions(ds)
+    valid = ds.status.values[0] == 0
+    ii, jj = np.meshgrid(ds.i.values, ds.j.values, indexing="ij")
+    np.testing.assert_array_equal(pos["x"].values[valid], S * ii[valid])
+    np.testing.assert_array_equal(pos["y"].values[valid], S * jj[valid])
+    assert np.isnan(pos["x"].values[~valid]).all() and "flat blank" in map_labels(ds)[0]
+    plain = drape(Hemisphere(100.0), S, 4)
+    np.testing.assert_array_equal(mean_positions(plain)["x"].values, plain.x.values[0])
+    assert map_labels(plain) == ("x (mm)", "y (mm)")
