@@ -389,3 +389,37 @@ def test_report_maps_of_a_mesh_mould_are_drawn_on_the_flat_blank(tmp_path):
     plain = drape(Hemisphere(100.0), S, 4)
     np.testing.assert_array_equal(mean_positions(plain)["x"].values, plain.x.values[0])
     assert map_labels(plain) == ("x (mm)", "y (mm)")
+
+
+@pytest.mark.slow  # ~30 s on the loaded 2-core machine: starts two worker processes
+def test_a_mesh_study_gives_the_same_numbers_in_two_processes_and_after_a_resume(tmp_path):
+    """The C-spar study, cut to 6 energy drapes of 8 rings: run here in one chunk, by two
+    worker processes in chunks of 2 (each worker reads the mesh itself), and again after a
+    chunk file is deleted (resume): the same ensemble to the last bit."""
+    import dataclasses
+    from pathlib import Path
+
+    import xarray as xr
+
+    from uqdrape.ensemble import open_ensemble
+    from uqdrape.study import load_study
+    from uqdrape.workflow import run_study
+
+    root = Path(__file__).resolve().parent.parent
+    text = (root / "studies" / "cspar-misalignment.toml").read_text()
+    text = text.replace('path = "meshes/cspar.stl"', f'path = "{(root / "studies" / "meshes" / "cspar.stl").as_posix()}"')
+    text = text.replace("realizations = 16", "realizations = 6").replace("rings = 20", "rings = 8")
+    (tmp_path / "cspar.toml").write_text(text)
+    study = load_study(tmp_path / "cspar.toml")
+
+    def ensemble(folder, **kw):
+        moved = dataclasses.replace(study, output_dir=tmp_path / folder)
+        with open_ensemble(run_study(moved, progress=False, **kw)) as ds:
+            return ds.drop_attrs(deep=False).load()
+
+    one = ensemble("one", scheduler="synchronous", chunk_size=64)
+    two = ensemble("two", chunk_size=2, workers=2)
+    xr.testing.assert_identical(one, two)
+    chunk = sorted((tmp_path / "two" / "chunks").glob("*.nc"))[1]
+    chunk.unlink()
+    xr.testing.assert_identical(one, ensemble("two", chunk_size=2, workers=1))
