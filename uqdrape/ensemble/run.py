@@ -20,6 +20,7 @@ the same chunks; what the outputs mean is not this package's business.
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import sys
 import time
@@ -32,6 +33,7 @@ import numpy as np
 from dask.callbacks import Callback
 
 from .. import __version__
+from .. import geometry as _geometry
 from ..conventions import cf_encode
 from ..schema import at_level
 from ..study import Study
@@ -86,10 +88,26 @@ def _run_chunk(study: Study, chunk: Chunk, folder: str, attrs: dict, design_rows
     return str(write_atomic(ds, Path(folder) / chunk.name, encoding, keep=lambda: not orphaned()))
 
 
+@functools.lru_cache(maxsize=2)
+def _mould(kind: str, params: str, stamp):
+    """A mould built once per process (``stamp``: the version of the file it reads), so a
+    mesh tool is read and packed once, not for every chunk."""
+    return _geometry.build(kind, **json.loads(params))
+
+
+def _study_mould(study: Study):
+    """The study's mould from the process's cache (``_mould``), keyed by its parameters and,
+    for a mould read from a file, the file's modification time and size."""
+    g = study.geometry
+    path = g.params.get("path")
+    stat = Path(path).stat() if path is not None else None
+    return _mould(g.kind, json.dumps(g.params, sort_keys=True), stat and (stat.st_mtime_ns, stat.st_size))
+
+
 def _drape(study: Study, r, force: float, design_rows):
     """Drape realisations ``r`` of the study's sample, or the design rows ``design_rows`` (one per r)."""
     inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows)
-    return drape_inputs(study, r, inputs, force=force)
+    return drape_inputs(study, r, inputs, force=force, surface=_study_mould(study))
 
 
 def _identity(manifest: dict) -> dict:
