@@ -4,9 +4,10 @@
 one .npz per case into DIR; ``python benchmarks/compare_reference.py compare DIR`` drapes
 them again and prints, per case, the largest node difference (mm), the largest node-shear
 difference (deg), the largest turn-angle difference (deg) and whether the converged flags
-and node statuses are equal. Cases: geodesic hemisphere / nose cone / double dome / STL
+and node statuses are equal. Cases: geodesic hemisphere / nose cone / double dome / mesh (the shipped STL)
 (random orientation, crossover, segment lengths), energy nose-cone drapes (ebxhd936_like,
-20 rings, random gamma0 sd 5 deg) at 0 / 126 / 378 N under both blank-holder models.
+20 rings, random gamma0 sd 5 deg) at 0 / 126 / 378 N under both blank-holder models, and energy hemisphere and double-dome
+drapes (15 rings) at the same three forces.
 """
 
 import sys
@@ -15,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from uqdrape.drape import drape
-from uqdrape.geometry import StlSurface, build
+from uqdrape.geometry import MeshSurface, build
 from uqdrape.material import load_material
 
 STL = Path(__file__).resolve().parent.parent / "tests" / "data" / "hemisphere_r50.stl"
@@ -29,10 +30,10 @@ def _geodesic(surface, rings, R, seed):
                  seg_j=5.0 * (1 + 0.01 * rng.standard_normal((R, 2 * n + 1, 2 * n))))
 
 
-def _energy(model, R=6, rings=20, seed=5):
+def _energy(model, R=6, rings=20, seed=5, surface=None):
     rng = np.random.default_rng(seed)
     force = np.repeat([0.0, 126.0, 378.0], R // 3)
-    return drape(build("nose_cone"), 5.0, rings, mode="energy", material=load_material("ebxhd936_like"),
+    return drape(surface or build("nose_cone"), 5.0, rings, mode="energy", material=load_material("ebxhd936_like"),
                  gamma0=rng.normal(0.0, 5.0, (R, 2 * rings, 2 * rings)), blankholder_force=force,
                  friction=0.2, blankholder_model=model)
 
@@ -41,9 +42,11 @@ CASES = {
     "geodesic_hemisphere": lambda: _geodesic(build("hemisphere", radius=100.0), 20, 16, 1),
     "geodesic_nose_cone": lambda: _geodesic(build("nose_cone"), 30, 8, 2),
     "geodesic_double_dome": lambda: _geodesic(build("double_dome"), 20, 8, 3),
-    "geodesic_stl": lambda: _geodesic(StlSurface(STL, 1.0), 10, 8, 4),
+    "geodesic_mesh": lambda: _geodesic(MeshSurface(STL), 10, 8, 4),
     "energy_nose_cone_slip": lambda: _energy("slip"),
     "energy_nose_cone_radial": lambda: _energy("radial"),
+    "energy_hemisphere": lambda: _energy("slip", 3, 15, 6, build("hemisphere", radius=100.0)),
+    "energy_double_dome": lambda: _energy("slip", 3, 15, 7, build("double_dome")),
 }
 
 
@@ -59,6 +62,9 @@ def main(action, folder):
         new = _arrays(case())
         if action == "save":
             np.savez(folder / f"{name}.npz", **new)
+            continue
+        if not (folder / f"{name}.npz").is_file():
+            print(f"{name:26s} no reference saved")
             continue
         ref = np.load(folder / f"{name}.npz")
         both = np.isfinite(ref["P"]) & np.isfinite(new["P"])

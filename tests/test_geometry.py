@@ -1,4 +1,5 @@
-"""Tests of the mould library: gradients, known shapes, domains, registry, STL round trip."""
+"""Tests of the mould library: gradients, known shapes, domains, registry, STL round trip
+through the mesh kind (its solver-side tests: tests/test_mesh_mould.py)."""
 
 from __future__ import annotations
 
@@ -17,8 +18,8 @@ from uqdrape.geometry import (
     Hemisphere,
     NoseCone,
     Plate,
+    MeshSurface,
     Saddle,
-    StlSurface,
     build,
     export_stl,
 )
@@ -217,7 +218,7 @@ def test_saddle_curvature():
 
 def test_registry_names():
     assert set(KINDS) == {
-        "plate", "cylinder", "hemisphere", "cone", "nose_cone", "double_dome", "saddle", "stl"
+        "plate", "cylinder", "hemisphere", "cone", "nose_cone", "double_dome", "saddle", "mesh"
     }
     for kind, cls in KINDS.items():
         assert cls.name == kind
@@ -226,15 +227,15 @@ def test_registry_names():
 
 
 def test_build_rejects_bad_kind_and_parameters():
-    with pytest.raises(ValueError, match=r"unknown geometry kind 'sphere'; valid: plate, .*stl"):
+    with pytest.raises(ValueError, match=r"unknown geometry kind 'sphere'; valid: plate, .*saddle, mesh"):
         build("sphere")
     with pytest.raises(
         ValueError,
         match=r"unknown parameter 'radus' for geometry 'hemisphere'; valid: radius, flange_half_width$",
     ):
         build("hemisphere", radus=50)
-    with pytest.raises(ValueError, match=r"geometry 'stl' needs parameter 'path'"):
-        build("stl")
+    with pytest.raises(ValueError, match=r"geometry 'mesh' needs parameter 'path'"):
+        build("mesh")
 
 
 @pytest.mark.parametrize(
@@ -254,8 +255,9 @@ def test_build_rejects_bad_kind_and_parameters():
         (lambda: DoubleDome(centre_distance=150), "centre_distance"),
         (lambda: DoubleDome(flange_half_width=100), "flange_half_width"),
         (lambda: Saddle(radius=float("inf")), "radius"),
-        (lambda: StlSurface("no/such/file.stl"), "path"),
-        (lambda: StlSurface(DATA / "hemisphere_r50.stl", resolution_mm=0), "resolution_mm"),
+        (lambda: MeshSurface("no/such/file.stl"), "path"),
+        (lambda: MeshSurface(DATA / "hemisphere_r50.stl", units="ft"), "units"),
+        (lambda: MeshSurface(DATA / "hemisphere_r50.stl", press_direction=(0, 0, 0)), "press_direction"),
     ],
 )
 def test_constructors_name_the_bad_argument(make, argument):
@@ -263,11 +265,11 @@ def test_constructors_name_the_bad_argument(make, argument):
         make()
 
 
-def test_stl_rejects_a_file_that_is_not_a_mesh(tmp_path):
+def test_mesh_rejects_a_file_that_is_not_a_mesh(tmp_path):
     bad = tmp_path / "bad.stl"
     bad.write_text("this is not a mesh\n")
     with pytest.raises(ValueError, match=r"^path"):
-        StlSurface(bad)
+        MeshSurface(bad)
 
 
 def _disc_points(radius, frac, n=600, seed=4):
@@ -278,6 +280,8 @@ def _disc_points(radius, frac, n=600, seed=4):
 
 
 def test_stl_round_trip_of_a_hemisphere(tmp_path):
+    """export_stl, read back as a mesh mould: its top surface is the piecewise-linear
+    interpolant of the hemisphere on the 1 mm grid, its slopes from the interpolated normals."""
     R = 50.0
     h = Hemisphere(R, 60.0)
     path = export_stl(h, tmp_path / "h.stl", resolution_mm=1.0)
@@ -285,7 +289,7 @@ def test_stl_round_trip_of_a_hemisphere(tmp_path):
     n_tri = int(np.frombuffer(path.read_bytes()[80:84], dtype="<u4")[0])
     assert n_tri == 2 * 120 * 120
     assert path.stat().st_size == 84 + 50 * n_tri
-    s = StlSurface(path, resolution_mm=2.0)
+    s = MeshSurface(path)
     assert s.bounds == pytest.approx((-60.0, 60.0, -60.0, 60.0))
     x, y = _disc_points(R, 0.9)
     assert np.max(np.abs(s.height(x, y) - h.height(x, y))) < 0.3  # away from the rim
@@ -308,10 +312,10 @@ def test_export_keeps_only_the_domain(tmp_path):
         export_stl(c, tmp_path / "d.stl", half_width=-1.0)
 
 
-def test_stl_takes_the_top_of_a_closed_solid(tmp_path):
+def test_mesh_height_is_the_top_of_a_closed_solid(tmp_path):
     ball = trimesh.creation.icosphere(subdivisions=5, radius=30.0)
     ball.export(tmp_path / "ball.stl")
-    s = StlSurface(tmp_path / "ball.stl", resolution_mm=1.0)
+    s = MeshSurface(tmp_path / "ball.stl")
     x, y = _disc_points(30.0, 0.7)
     np.testing.assert_allclose(s.height(x, y), np.sqrt(30.0**2 - x**2 - y**2), atol=0.1)
     assert not s.inside(29.0, 29.0)  # outside the round footprint, inside the bounding box
@@ -320,7 +324,7 @@ def test_stl_takes_the_top_of_a_closed_solid(tmp_path):
 def test_shipped_stl_loads():
     path = DATA / "hemisphere_r50.stl"
     assert path.stat().st_size < 300_000
-    s = build("stl", path=path)
+    s = build("mesh", path=path)
     h = Hemisphere(50.0, 60.0)
     assert s.height(0.0, 0.0) == pytest.approx(50.0, abs=0.05)
     x, y = _disc_points(50.0, 0.8)

@@ -4,11 +4,19 @@
 inside) and are called from the compiled net loops (``ring``).
 
 Both ways of placing a node reduce to one problem: find where a circle in space meets
-the mould surface. A generator-arm node lies on the circle of radius s around the last
+the mould surface, the zero set of the mould's implicit function phi(p) (``compiled.gap``:
+a height field is phi = z - h(x, y); a triangle mesh its signed distance). A generator-arm node lies on the circle of radius s around the last
 arm node in the normal plane of the steered direction; a filled node lies on the circle
 where the two spheres around its placed neighbours meet. ``_solve_on_circle`` finds the
 root nearest the circle's reference direction by safeguarded Newton, falling back to a
 bracketing search where Newton does not settle (kinks, steep walls).
+
+Where the circle cuts the surface more than once (a fold, the far side of a thin flange or
+wall, a sheet's other face), the root kept is the nearest one on the sheet the net is on:
+the circle's parameter is oriented so that, on that sheet, phi increases with t (the circle
+leaves the mould through its outer side), so a crossing where phi falls is the surface
+seen from inside and is never taken. A node with no such root is NO_INTERSECTION, not
+placed on another face.
 """
 
 from __future__ import annotations
@@ -18,7 +26,7 @@ import math
 import numpy as np
 
 from .._jit import jit
-from ..geometry.compiled import height_gradient, inside
+from ..geometry.compiled import gap, on_mould, surface_normal
 from .status import Status
 
 #: Largest circle angle (rad) searched either side of the reference direction.
@@ -40,19 +48,21 @@ NAN3 = (math.nan, math.nan, math.nan)
 
 @jit
 def _gap(kind, par, c, u, v, rho, t):
-    """Circle point q at angle t (mm), its vertical gap z - h(x, y), the gap's t-derivative
-    and the mould gradient (dh/dx, dh/dy) at q."""
+    """Circle point q at angle t (mm), the mould function phi(q) (mm), its t-derivative and
+    the gradient of phi at q (3-tuple). For a height field, phi = z - h and the derivative
+    (d2 - hx d0) - hy d1, the same arithmetic as the vertical gap it replaces."""
     ct, st = math.cos(t), math.sin(t)
     q = (c[0] + rho * (ct * u[0] + st * v[0]), c[1] + rho * (ct * u[1] + st * v[1]),
          c[2] + rho * (ct * u[2] + st * v[2]))
     d0, d1, d2 = rho * (-st * u[0] + ct * v[0]), rho * (-st * u[1] + ct * v[1]), rho * (-st * u[2] + ct * v[2])
-    h, hx, hy = height_gradient(kind, par, q[0], q[1])
-    return q, q[2] - h, d2 - hx * d0 - hy * d1, hx, hy
+    phi, gx, gy, gz = gap(kind, par, q[0], q[1], q[2])
+    return q, phi, (gz * d2 + gx * d0) + gy * d1, (gx, gy, gz)
 
 
 @jit
-def _bracket(kind, par, c, u, v, rho, tol):
-    """Sign change nearest t = 0 on a grid of circle angles, then Illinois false position.
+def _bracket(kind, par, c, u, v, rho, tol, up):
+    """Sign change nearest t = 0 on a grid of circle angles where phi rises with ``up`` * t
+    (the sheet's outward crossing), then Illinois false position.
 
     The grid's gaps are evaluated lazily, interval by interval outwards from t = 0."""
     grid = _BRACKET_GRID
@@ -64,7 +74,7 @@ def _bracket(kind, par, c, u, v, rho, tol):
             if not seen[e]:
                 g[e] = _gap(kind, par, c, u, v, rho, grid[e])[1]
                 seen[e] = True
-        if np.sign(g[s]) * np.sign(g[s + 1]) <= 0:
+        if np.sign(g[s]) * np.sign(g[s + 1]) <= 0 and (g[s + 1] - g[s]) * up > 0:
             pick, found = s, True
             break
     a, b = grid[pick], grid[pick + 1]
@@ -91,23 +101,24 @@ def _bracket(kind, par, c, u, v, rho, tol):
             else:
                 b, gb = t_new, g_new
             side = 1 if left else -1
-    q, g_t, _, hx, hy = _gap(kind, par, c, u, v, rho, t)
-    return q, found and abs(g_t) < tol, hx, hy
+    q, g_t, _, grad = _gap(kind, par, c, u, v, rho, t)
+    return q, found and abs(g_t) < tol, grad
 
 
 @jit
-def _solve_on_circle(kind, par, c, u, v, rho, tol):
-    """Point of the circle ``c + rho (cos t u + sin t v)`` on the surface, |t| < THETA_MAX.
+def _solve_on_circle(kind, par, c, u, v, rho, tol, up):
+    """Point of the circle ``c + rho (cos t u + sin t v)`` on the surface, |t| < THETA_MAX,
+    where phi rises with ``up`` * t (+-1: the net's own sheet, see the module docstring).
 
-    Returns (q, ok, dh/dx, dh/dy at q): the root nearest t = 0 by safeguarded Newton
+    Returns (q, ok, gradient of phi at q): the root nearest t = 0 by safeguarded Newton
     (steps clipped to 0.2 rad), falling back to a bracketing search when Newton does not
-    settle in _NEWTON_ITERS steps or starts to alternate; ``tol`` is the vertical gap
-    accepted (mm).
+    settle in _NEWTON_ITERS steps, starts to alternate or lands on a crossing of the wrong
+    orientation; ``tol`` is the |phi| accepted (mm).
     """
     if not (math.isfinite(c[0] + c[1] + c[2] + u[0] + u[1] + u[2] + v[0] + v[1] + v[2] + rho) and rho > 0):
-        return NAN3, False, math.nan, math.nan
+        return NAN3, False, NAN3
     theta, last, older = 0.0, math.nan, math.nan
-    q, g, dg, hx, hy = _gap(kind, par, c, u, v, rho, theta)
+    q, g, dg, grad = _gap(kind, par, c, u, v, rho, theta)
     for _ in range(_NEWTON_ITERS):
         if abs(g) < tol:
             break
@@ -116,11 +127,11 @@ def _solve_on_circle(kind, par, c, u, v, rho, tol):
             break
         older, last, theta = last, theta, theta + min(max(step, -0.2), 0.2)
         if theta == older:  # a 2-cycle: Newton would alternate until it gives up
-            return _bracket(kind, par, c, u, v, rho, tol)
-        q, g, dg, hx, hy = _gap(kind, par, c, u, v, rho, theta)
-    if abs(g) < tol and abs(theta) < THETA_MAX:
-        return q, True, hx, hy
-    return _bracket(kind, par, c, u, v, rho, tol)
+            return _bracket(kind, par, c, u, v, rho, tol, up)
+        q, g, dg, grad = _gap(kind, par, c, u, v, rho, theta)
+    if abs(g) < tol and abs(theta) < THETA_MAX and dg * up > 0:
+        return q, True, grad
+    return _bracket(kind, par, c, u, v, rho, tol, up)
 
 
 @jit
@@ -140,20 +151,13 @@ def _unit(a):
 
 
 @jit
-def _normal(kind, par, x, y):
-    _, hx, hy = height_gradient(kind, par, x, y)
-    s = math.sqrt(hx * hx + hy * hy + 1.0)
-    return (-hx / s, -hy / s, 1.0 / s)
-
-
-@jit
 def _status(kind, par, q, ok, parents_valid):
     """Status code of a placed node (``Status``)."""
     if not parents_valid:
         return DEPENDENT
     if not ok:
         return NO_INTERSECTION
-    if not inside(kind, par, q[0], q[1]):
+    if not on_mould(kind, par, q[0], q[1], q[2]):
         return OFF_MOULD
     return OK
 
@@ -165,13 +169,13 @@ def arm_node(kind, par, p, direction, turn, length, tol):
 
     ``turn = 0`` gives the discrete geodesic (straightest) path. Returns (q, status).
     """
-    n = _normal(kind, par, p[0], p[1])
+    n = surface_normal(kind, par, p[0], p[1], p[2])
     dn = _dot(direction, n)
     t = _unit((direction[0] - dn * n[0], direction[1] - dn * n[1], direction[2] - dn * n[2]))
     w = _cross(n, t)
     ct, st = math.cos(turn), math.sin(turn)
     t = (ct * t[0] + st * w[0], ct * t[1] + st * w[1], ct * t[2] + st * w[2])
-    q, ok, _, _ = _solve_on_circle(kind, par, p, t, n, length, tol)
+    q, ok, _ = _solve_on_circle(kind, par, p, t, n, length, tol, 1.0)  # t rises along n: outwards
     parents = math.isfinite(p[0] + p[1] + p[2] + direction[0] + direction[1] + direction[2])
     status = _status(kind, par, q, ok, parents)
     return (q if status == OK else NAN3), status
@@ -195,12 +199,13 @@ def fill(kind, par, a, b, c, la, lb, sign_ij, tol):
     ge = _dot(guess, e)
     u = _unit((guess[0] - ge * e[0], guess[1] - ge * e[1], guess[2] - ge * e[2]))
     v = _cross(e, u)
-    q, ok, hx, hy = _solve_on_circle(kind, par, centre, u, v, rho, tol)
+    # v = e x u points along sign_ij times the outward normal on a right-handed cell
+    q, ok, grad = _solve_on_circle(kind, par, centre, u, v, rho, tol, float(sign_ij))
     parents = math.isfinite(a[0] + a[1] + a[2] + b[0] + b[1] + b[2] + c[0] + c[1] + c[2])
     status = _status(kind, par, q, ok, parents)
     if status == OK:
-        s = math.sqrt(hx * hx + hy * hy + 1.0)  # the normal at q, from the root's last gradient
-        n = (-hx / s, -hy / s, 1.0 / s)
+        s = math.sqrt(grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2])
+        n = (grad[0] / s, grad[1] / s, grad[2] / s)  # the normal at q, from the root's last gradient
         qa = (q[0] - a[0], q[1] - a[1], q[2] - a[2])
         qb = (q[0] - b[0], q[1] - b[1], q[2] - b[2])
         if sign_ij * _dot(_cross(qa, qb), n) <= 0:

@@ -11,7 +11,8 @@ class Status(IntEnum):
     OK = 0
     #: a neighbour the node is built from is invalid
     DEPENDENT = 1
-    #: the circle (two spheres, or the arm step) does not meet the surface
+    #: the circle (two spheres, or the arm step) does not meet the surface on the net's own
+    #: sheet (a crossing into the mould from inside, the far side of a fold, is no root)
     NO_INTERSECTION = 2
     #: the node falls outside the mould's domain
     OFF_MOULD = 3

@@ -28,6 +28,7 @@ the same chunks; what the outputs mean is not this package's business.
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import re
 import sys
@@ -42,6 +43,7 @@ import xarray as xr
 from dask.callbacks import Callback
 
 from .. import __version__
+from .. import geometry as _geometry
 from ..conventions import cf_encode
 from ..files import read_text
 from ..schema import FORCE, REALIZATION, at_level
@@ -140,10 +142,26 @@ def chunk_intact(path: Path, chunk: Chunk) -> bool:
         return False
 
 
+@functools.lru_cache(maxsize=2)
+def _mould(kind: str, params: str, stamp):
+    """A mould built once per process (``stamp``: the version of the file it reads), so a
+    mesh tool is read and packed once, not for every chunk."""
+    return _geometry.build(kind, **json.loads(params))
+
+
+def _study_mould(study: Study):
+    """The study's mould from the process's cache (``_mould``), keyed by its parameters and,
+    for a mould read from a file, the file's modification time and size."""
+    g = study.geometry
+    path = g.params.get("path")
+    stat = Path(path).stat() if path is not None else None
+    return _mould(g.kind, json.dumps(g.params, sort_keys=True), stat and (stat.st_mtime_ns, stat.st_size))
+
+
 def _drape(study: Study, r, force: float, design_rows):
     """Drape realisations ``r`` of the study's sample, or the design rows ``design_rows`` (one per r)."""
     inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows)
-    return drape_inputs(study, r, inputs, force=force)
+    return drape_inputs(study, r, inputs, force=force, surface=_study_mould(study))
 
 
 def _prepare(out: Path, manifest: dict, resume: bool) -> None:

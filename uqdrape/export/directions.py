@@ -58,7 +58,7 @@ def fibre_directions(positions: np.ndarray, shear_deg: np.ndarray, surface):
     """Fibre-1 (+i) and fibre-2 (+j) unit directions (N, N, 3) at the nodes ``positions``
     (N, N, 3) mm of a net on ``surface``, and the mould's unit normals there; NaN where a
     node or its shear is missing."""
-    normal = surface.normal(positions[..., 0], positions[..., 1])
+    normal = surface.normal_at(positions)
     with np.errstate(invalid="ignore"):
         d1, d2 = fibre_frame(_tangent(positions, 0), _tangent(positions, 1), normal, shear_deg)
     return d1, d2, normal

@@ -3,7 +3,8 @@
 The net is one quad per cell whose four nodes are placed; its point data are the
 level's fields (``Level.fields``), the fibre directions ``fibre1``, ``fibre2`` (unit),
 ``fibre_deviation`` (deg, from the nominal fibre-1 direction) and the node indices
-``i``, ``j``. The mould is a quad grid of its height field with its unit ``normal``.
+``i``, ``j``. The mould is a quad grid of its height field with its unit ``normal`` (a
+mesh mould: its own triangles near the net, with its vertex normals).
 """
 
 from __future__ import annotations
@@ -43,7 +44,10 @@ def net_mesh(level: Level, surface) -> meshio.Mesh:
 
 def mould_mesh(surface, positions: np.ndarray) -> meshio.Mesh:
     """The mould's height field as a quad grid over the net's plan extent plus a margin
-    (clipped to the mould's bounds), cells whose four corners lie on the mould."""
+    (clipped to the mould's bounds), cells whose four corners lie on the mould; a mesh mould
+    as its own triangles within the net's box plus the margin."""
+    if hasattr(surface, "triangles"):
+        return _mesh_mould(surface, positions)
     xy = positions[..., :2].reshape(-1, 2)
     xy = xy[np.isfinite(xy).all(-1)]
     lo, hi = xy.min(0), xy.max(0)
@@ -58,6 +62,21 @@ def mould_mesh(surface, positions: np.ndarray) -> meshio.Mesh:
     kept, quads = net_quads(inside)
     normal = surface.normal(X, Y).reshape(-1, 3)[kept]
     return meshio.Mesh(P.reshape(-1, 3)[kept], [("quad", quads)], point_data={"normal": normal})
+
+
+def _mesh_mould(surface, positions: np.ndarray) -> meshio.Mesh:
+    """A mesh mould's triangles with a vertex within the net's 3-D box plus the margin."""
+    v, f, vn = surface.triangles()
+    p = positions.reshape(-1, 3)
+    p = p[np.isfinite(p).all(-1)]
+    lo, hi = p.min(0), p.max(0)
+    pad = MOULD_MARGIN * (hi - lo).max()
+    near = ((v >= lo - pad) & (v <= hi + pad)).all(1)
+    f = f[near[f].any(1)]
+    used = np.unique(f)
+    index = np.full(len(v), -1)
+    index[used] = np.arange(used.size)
+    return meshio.Mesh(v[used], [("triangle", index[f])], point_data={"normal": vn[used]})
 
 
 def _write(mesh: meshio.Mesh, tmp: Path) -> None:

@@ -1,4 +1,5 @@
-"""Moulds as height fields z = h(x, y) (mm), and a registry to build them by name.
+"""Moulds (mm): analytic height fields z = h(x, y) and triangle meshes of any shape, and a
+registry to build them by name.
 
 ``build("hemisphere", radius=80)`` is how a study file's ``[geometry]`` table becomes a
 Surface: ``kind`` picks the class from ``KINDS``, the other keys are its constructor
@@ -12,12 +13,12 @@ import inspect
 from ..errors import ParameterError
 from .analytic import Cone, Cylinder, DoubleDome, Hemisphere, NoseCone, Plate, Saddle
 from .base import Surface
-from .stl import StlSurface, export_stl
+from .mesh import MeshError, MeshSurface, export_stl
 
 #: geometry kind (as written in a study file) -> Surface class
 KINDS: dict[str, type] = {
     cls.name: cls
-    for cls in (Plate, Cylinder, Hemisphere, Cone, NoseCone, DoubleDome, Saddle, StlSurface)
+    for cls in (Plate, Cylinder, Hemisphere, Cone, NoseCone, DoubleDome, Saddle, MeshSurface)
 }
 
 
@@ -50,7 +51,8 @@ __all__ = [
     "NoseCone",
     "DoubleDome",
     "Saddle",
-    "StlSurface",
+    "MeshSurface",
+    "MeshError",
     "export_stl",
     "KINDS",
     "build",

@@ -1,4 +1,6 @@
-"""The mould interface: a height field z = h(x, y) over a domain in the x-y plane.
+"""The mould interface: an implicit surface phi(x, y, z) = 0 seen by the node solver, and a
+height field z = h(x, y) over a domain in the x-y plane (for a mesh: its top surface, the
+first contact of a blank coming down -z) seen by the crossover, plots and exports.
 
 Every method is vectorised over arrays of any (broadcastable) shape. Lengths are mm.
 The tool moves along z and the blank-holder lies in an x-y plane (thesis assumption 3).
@@ -42,6 +44,11 @@ class Surface:
         """(h, dh/dx, dh/dy) in one call."""
         return compiled.evaluate(self.kernel, x, y)
 
+    def gap(self, x, y, z):
+        """The mould as an implicit surface at points (x, y, z) (mm): (phi, dphi/dx, dphi/dy,
+        dphi/dz), phi = 0 on the mould and > 0 on the fabric's side (``compiled.gap``)."""
+        return compiled.evaluate_gap(self.kernel, x, y, z)
+
     def params(self) -> dict:
         """Shape parameters (for netCDF attributes and reports): the constructor's
         arguments, read from the attributes of the same names."""
@@ -53,6 +60,12 @@ class Surface:
         hx, hy = self.gradient(x, y)
         n = np.stack([-hx, -hy, np.ones_like(hx)], axis=-1)
         return n / np.linalg.norm(n, axis=-1, keepdims=True)
+
+    def normal_at(self, points):
+        """Unit outward normal (..., 3) at points (..., 3) mm on the mould: a height field's
+        normal at their plan position (a mesh overrides it: walls have no plan position)."""
+        points = np.asarray(points, float)
+        return self.normal(points[..., 0], points[..., 1])
 
     def describe(self) -> str:
         p = ", ".join(f"{k}={v}" for k, v in self.params().items())

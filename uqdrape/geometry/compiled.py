@@ -13,9 +13,10 @@ CONE         [half, H, cot(half-angle), base radius]
 NOSE_CONE    [half, base radius, cot(half-angle), tip radius, blend radius, sphere centre z]
 DOUBLE_DOME  [half, dome R, base radius, centre distance, blend, depth, rim slope]
 SADDLE       [half, R]
-STL          header [x0, dx, nx, y0, dy, ny, xmin, xmax, ymin, ymax, ntx, nty], then the
-             spline knots tx, ty, the bicubic B-spline coefficients (row-major over
-             (ntx - 4, nty - 4)) and the covered-node mask (nx * ny, 1.0 = covered)
+MESH         a triangle mesh with its bounding-volume hierarchy (``meshquery``)
+
+Every kind is also an implicit surface for the node solver (``gap``, ``surface_normal``,
+``on_mould``): a height field through its closed form, a mesh through its signed distance.
 """
 
 from __future__ import annotations
@@ -25,12 +26,12 @@ import math
 import numpy as np
 
 from .._jit import jit
+from . import meshquery
 
-PLATE, HEMISPHERE, CYLINDER, CONE, NOSE_CONE, DOUBLE_DOME, SADDLE, STL = range(8)
+PLATE, HEMISPHERE, CYLINDER, CONE, NOSE_CONE, DOUBLE_DOME, SADDLE, MESH = range(8)
 
 #: Smallest radius used to form x / r on surfaces of revolution (mm).
 R_EPS = 1e-12
-_STL_HEADER = 12
 
 
 @jit
@@ -59,52 +60,6 @@ def _cap(p, x, y, xc):
         return root - depth, k * dx, k * y
     k = -rim / max(r, R_EPS)
     return (base - r) * rim, k * dx, k * y
-
-
-@jit
-def _bspline_basis(t, n_coef, x):
-    """Cubic B-spline basis at x (clipped to the knot span): first index, values, derivatives."""
-    x = min(max(x, t[3]), t[n_coef])
-    l = min(max(np.searchsorted(t, x, side="right") - 1, 3), n_coef - 1)
-    h = np.zeros(4)
-    d = np.zeros(4)
-    h[0] = 1.0
-    for j in range(1, 4):
-        if j == 3:  # degree-2 values give the derivative of the cubic basis
-            for m in range(4):
-                left = h[m - 1] / (t[l + m] - t[l + m - 3]) if m >= 1 else 0.0
-                right = h[m] / (t[l + m + 1] - t[l + m - 2]) if m <= 2 else 0.0
-                d[m] = 3.0 * (left - right)
-        hh = h[:j].copy()
-        h[0] = 0.0
-        for i in range(1, j + 1):
-            xb = t[l + i]
-            xa = t[l + i - j]
-            w = hh[i - 1] / (xb - xa)
-            h[i - 1] += w * (xb - x)
-            h[i] = w * (x - xa)
-    return l - 3, h, d
-
-
-@jit
-def _stl(p, x, y):
-    ntx, nty = int(p[10]), int(p[11])
-    tx = p[_STL_HEADER:_STL_HEADER + ntx]
-    ty = p[_STL_HEADER + ntx:_STL_HEADER + ntx + nty]
-    c = p[_STL_HEADER + ntx + nty:]
-    my = nty - 4
-    ix, bx, dbx = _bspline_basis(tx, ntx - 4, x)
-    iy, by, dby = _bspline_basis(ty, my, y)
-    h = 0.0
-    hx = 0.0
-    hy = 0.0
-    for a in range(4):
-        for b in range(4):
-            coef = c[(ix + a) * my + iy + b]
-            h += bx[a] * by[b] * coef
-            hx += dbx[a] * by[b] * coef
-            hy += bx[a] * dby[b] * coef
-    return h, hx, hy
 
 
 @jit
@@ -148,32 +103,53 @@ def height_gradient(kind, p, x, y):
         return 0.0, 0.0, 0.0
     if kind == SADDLE:
         return (x * x - y * y) / (2 * p[1]), x / p[1], -y / p[1]
-    return _stl(p, x, y)
+    return meshquery.top(p, x, y)  # MESH
 
 
 @jit
 def inside(kind, p, x, y):
-    """True where plan point (x, y) (mm) lies in the mould's domain."""
+    """True where plan point (x, y) (mm) lies in the mould's domain (a mesh: under its top)."""
+    if kind == MESH:
+        return math.isfinite(meshquery.top(p, x, y)[0])
     if kind == CYLINDER:
         a, c = (x, y) if p[2] == 0.0 else (y, x)
         return abs(a) <= 0.5 * p[1] and abs(c) <= p[3] * p[0]
-    if kind == STL:
-        if not (p[6] <= x <= p[7] and p[8] <= y <= p[9]):
-            return False
-        ix = int(np.rint((x - p[0]) / p[1]))
-        iy = int(np.rint((y - p[3]) / p[4]))
-        ntx, nty = int(p[10]), int(p[11])
-        start = _STL_HEADER + ntx + nty + (ntx - 4) * (nty - 4)
-        return p[start + ix * int(p[5]) + iy] > 0.5
     return abs(x) <= p[0] and abs(y) <= p[0]
 
 
 @jit
-def normal(kind, p, x, y):
-    """Unit upward normal (3,) at (x, y)."""
-    _, hx, hy = height_gradient(kind, p, x, y)
-    s = math.sqrt(hx * hx + hy * hy + 1.0)
-    return np.array([-hx / s, -hy / s, 1.0 / s])
+def gap(kind, p, x, y, z):
+    """The mould as an implicit surface at the point (x, y, z) (mm): (phi, dphi/dx, dphi/dy,
+    dphi/dz), phi = 0 on the mould, > 0 on the side the fabric comes from, its gradient the
+    outward normal (not unit). A height field is phi = z - h(x, y), gradient (-hx, -hy, 1);
+    a mesh its signed distance (``meshquery.signed_distance``)."""
+    if kind == MESH:
+        phi, g = meshquery.signed_distance(p, x, y, z)
+        return phi, g[0], g[1], g[2]
+    h, hx, hy = height_gradient(kind, p, x, y)
+    return z - h, -hx, -hy, 1.0
+
+
+@jit
+def surface_normal(kind, p, x, y, z):
+    """Unit outward normal (3-tuple) of the mould at the surface point (x, y, z) (mm): the
+    tangent plane a node's arm step uses: the normalised gradient of a height field, a mesh's
+    interpolated vertex normal (continuous, so an arm steps as over the smooth part)."""
+    if kind == MESH:
+        return meshquery.normal(p, x, y, z)
+    _, gx, gy, gz = gap(kind, p, x, y, z)
+    s = math.sqrt(gx * gx + gy * gy + gz * gz)
+    return (gx / s, gy / s, gz / s)
+
+
+@jit
+def on_mould(kind, p, x, y, z):
+    """True where the surface point (x, y, z) (mm) lies on the mould (a height field: its
+    plan position inside the domain; a mesh: on it within its tolerance, not on the tangent
+    plane continuing it past an open edge)."""
+    if kind == MESH:
+        return meshquery.on_mesh(p, x, y, z)
+    return inside(kind, p, x, y)
 
 
 @jit
@@ -196,6 +172,36 @@ def evaluate(kernel, x, y):
     h, hx, hy = np.empty(x.size), np.empty(x.size), np.empty(x.size)
     _evaluate_many(kernel[0], kernel[1], x, y, h, hx, hy)
     return h.reshape(shape), hx.reshape(shape), hy.reshape(shape)
+
+
+@jit
+def _gap_many(kind, p, x, y, z, out):
+    for m in range(x.size):
+        out[m, 0], out[m, 1], out[m, 2], out[m, 3] = gap(kind, p, x[m], y[m], z[m])
+
+
+def evaluate_gap(kernel, x, y, z):
+    """(phi, dphi/dx, dphi/dy, dphi/dz) arrays at broadcast points (mm): ``gap`` per point."""
+    x, y, z = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float), np.asarray(z, float))
+    shape = x.shape
+    out = np.empty((x.size, 4))
+    _gap_many(kernel[0], kernel[1], *(np.ascontiguousarray(a).ravel() for a in (x, y, z)), out)
+    return tuple(out[:, c].reshape(shape) for c in range(4))
+
+
+@jit
+def _normal_many(kind, p, x, y, z, out):
+    for m in range(x.size):
+        out[m, 0], out[m, 1], out[m, 2] = surface_normal(kind, p, x[m], y[m], z[m])
+
+
+def evaluate_normal(kernel, points):
+    """``surface_normal`` (..., 3) at points (..., 3) mm."""
+    points = np.asarray(points, float)
+    flat = np.ascontiguousarray(points.reshape(-1, 3))
+    out = np.empty(flat.shape)
+    _normal_many(kernel[0], kernel[1], flat[:, 0].copy(), flat[:, 1].copy(), flat[:, 2].copy(), out)
+    return out.reshape(points.shape)
 
 
 def evaluate_inside(kernel, x, y):

@@ -9,6 +9,7 @@ drawn on the ensemble-mean node positions (x, y in mm).
 
 from __future__ import annotations
 
+import json
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -62,9 +63,28 @@ _LINE_SCALARS = (("plus_mean_shear", PLUS_COLOR, "+ quadrants (i·j > 0)"),
                  ("asymmetry", "black", "asymmetry (plus + minus)"))
 
 
+def blank_view(ds: xr.Dataset) -> bool:
+    """Whether the maps of ``ds`` are drawn on the flat blank: a mesh mould may have walls,
+    whose nodes share plan positions, so its maps put node (i, j) at (i s, j s) instead."""
+    return json.loads(ds.attrs.get("geometry_json", "{}")).get("kind") == "mesh"
+
+
+def map_labels(ds: xr.Dataset) -> tuple[str, str]:
+    """Axis labels of the maps of ``ds`` (see ``blank_view``)."""
+    return ("i · s, flat blank (mm)", "j · s, flat blank (mm)") if blank_view(ds) else ("x (mm)", "y (mm)")
+
+
 def mean_positions(ds: xr.Dataset) -> xr.Dataset:
-    """Ensemble-mean node positions x, y (mm) over the valid realisations, per level."""
-    return ds[["x", "y"]].mean(REALIZATION).compute()
+    """Map positions (mm) of the nodes per level: the ensemble-mean x, y over the valid
+    realisations, or on a mesh mould (``blank_view``) the flat blank's (i s, j s) where the
+    mean is valid."""
+    pos = ds[["x", "y"]].mean(REALIZATION).compute()
+    if blank_view(ds):
+        s = float(ds.attrs["spacing_mm"])
+        valid = np.isfinite(pos["x"])
+        pos["x"] = (ds["i"] * s).broadcast_like(pos["x"]).where(valid)
+        pos["y"] = (ds["j"] * s).broadcast_like(pos["y"]).where(valid)
+    return pos
 
 
 def triangulation(x: np.ndarray, y: np.ndarray, valid: np.ndarray):
@@ -91,7 +111,8 @@ def _map(ds: xr.Dataset, values: xr.DataArray, path, *, norm, cmap, cbar_label: 
         x, y = xy["x"].transpose("i", "j").values, xy["y"].transpose("i", "j").values
         tri, used = triangulation(x, y, np.isfinite(x) & np.isfinite(y) & np.isfinite(v))
         ax.tripcolor(tri, v.flat[used], shading="gouraud", norm=norm, cmap=cmap)
-        ax.set(xlabel="x (mm)", ylabel="y (mm)", aspect="equal", title=force_title(force))
+        xlabel, ylabel = map_labels(ds)
+        ax.set(xlabel=xlabel, ylabel=ylabel, aspect="equal", title=force_title(force))
         m = None if mark is None else mark(force)
         if isinstance(m, str):
             ax.text(0.5, 0.5, m, transform=ax.transAxes, ha="center", va="center", fontsize=11,

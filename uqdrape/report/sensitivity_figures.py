@@ -15,7 +15,7 @@ import numpy as np
 import xarray as xr
 from matplotlib.lines import Line2D
 
-from .ensemble_figures import triangulation, mean_positions
+from .ensemble_figures import blank_view, mean_positions, triangulation
 from ..schema import FORCE
 from .figures import describe, force_title, levels, panels, report_figure, save, suptitle, unit_text
 
@@ -149,5 +149,6 @@ def plot_sensitivity_map(ds: xr.Dataset, maps: xr.Dataset, path, index: str = "S
             ax.set_title(f"{factor}, {force_title(force)}", fontsize=9)
     label = f"{index} of node shear" + (" (-)" if method == "sobol" else " (deg per unit step)")
     fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=axes, shrink=0.8, label=label)
-    suptitle(fig, f"{index} of node shear on the mean net (x-y plan), {describe(ds)}", _design_text(maps))
+    where = "the flat blank" if blank_view(ds) else "the mean net (x-y plan)"
+    suptitle(fig, f"{index} of node shear on {where}, {describe(ds)}", _design_text(maps))
     return save(fig, path)

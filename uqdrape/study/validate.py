@@ -43,7 +43,7 @@ uniform (bounds = [lo, hi]), lognormal (mean, sd of the value itself, as in
 uqdrape.stochastic). A factor overrides its fixed setting in the ensemble; the fixed
 value stays the nominal one.
 
-Paths in the file (stl ``path``, a material card, ``experimental_csv``) are relative to
+Paths in the file (a mesh mould's ``path``, a material card, ``experimental_csv``) are relative to
 the study file and must stay in its folder or below (absolute paths and '..' are refused:
 a study read as data reads nothing its folder does not hold). ``output.directory`` is
 relative to the current working directory, as ``results/<study name>`` is meant to be, and
@@ -193,7 +193,7 @@ def _geometry_section(src: _Source, doc: dict):
     shape_keys = [p for p in sig.parameters if p != "self"]
     t.only(("kind", *shape_keys))
     params = {k: v for k, v in t.data.items() if k != "kind"}
-    if kind == "stl" and "path" in params:
+    if "path" in shape_keys and "path" in params:  # a mould read from a file (kind "mesh")
         params["path"] = str(src.relative_file("geometry.path", params["path"]))
     required = {p: f"geometry.{p}" for p in shape_keys
                 if sig.parameters[p].default is inspect.Parameter.empty and p not in params}

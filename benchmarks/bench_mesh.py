@@ -1,0 +1,104 @@
+"""Mesh moulds: build time, memory and accuracy of the compiled closest-point hierarchy for
+about 1e4, 1e5 and 1e6 triangles, and drape time on a meshed against the analytic
+hemisphere (issue 23).
+
+``python benchmarks/bench_mesh.py [--sizes 1e4 1e5 1e6]`` writes a closed tool (a
+triangulated torus, the same shape at every size) as a binary STL per size and prints per size: faces, the time to read the file, to check and pack it (hierarchy included),
+the packed array's size, the compiled signed-distance query time per point, and the
+accuracy: |phi| at points sampled on the faces (should be round-off) and the largest
+difference of |phi| from a brute-force distance at 200 points off the surface (trimesh's
+point-triangle closest points over every face whose box lies within |phi| of the point:
+the same distance computed another way).
+"""
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from uqdrape.geometry import MeshSurface
+from uqdrape.geometry import mesh as meshmod
+
+
+def _torus(faces: float) -> trimesh.Trimesh:
+    """A torus (R = 200, r = 60 mm) of about ``faces`` triangles."""
+    sections = max(int(round(np.sqrt(faces / 2 / 3))), 4)
+    return trimesh.creation.torus(200.0, 60.0, major_sections=3 * sections, minor_sections=sections)
+
+
+def _brute_distance(tri, point, bound):
+    """Distance (mm) of ``point`` from the triangles (n, 3, 3), searching the faces whose
+    bounding box lies within ``bound`` (an upper bound of the distance) of it."""
+    gap = np.maximum(np.maximum(tri.min(1) - point, point - tri.max(1)), 0.0)
+    near = np.flatnonzero((gap**2).sum(1) <= bound**2 * (1 + 1e-9) + 1e-18)
+    closest = trimesh.triangles.closest_point(tri[near], np.broadcast_to(point, (near.size, 3)))
+    return np.linalg.norm(closest - point, axis=1).min()
+
+
+def drapes():
+    from uqdrape.drape import drape
+    from uqdrape.geometry import Hemisphere, export_stl
+    from uqdrape.material import load_material
+
+    analytic = Hemisphere(100.0)
+    with tempfile.TemporaryDirectory() as folder:
+        meshed = MeshSurface(export_stl(analytic, Path(folder) / "h.stl", half_width=150.0, resolution_mm=1.0))
+    rng = np.random.default_rng(4)
+    cases = {
+        "geodesic 64 x 18 rings": dict(spacing=5.0, rings=18, orientation=rng.uniform(-20, 20, 64),
+                                       crossover=rng.uniform(-5, 5, (64, 2))),
+        "energy 4 x 18 rings": dict(spacing=5.0, rings=18, mode="energy", material=load_material("ebxhd936_like"),
+                                    blankholder_force=[0.0, 126.0, 252.0, 378.0], friction=0.2),
+    }
+    for label, kw in cases.items():
+        spacing, rings = kw.pop("spacing"), kw.pop("rings")
+        times, nets, its = [], [], []
+        for surface in (analytic, meshed):
+            drape(surface, spacing, 2, **{k: v for k, v in kw.items() if k in ("mode", "material")})  # compile
+            t = time.process_time()  # CPU time of one thread: less swayed by a loaded machine than wall time
+            ds = drape(surface, spacing, rings, threads=1, **kw)
+            times.append(time.process_time() - t)
+            nets.append(np.stack([ds.x.values, ds.y.values, ds.z.values], -1))
+            its.append(int(ds.iterations.sum()))
+        gap = np.nanmax(np.linalg.norm(nets[0] - nets[1], axis=-1))
+        print(f"{label}: analytic {times[0]:.3f} s  mesh ({meshed.faces_count:,} faces) {times[1]:.3f} s  "
+              f"ratio {times[1] / times[0]:.2f}  iterations {its[0]} / {its[1]}  max node gap {gap:.3f} mm")
+
+
+def main(sizes):
+    rng = np.random.default_rng(1)
+    with tempfile.TemporaryDirectory() as folder:
+        for n in sizes:
+            mesh = _torus(n)
+            path = Path(folder) / "tool.stl"
+            mesh.export(path)
+            t0 = time.perf_counter()
+            vertices, faces = meshmod._read(path)
+            t1 = time.perf_counter()
+            surface = MeshSurface(path)
+            t2 = time.perf_counter()
+            pack_s = (t2 - t1) - (t1 - t0)  # MeshSurface reads again: its time minus one read
+            read = trimesh.Trimesh(vertices, faces, process=False)  # float32 coordinates, as in the file
+            on, _ = trimesh.sample.sample_surface(read, 20_000, seed=2)
+            surface.gap(on[:10, 0], on[:10, 1], on[:10, 2])  # compile outside the timing
+            t3 = time.perf_counter()
+            phi_on = surface.gap(on[:, 0], on[:, 1], on[:, 2])[0]
+            query_us = (time.perf_counter() - t3) / on.shape[0] * 1e6
+            off = on[:200] + rng.normal(0.0, 5.0, (200, 3))
+            phi = surface.gap(off[:, 0], off[:, 1], off[:, 2])[0]
+            tri = vertices[faces]
+            ref = np.array([_brute_distance(tri, p, abs(f)) for p, f in zip(off, phi)])
+            print(f"faces {faces.shape[0]:>9,}  read {t1 - t0:6.2f} s  check+pack {pack_s:6.2f} s  "
+                  f"array {surface.kernel[1].nbytes / 2**20:7.1f} MiB  query {query_us:5.2f} us/point  "
+                  f"max|phi| on faces {np.abs(phi_on).max():.1e} mm  max||phi| - brute| {np.abs(np.abs(phi) - ref).max():.1e} mm")
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", type=float, nargs="+", default=[1e4, 1e5, 1e6])
+    parser.add_argument("--drape", action="store_true", help="time drapes on a meshed vs the analytic hemisphere")
+    args = parser.parse_args()
+    drapes() if args.drape else main(args.sizes)

@@ -1,0 +1,425 @@
+"""Moulds from triangle meshes (issue 23): the node solver on a mesh's signed distance, the
+closed-form sphere net on triangulated spheres, developables, walls no height field holds,
+the root kept where a circle cuts the surface twice, batching, and bad mesh files.
+Lengths mm, angles degrees."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from uqdrape.drape import kernels
+from uqdrape.geometry import MeshSurface
+
+
+def _save(mesh: trimesh.Trimesh, path) -> str:
+    mesh.export(path)
+    return str(path)
+
+
+# -- the root on the net's own sheet -------------------------------------------------------
+@pytest.fixture(scope="module")
+def thin_plate(tmp_path_factory):
+    """A closed plate 100 x 100 x 1 mm, top face z = 0, bottom face z = -1."""
+    box = trimesh.creation.box(extents=(100.0, 100.0, 1.0))
+    box.apply_translation((0.0, 0.0, -0.5))
+    return MeshSurface(_save(box, tmp_path_factory.mktemp("plate") / "plate.stl"))
+
+
+def test_a_circle_through_a_thin_plate_keeps_the_crossing_on_the_net_s_side(thin_plate):
+    """Circle q(t) = (0, 0, -1.5) + 2 (cos t (1, 0, 0) + sin t (0, 0, 1)): it enters the plate
+    through the bottom face at t = asin(0.25) = 14.5 deg (phi falling: the plate seen from
+    inside) and leaves through the top at t = asin(0.75) = 48.6 deg (phi rising). Facing +t
+    the nearer crossing is skipped for the top; facing -t the bottom is the root."""
+    kind, par = thin_plate.kernel
+    args = (kind, par, (0.0, 0.0, -1.5), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0), 2.0, 1e-10)
+    q, ok, grad = kernels._solve_on_circle(*args, 1.0)
+    assert ok and q == pytest.approx((2.0 * np.cos(np.arcsin(0.75)), 0.0, 0.0), abs=1e-9)
+    assert grad == pytest.approx((0.0, 0.0, 1.0))
+    q, ok, grad = kernels._solve_on_circle(*args, -1.0)
+    assert ok and q == pytest.approx((2.0 * np.cos(np.arcsin(0.25)), 0.0, -1.0), abs=1e-9)
+    assert grad == pytest.approx((0.0, 0.0, -1.0))
+
+
+def test_a_circle_that_only_enters_the_plate_has_no_root(thin_plate):
+    """Circle (0, 0, -3) + 2.5 (cos t (1, 0, 0) + sin t (0, 0, 1)) meets the plate only where it
+    enters its bottom face from below (t = asin(0.8)): no root on a sheet facing +t."""
+    kind, par = thin_plate.kernel
+    args = (kind, par, (0.0, 0.0, -3.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0), 2.5, 1e-10)
+    q, ok, _ = kernels._solve_on_circle(*args, 1.0)
+    assert not ok
+    q, ok, _ = kernels._solve_on_circle(*args, -1.0)
+    assert ok and q == pytest.approx((1.5, 0.0, -1.0), abs=1e-9)
+
+
+# -- the closed-form sphere net on triangulated spheres ----------------------------------
+R_SPHERE, S, RINGS = 100.0, 5.0, 10
+CROSSOVER = (20.0, -10.0)
+
+
+def _positions(ds):
+    return np.stack([ds.x.values, ds.y.values, ds.z.values], axis=-1)
+
+
+def _great_circle_arms():
+    """Closed form of the geodesic arms on the sphere |p| = R from CROSSOVER, fibre 1 at 17 deg:
+    node k of an arm lies at angle k * 2 asin(s / 2R) along the great circle leaving the
+    crossover in the blank's direction laid on the tangent plane (``first_directions``)."""
+    x0, y0 = CROSSOVER
+    p0 = np.array([x0, y0, np.sqrt(R_SPHERE**2 - x0**2 - y0**2)])
+    n = p0 / R_SPHERE
+    alpha = 2 * np.arcsin(S / (2 * R_SPHERE))
+    arms = {}
+    for name, plan in (("+i", 17.0), ("+j", 107.0), ("-i", 197.0), ("-j", 287.0)):
+        v = np.array([np.cos(np.radians(plan)), np.sin(np.radians(plan)), 0.0])
+        w = -(n @ v)
+        d = np.array([v[0] + n[0] * w / (1 + n[2]), v[1] + n[1] * w / (1 + n[2]), w])
+        d /= np.linalg.norm(d)
+        k = np.arange(RINGS + 1)[:, None]
+        arms[name] = R_SPHERE * (np.cos(k * alpha) * n + np.sin(k * alpha) * d)
+    return arms
+
+
+@pytest.fixture(scope="module")
+def spheres(tmp_path_factory):
+    """Icospheres of radius R, subdivisions 3, 4, 5: {mean edge length (mm): MeshSurface}."""
+    folder = tmp_path_factory.mktemp("spheres")
+    out = {}
+    for sub in (3, 4, 5):
+        ball = trimesh.creation.icosphere(subdivisions=sub, radius=R_SPHERE)
+        out[float(ball.edges_unique_length.mean())] = MeshSurface(_save(ball, folder / f"ico{sub}.stl"))
+    return out
+
+
+def test_sphere_net_on_meshes_converges_at_second_order(spheres):
+    """The geodesic net on triangulated spheres against the closed form (arms) and the analytic
+    sphere's net (every node; that net keeps its segments and lies on the sphere to 1e-9 mm,
+    tests/test_drape.py). Measured node errors 0.486, 0.118, 0.032 mm at edges 15.1, 7.5,
+    3.8 mm: order 2.0 and 1.9 (the mesh lies within h^2 / 6R of the sphere)."""
+    from uqdrape.drape import drape
+    from uqdrape.geometry import Hemisphere
+
+    exact = _positions(drape(Hemisphere(R_SPHERE), S, RINGS, orientation=17.0, crossover=CROSSOVER))[0]
+    arms = _great_circle_arms()
+    n = RINGS
+    index = {"+i": lambda k: (n + k, n), "+j": lambda k: (n, n + k), "-i": lambda k: (n - k, n),
+             "-j": lambda k: (n, n - k)}
+    errors = []
+    for h, surface in spheres.items():
+        ds = drape(surface, S, RINGS, orientation=17.0, crossover=CROSSOVER)
+        assert (ds.status == 0).all()
+        P = _positions(ds)[0]
+        arm_error = max(np.linalg.norm(P[tuple(np.array([index[a](k) for k in range(n + 1)]).T)] - arms[a],
+                                       axis=-1).max() for a in arms)
+        net_error = np.linalg.norm(P - exact, axis=-1).max()
+        assert arm_error <= net_error * (1 + 1e-9) + 1e-9  # the arms are part of the net
+        errors.append((h, net_error))
+    (h1, e1), (h2, e2), (h3, e3) = errors
+    orders = np.log(e1 / e2) / np.log(h1 / h2), np.log(e2 / e3) / np.log(h2 / h3)
+    assert min(orders) > 1.7, (errors, orders)
+    assert e3 < 0.04
+
+
+def test_nodes_lie_on_the_mesh_and_segments_keep_their_length(spheres):
+    """Random segment lengths (2 % scatter): every chord equals its length to 1e-9 mm, every
+    placed node is on the mesh (|signed distance| <= 1e-9 mm, the root tolerance 1e-11 size)."""
+    from uqdrape.drape import drape
+
+    surface = spheres[min(spheres)]
+    rng = np.random.default_rng(3)
+    n = 12
+    seg_i = S * (1 + 0.02 * rng.standard_normal((2 * n, 2 * n + 1)))
+    seg_j = S * (1 + 0.02 * rng.standard_normal((2 * n + 1, 2 * n)))
+    ds = drape(surface, S, n, orientation=30.0, crossover=(5.0, 8.0), seg_i=seg_i, seg_j=seg_j)
+    assert (ds.status == 0).all()
+    P = _positions(ds)[0]
+    assert np.abs(np.linalg.norm(P[1:] - P[:-1], axis=-1) - seg_i).max() <= 1e-9
+    assert np.abs(np.linalg.norm(P[:, 1:] - P[:, :-1], axis=-1) - seg_j).max() <= 1e-9
+    assert surface.distance(P).max() <= 1e-9
+
+
+# -- developables --------------------------------------------------------------------------
+def _grid_sheet(xs, ys, z):
+    """An open sheet facing +z over the plan grid xs x ys, heights z(X, Y)."""
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    v = np.stack([X, Y, z(X, Y)], -1).reshape(-1, 3)
+    node = np.arange(X.size).reshape(X.shape)
+    a, b, c, d = node[:-1, :-1].ravel(), node[1:, :-1].ravel(), node[1:, 1:].ravel(), node[:-1, 1:].ravel()
+    return trimesh.Trimesh(v, np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)]), process=False)
+
+
+def test_a_meshed_plate_and_cylinder_drape_without_shear(tmp_path):
+    """A plate (a 21 x 21 grid of triangles, at 30 deg) and a half-cylinder of radius 100 mm
+    in 96 facets with the net along its axis: the shear is round-off (<= 1e-9 deg)."""
+    from uqdrape.drape import drape
+
+    plate = MeshSurface(_save(_grid_sheet(np.linspace(-100, 100, 21), np.linspace(-100, 100, 21),
+                                          lambda X, Y: 0 * X), tmp_path / "plate.stl"))
+    ds = drape(plate, S, 12, orientation=30.0, crossover=(3.0, -4.0))
+    assert (ds.status == 0).all() and float(np.abs(ds.shear).max()) <= 1e-9
+    phi = np.linspace(-0.45 * np.pi, 0.45 * np.pi, 97)  # facets of 0.9 pi R / 96 = 2.9 mm
+    Xp, Pp = np.meshgrid(np.linspace(-200, 200, 41), phi, indexing="ij")
+    v = np.stack([Xp, 100 * np.sin(Pp), 100 * np.cos(Pp)], -1).reshape(-1, 3)
+    sheet = _grid_sheet(np.linspace(-200, 200, 41), phi, lambda X, Y: 0 * X)
+    cylinder = MeshSurface(_save(trimesh.Trimesh(v, sheet.faces, process=False), tmp_path / "cyl.stl"))
+    ds = drape(cylinder, S, 12, crossover=[(0.0, 0.0), (20.0, 30.0)])
+    assert (ds.status == 0).all() and float(np.abs(ds.shear).max()) <= 1e-9
+
+
+# -- walls no height field holds -----------------------------------------------------------
+def test_nodes_go_down_a_vertical_wall(tmp_path):
+    """A box 101 x 101 x 60 mm (top z = 0, walls at x, y = +-50.5): the +i arm from the top's
+    centre crosses the edge and runs down the wall x = 50.5 at constant plan position, z
+    falling by the spacing per node, as no height field z = h(x, y) can hold."""
+    from uqdrape.drape import drape
+
+    box = trimesh.creation.box(extents=(101.0, 101.0, 60.0))
+    box.apply_translation((0.0, 0.0, -30.0))
+    surface = MeshSurface(_save(box, tmp_path / "box.stl"))
+    n = 16
+    ds = drape(surface, S, n)
+    P, st = _positions(ds)[0], ds.status.values[0]
+    arm = P[n:, n]  # nodes (i, 0), i = 0 .. n
+    assert (st[n:, n] == 0).all()
+    assert np.abs(arm[:11, 2]).max() <= 1e-12  # on the top up to x = 50 mm
+    wall = arm[12:]
+    np.testing.assert_allclose(wall[:, 0], 50.5, atol=1e-9)
+    np.testing.assert_allclose(wall[:, 1], 0.0, atol=1e-9)
+    np.testing.assert_allclose(np.diff(wall[:, 2]), -S, atol=1e-9)
+    on_walls = (st == 0) & (np.abs(np.abs(P[..., 0]) - 50.5) < 1e-9) & (P[..., 2] < -1.0)
+    assert on_walls.sum() >= 4 * 5  # every arm and fill nodes beside them hang on the walls
+    assert surface.distance(P[st == 0]).max() <= 1e-9
+
+
+# -- batch == single -----------------------------------------------------------------------
+@pytest.mark.parametrize("mode", ["geodesic", "energy"])
+def test_a_batch_on_a_mesh_gives_the_numbers_of_single_calls(spheres, mode):
+    from uqdrape.drape import drape
+    from uqdrape.material import load_material
+
+    surface = spheres[min(spheres)]
+    kwargs = dict(mode=mode, material=load_material("ebxhd936_like")) if mode == "energy" else {}
+    orientation, crossover = [0.0, 25.0, -10.0], [(0.0, 0.0), (3.0, -2.0), (-8.0, 5.0)]
+    batch = drape(surface, S, 6, orientation=orientation, crossover=crossover, blankholder_force=50.0, **kwargs)
+    for r in range(3):
+        one = drape(surface, S, 6, orientation=orientation[r], crossover=crossover[r], blankholder_force=50.0,
+                    **kwargs)
+        for name in ("x", "y", "z", "shear", "status"):
+            np.testing.assert_array_equal(batch[name].values[r], one[name].values[0], err_msg=name)
+
+
+# -- bad mesh files ------------------------------------------------------------------------
+def _write_bad(tmp_path):
+    """(label, file, words the one-line message must hold) per broken mesh."""
+    cases = []
+    empty = tmp_path / "empty.stl"
+    empty.write_bytes(b"")
+    cases.append(("empty", empty, "is empty"))
+    text = tmp_path / "text.stl"
+    text.write_text("this is not a mesh\n")
+    cases.append(("text, not a mesh", text, "holds no triangles"))
+    garbage = tmp_path / "garbage.ply"
+    garbage.write_bytes(bytes(range(256)) * 4)
+    cases.append(("bytes, not a mesh", garbage, "cannot read"))
+    box = trimesh.creation.box(extents=(10.0, 10.0, 10.0))
+    degenerate = box.copy()
+    degenerate.vertices[degenerate.faces[0, 1]] = degenerate.vertices[degenerate.faces[0, 0]]
+    cases.append(("degenerate", _save(degenerate, tmp_path / "degenerate.obj"), "degenerate"))
+    nan = box.copy()
+    nan.vertices[0, 2] = np.nan
+    cases.append(("non-finite", _save(nan, tmp_path / "nan.obj"), "non-finite"))
+    huge = tmp_path / "huge.stl"
+    _save(trimesh.creation.box(extents=(1e3, 1e3, 1e3)), huge)
+    cases.append(("absurd size in m", huge, "check units"))
+    flipped = box.copy()
+    flipped.faces[0] = flipped.faces[0, ::-1]
+    cases.append(("inconsistent normals", _save(flipped, tmp_path / "flipped.obj"), "inconsistent normals"))
+    fin = trimesh.Trimesh(np.array([[0, 0, 0], [10, 0, 0], [0, 10, 0], [0, -10, 0], [0, 0, 10.0]]),
+                          np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]]), process=False)
+    cases.append(("non-manifold", _save(fin, tmp_path / "fin.obj"), "not manifold"))
+    points = tmp_path / "points.obj"
+    points.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
+    cases.append(("no faces", points, "no triangles"))
+    cases.append(("missing", tmp_path / "missing.stl", "does not exist"))
+    return [(label, str(path), words) for label, path, words in cases]
+
+
+def test_bad_mesh_files_give_one_line_and_exit_2(tmp_path, capsys):
+    from uqdrape.cli import main
+
+    study = (tmp_path / "study.toml")
+    for label, path, words in _write_bad(tmp_path):
+        units = ["--param", "units=m"] if "huge" in path else []
+        rc = main(["drape", "--geometry", "mesh", "--param", f"path={path}", *units, "--rings", "2",
+                   "--out", str(tmp_path / "out" / "d")])
+        err = capsys.readouterr().err.strip()
+        assert rc == 2 and len(err.splitlines()) == 1, (label, err)
+        assert path in err and words in err, (label, err)
+        study.write_text(STUDY.format(path=path.replace("\\", "/"), units="m" if "huge" in path else "mm"))
+        rc = main(["validate", str(study)])
+        err = capsys.readouterr().err.strip()
+        words = "file not found" if label == "missing" else words  # the validator's own check
+        assert rc == 2 and len(err.splitlines()) == 1 and words in err and "geometry.path" in err, (label, err)
+
+
+STUDY = """[study]
+name = "mesh"
+seed = 1
+realizations = 2
+
+[geometry]
+kind = "mesh"
+path = "{path}"
+units = "{units}"
+
+[fabric]
+material = "generic_woven"
+spacing_mm = 5.0
+
+[process]
+blankholder_force_N = 0.0
+friction = 0.2
+
+[solver]
+mode = "geodesic"
+rings = 4
+"""
+
+
+def test_units_and_press_direction_bring_a_cad_tool_into_the_solver_frame(tmp_path):
+    """The wall box written in metres with its top facing +x (CAD vertices (z, y, -x) / 1000,
+    the shortest turn of +x onto +z undone) drapes as the box in mm with its top up."""
+    from uqdrape.drape import drape
+
+    box = trimesh.creation.box(extents=(101.0, 101.0, 60.0))
+    box.apply_translation((0.0, 0.0, -30.0))
+    v = np.asarray(box.vertices)
+    cad = trimesh.Trimesh(np.stack([v[:, 2], v[:, 1], -v[:, 0]], 1) / 1000.0, box.faces, process=False)
+    turned = MeshSurface(_save(cad, tmp_path / "cad.stl"), units="m", press_direction=(1.0, 0.0, 0.0))
+    plain = MeshSurface(_save(box, tmp_path / "box.stl"))
+    assert turned.bounds == pytest.approx(plain.bounds, abs=1e-4)  # STL float32 in metres: 1e-4 mm
+    a, b = drape(turned, S, 11), drape(plain, S, 11)  # to the walls, short of the corners
+    assert float(b.x.max()) == pytest.approx(50.5)
+    np.testing.assert_array_equal(a.status.values, b.status.values)
+    assert np.nanmax(np.abs(_positions(a) - _positions(b))) < 1e-3
+
+
+def test_a_c_spar_drapes_without_shear_along_its_axis():
+    """The shipped C-spar (studies/meshes/cspar.stl: web, 10 mm fillets, 90 deg flanges, a
+    developable) with the net along the spar: every node placed, the shear round-off, the
+    nodes beyond the fillets on the vertical flanges. At +-45 deg the 5 mm net's
+    discretisation over the fillets shears it by 0.88 deg (0.24 deg at 2.5 mm, measured)."""
+    from pathlib import Path
+
+    from uqdrape.drape import drape
+
+    surface = MeshSurface(Path(__file__).resolve().parent.parent / "studies" / "meshes" / "cspar.stl")
+    ds = drape(surface, S, 20)
+    P = _positions(ds)[0]
+    assert (ds.status == 0).all() and float(np.abs(ds.shear).max()) <= 1e-9
+    flange = np.abs(np.abs(P[..., 1]) - 50.0) < 1e-9
+    assert flange.sum() >= 2 * 41 * 4 and P[..., 2][flange].min() < -50.0
+    assert surface.distance(P.reshape(-1, 3)).max() <= 1e-11 * surface.size  # the root tolerance, 2e-9 mm
+
+
+def test_a_node_on_a_sharp_edge_steps_over_it(tmp_path):
+    """The issue's box, 100 x 100 x 60 mm, draped from its top's centre at 5 mm: node (10, 0)
+    lies on the edge x = 50 itself, where the next node is a right angle round; the edge's
+    blended tangent plane finds it, and the arm runs down the wall to its foot. The 41 x 41
+    net places 76 % of its nodes (the height-field STL kind placed 26 %, stopping at the
+    edge); the rest are cells that cannot pass the box's corners without folding."""
+    from uqdrape.drape import drape
+
+    box = trimesh.creation.box(extents=(100.0, 100.0, 60.0))
+    box.apply_translation((0.0, 0.0, -30.0))
+    ds = drape(MeshSurface(_save(box, tmp_path / "box.stl")), S, 20)
+    P = _positions(ds)[0]
+    n = 20
+    np.testing.assert_allclose(P[n + 10:, n], np.column_stack([np.full(11, 50.0), np.zeros(11),
+                                                                 -S * np.arange(11)]), atol=1e-9)
+    assert float((ds.status == 0).mean()) > 0.75
+
+
+def test_exports_of_a_mesh_drape_follow_the_walls(tmp_path):
+    """VTK export of the box drape: fibre directions tangent to the mesh on its walls too
+    (|d . n| at round-off, the normal being the mesh's own, not a height field's) and the
+    mould written as the mesh's triangles."""
+    import meshio
+
+    from uqdrape.drape import drape
+    from uqdrape.export import export_vtk, levels, open_result
+
+    box = trimesh.creation.box(extents=(100.0, 100.0, 60.0))
+    box.apply_translation((0.0, 0.0, -30.0))
+    surface = MeshSurface(_save(box, tmp_path / "box.stl"))
+    ds = drape(surface, S, 14)
+    ds.to_netcdf(tmp_path / "box.nc")
+    result, ensemble = open_result(tmp_path / "box.nc")
+    (tmp_path / "out").mkdir()
+    export_vtk(levels(result, ensemble), result, tmp_path / "out" / "box")
+    net = meshio.read(tmp_path / "out" / "box.vtu")
+    wall = np.abs(net.points[:, 0]) > 50.0 - 1e-9
+    assert wall.sum() >= 4 * 2  # the arms' wall nodes and their neighbours
+    n = surface.normal_at(net.points)
+    for name in ("fibre1", "fibre2"):
+        d = net.point_data[name]
+        assert np.abs((d * n).sum(1)).max() < 1e-12, name
+    mould = meshio.read(tmp_path / "out" / "box-mould.vtu")
+    # every face with a corner near the net: all but the bottom two (z = -60, far below it)
+    assert mould.cells[0].type == "triangle" and len(mould.cells[0].data) == 10
+
+
+def test_report_maps_of_a_mesh_mould_are_drawn_on_the_flat_blank(tmp_path):
+    """Wall nodes share plan positions, so the maps of a mesh drape put node (i, j) at
+    (i s, j s) of the flat blank; a height field's maps keep the mean plan positions."""
+    from uqdrape.drape import drape
+    from uqdrape.geometry import Hemisphere
+    from uqdrape.report.ensemble_figures import map_labels, mean_positions
+
+    box = trimesh.creation.box(extents=(100.0, 100.0, 60.0))
+    box.apply_translation((0.0, 0.0, -30.0))
+    ds = drape(MeshSurface(_save(box, tmp_path / "box.stl")), S, 14)
+    pos = mean_positions(ds)
+    valid = ds.status.values[0] == 0
+    ii, jj = np.meshgrid(ds.i.values, ds.j.values, indexing="ij")
+    np.testing.assert_array_equal(pos["x"].values[valid], S * ii[valid])
+    np.testing.assert_array_equal(pos["y"].values[valid], S * jj[valid])
+    assert np.isnan(pos["x"].values[~valid]).all() and "flat blank" in map_labels(ds)[0]
+    plain = drape(Hemisphere(100.0), S, 4)
+    np.testing.assert_array_equal(mean_positions(plain)["x"].values, plain.x.values[0])
+    assert map_labels(plain) == ("x (mm)", "y (mm)")
+
+
+@pytest.mark.slow  # ~30 s on the loaded 2-core machine: starts two worker processes
+def test_a_mesh_study_gives_the_same_numbers_in_two_processes_and_after_a_resume(tmp_path):
+    """The C-spar study, cut to 6 energy drapes of 8 rings: run here in one chunk, by two
+    worker processes in chunks of 2 (each worker reads the mesh itself), and again after a
+    chunk file is deleted (resume): the same ensemble to the last bit."""
+    import dataclasses
+    from pathlib import Path
+
+    import xarray as xr
+
+    from uqdrape.ensemble import open_ensemble
+    from uqdrape.study import load_study
+    from uqdrape.workflow import run_study
+
+    root = Path(__file__).resolve().parent.parent
+    text = (root / "studies" / "cspar-misalignment.toml").read_text()
+    text = text.replace('path = "meshes/cspar.stl"', f'path = "{(root / "studies" / "meshes" / "cspar.stl").as_posix()}"')
+    text = text.replace("realizations = 16", "realizations = 6").replace("rings = 20", "rings = 8")
+    (tmp_path / "cspar.toml").write_text(text)
+    study = load_study(tmp_path / "cspar.toml")
+
+    def ensemble(folder, **kw):
+        moved = dataclasses.replace(study, output_dir=tmp_path / folder)
+        with open_ensemble(run_study(moved, progress=False, **kw)) as ds:
+            return ds.drop_attrs(deep=False).load()
+
+    one = ensemble("one", scheduler="synchronous", chunk_size=64)
+    two = ensemble("two", chunk_size=2, workers=2)
+    xr.testing.assert_identical(one, two)
+    chunk = sorted((tmp_path / "two" / "chunks").glob("*.nc"))[1]
+    chunk.unlink()
+    xr.testing.assert_identical(one, ensemble("two", chunk_size=2, workers=1))

@@ -1,0 +1,306 @@
+"""Compiled queries of a triangle-mesh mould (lengths mm): closest point on a bounding-volume
+hierarchy, the signed distance that is the mesh's implicit function, its smooth normal and
+the vertical ray that finds the top surface.
+
+The whole mesh travels as one float64 array (the ``params`` of ``compiled``'s kind MESH),
+built by ``uqdrape.geometry.mesh``: a header, then
+
+V    vertices (nv, 3)
+F    vertex indices per face (nf, 3), in BVH order; a corner whose vertex normal strays
+     from its face's normal by more than the crease angle is stored as -(index + 1) and
+     takes the face normal (a sharp edge keeps its two normals)
+NB   the face across edge k = (corner k, corner k + 1) per face (nf, 3); -1 on a boundary
+VN   angle-weighted unit vertex normals (nv, 3): pseudo-normals for the sign and the
+     smooth normal at corners that are not creased
+VB   1.0 for a vertex on a boundary edge (nv,)
+BOX  node boxes (2 L - 1, 6) [xmin, ymin, zmin, xmax, ymax, zmax] of a complete binary tree
+     in heap order (children of node i: 2 i + 1, 2 i + 2); leaf l (node L - 1 + l) holds
+     faces LEAF l .. LEAF (l + 1) - 1; padding leaves are empty (+inf, -inf)
+
+Indices are stored as floats (exact below 2**53). The signed distance is phi = (p - c) . n
+inside a face's region (c the closest point, n the face normal), +-|p - c| with the sign of
+the angle-weighted pseudo-normal at an edge or vertex (Baerentzen & Aanaes 2005), and the
+height over the face's plane where the closest point lies on the mesh's open boundary, so
+a sheet is continued by its tangent plane past its edge (nodes placed there are off the
+mould, as past an analytic mould's domain).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._jit import jit
+
+#: Header slots of the packed mesh array: counts, offsets, the on-mesh tolerance (mm), the
+#: mesh's size (mm), cos(crease angle) and the edge blend half-width (mm).
+NV, NF, LEAVES, OFF_V, OFF_F, OFF_NB, OFF_VN, OFF_VB, OFF_BOX, ON_TOL, SCALE, COS_CREASE, EDGE_BLEND = range(13)
+HEADER = 13
+#: Faces per BVH leaf.
+LEAF = 4
+#: Bound on the BVH depth (a complete tree of up to 2**40 leaves).
+_STACK = 96
+
+
+@jit
+def _vertex(p, i):
+    o = int(p[OFF_V]) + 3 * i
+    return (p[o], p[o + 1], p[o + 2])
+
+
+@jit
+def _corner(p, f, k):
+    """Vertex index of corner k of face f, and whether that corner is creased."""
+    c = int(p[int(p[OFF_F]) + 3 * f + k])
+    return (-c - 1, True) if c < 0 else (c, False)
+
+
+@jit
+def _face(p, f):
+    a = _vertex(p, _corner(p, f, 0)[0])
+    b = _vertex(p, _corner(p, f, 1)[0])
+    c = _vertex(p, _corner(p, f, 2)[0])
+    return a, b, c
+
+
+@jit
+def _sub(a, b):
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+@jit
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@jit
+def _face_normal(p, f):
+    a, b, c = _face(p, f)
+    e1, e2 = _sub(b, a), _sub(c, a)
+    n = (e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0])
+    s = math.sqrt(_dot(n, n))
+    return (n[0] / s, n[1] / s, n[2] / s)
+
+
+@jit
+def _closest_on_triangle(q, a, b, c):
+    """Closest point of triangle abc to q (Ericson, Real-Time Collision Detection 5.1.5):
+    (point, barycentric weights of a, b, c, region) with region 0 the face, 1 + k corner k,
+    4 + k edge k (corner k to corner k + 1)."""
+    ab, ac, ap = _sub(b, a), _sub(c, a), _sub(q, a)
+    d1, d2 = _dot(ab, ap), _dot(ac, ap)
+    if d1 <= 0.0 and d2 <= 0.0:
+        return a, (1.0, 0.0, 0.0), 1
+    bp = _sub(q, b)
+    d3, d4 = _dot(ab, bp), _dot(ac, bp)
+    if d3 >= 0.0 and d4 <= d3:
+        return b, (0.0, 1.0, 0.0), 2
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        v = d1 / (d1 - d3)
+        return (a[0] + v * ab[0], a[1] + v * ab[1], a[2] + v * ab[2]), (1.0 - v, v, 0.0), 4
+    cp = _sub(q, c)
+    d5, d6 = _dot(ab, cp), _dot(ac, cp)
+    if d6 >= 0.0 and d5 <= d6:
+        return c, (0.0, 0.0, 1.0), 3
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        w = d2 / (d2 - d6)
+        return (a[0] + w * ac[0], a[1] + w * ac[1], a[2] + w * ac[2]), (1.0 - w, 0.0, w), 6
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        return (b[0] + w * (c[0] - b[0]), b[1] + w * (c[1] - b[1]), b[2] + w * (c[2] - b[2])), (0.0, 1.0 - w, w), 5
+    denom = 1.0 / (va + vb + vc)
+    v, w = vb * denom, vc * denom
+    return ((a[0] + ab[0] * v + ac[0] * w, a[1] + ab[1] * v + ac[1] * w, a[2] + ab[2] * v + ac[2] * w),
+            (1.0 - v - w, v, w), 0)
+
+
+@jit
+def _box_distance2(p, node, q):
+    o = int(p[OFF_BOX]) + 6 * node
+    s = 0.0
+    for k in range(3):
+        d = max(p[o + k] - q[k], 0.0, q[k] - p[o + 3 + k])
+        s += d * d
+    return s
+
+
+@jit
+def closest(p, x, y, z):
+    """Closest point of the mesh to (x, y, z): (face, point, barycentric weights, region,
+    squared distance); ties go to the face met first in a fixed traversal order (nearer
+    child box first); face -1 for a non-finite point."""
+    if not math.isfinite(x + y + z):
+        return -1, (math.nan, math.nan, math.nan), (0.0, 0.0, 0.0), 0, math.nan
+    q = (x, y, z)
+    leaves = int(p[LEAVES])
+    nf = int(p[NF])
+    stack = np.empty(_STACK, np.int64)
+    bound = np.empty(_STACK)  # squared box distance of each stacked node
+    stack[0], bound[0] = 0, 0.0
+    top = 1
+    best, best_f, best_c, best_w, best_r = math.inf, -1, (math.nan, math.nan, math.nan), (0.0, 0.0, 0.0), 0
+    while top > 0:
+        top -= 1
+        node = stack[top]
+        if bound[top] >= best:
+            continue
+        if node >= leaves - 1:
+            first = (node - (leaves - 1)) * LEAF
+            for f in range(first, min(first + LEAF, nf)):
+                a, b, c = _face(p, f)
+                pt, w, region = _closest_on_triangle(q, a, b, c)
+                d = _sub(q, pt)
+                d2 = _dot(d, d)
+                if d2 < best:
+                    best, best_f, best_c, best_w, best_r = d2, f, pt, w, region
+            continue
+        left, right = 2 * node + 1, 2 * node + 2
+        dl, dr = _box_distance2(p, left, q), _box_distance2(p, right, q)
+        if dl <= dr:  # the nearer child is popped first
+            stack[top], bound[top], stack[top + 1], bound[top + 1] = right, dr, left, dl
+        else:
+            stack[top], bound[top], stack[top + 1], bound[top + 1] = left, dl, right, dr
+        top += 2
+    return best_f, best_c, best_w, best_r, best
+
+
+@jit
+def _on_boundary(p, f, region):
+    """Whether the closest feature (region of face f) lies on the mesh's open boundary."""
+    if region >= 4:
+        return p[int(p[OFF_NB]) + 3 * f + region - 4] < 0.0
+    if region >= 1:
+        return p[int(p[OFF_VB]) + _corner(p, f, region - 1)[0]] > 0.5
+    return False
+
+
+@jit
+def signed_distance(p, x, y, z):
+    """(phi, gradient 3-tuple) of the mesh at (x, y, z): the signed distance (> 0 outside, on
+    the normals' side) and its gradient, as set out in the module docstring."""
+    f, c, _, region, d2 = closest(p, x, y, z)
+    if f < 0:
+        return math.nan, (math.nan, math.nan, math.nan)
+    n = _face_normal(p, f)
+    diff = (x - c[0], y - c[1], z - c[2])
+    if region == 0 or _on_boundary(p, f, region):
+        return _dot(diff, n), n
+    if region >= 4:
+        g = int(p[int(p[OFF_NB]) + 3 * f + region - 4])
+        m = _face_normal(p, g)
+        pseudo = (n[0] + m[0], n[1] + m[1], n[2] + m[2])
+    else:
+        o = int(p[OFF_VN]) + 3 * _corner(p, f, region - 1)[0]
+        pseudo = (p[o], p[o + 1], p[o + 2])
+    sign = 1.0 if _dot(diff, pseudo) >= 0.0 else -1.0
+    d = math.sqrt(d2)
+    if d > 1e-9 * p[SCALE]:
+        return sign * d, (sign * diff[0] / d, sign * diff[1] / d, sign * diff[2] / d)
+    s = math.sqrt(_dot(pseudo, pseudo))
+    return sign * d, (pseudo[0] / s, pseudo[1] / s, pseudo[2] / s)
+
+
+@jit
+def _smooth_normal(p, f, w):
+    """Unit normal at barycentric weights w of face f: the corners' normals (vertex normal,
+    or the face normal at a creased corner) interpolated."""
+    nf = _face_normal(p, f)
+    s0 = s1 = s2 = 0.0
+    for k in range(3):
+        v, creased = _corner(p, f, k)
+        if creased:
+            m = nf
+        else:
+            o = int(p[OFF_VN]) + 3 * v
+            m = (p[o], p[o + 1], p[o + 2])
+        s0 += w[k] * m[0]
+        s1 += w[k] * m[1]
+        s2 += w[k] * m[2]
+    s = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+    return (s0 / s, s1 / s, s2 / s)
+
+
+@jit
+def normal(p, x, y, z):
+    """Unit normal of the mesh at its point closest to (x, y, z): the interpolated normal,
+    turned towards the bisector of a sharp edge (faces meeting beyond the crease angle) within
+    EDGE_BLEND of it, as if the edge were rounded for the tangent plane alone, so that a node
+    on or next to the edge steps over it (the next node may lie a right angle round)."""
+    f, _, w, _, _ = closest(p, x, y, z)
+    if f < 0:
+        return (math.nan, math.nan, math.nan)
+    n = _smooth_normal(p, f, w)
+    nf = _face_normal(p, f)
+    a, b, c = _face(p, f)
+    e1, e2 = _sub(b, a), _sub(c, a)
+    cr = (e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0])
+    area2 = math.sqrt(_dot(cr, cr))
+    corners = (a, b, c)
+    best, near = math.inf, -1
+    for k in range(3):  # edge k runs from corner k to k + 1; its distance is w[k + 2] times its height
+        g = int(p[int(p[OFF_NB]) + 3 * f + k])
+        if g < 0 or _dot(nf, _face_normal(p, g)) >= p[COS_CREASE]:
+            continue
+        e = _sub(corners[(k + 1) % 3], corners[k])
+        d = w[(k + 2) % 3] * area2 / math.sqrt(_dot(e, e))
+        if d < best:
+            best, near = d, g
+    if near < 0 or best >= p[EDGE_BLEND]:
+        return n
+    m = _face_normal(p, near)
+    u = best / p[EDGE_BLEND]
+    s0, s1, s2 = (1 - u) * 0.5 * (nf[0] + m[0]) + u * n[0], (1 - u) * 0.5 * (nf[1] + m[1]) + u * n[1], \
+        (1 - u) * 0.5 * (nf[2] + m[2]) + u * n[2]
+    s = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+    return (s0 / s, s1 / s, s2 / s)
+
+
+@jit
+def on_mesh(p, x, y, z):
+    """True where (x, y, z) lies on the mesh, within the stored tolerance (mm)."""
+    return closest(p, x, y, z)[4] <= p[ON_TOL] * p[ON_TOL]
+
+
+@jit
+def top(p, x, y):
+    """The highest point of the mesh above plan point (x, y): (z, dz/dx, dz/dy) from the smooth
+    normal there, NaN where no face covers (x, y) in plan (faces edge-on in plan are skipped)."""
+    leaves = int(p[LEAVES])
+    nf = int(p[NF])
+    ob = int(p[OFF_BOX])
+    stack = np.empty(_STACK, np.int64)
+    stack[0] = 0
+    n = 1
+    best, best_f, best_w = -math.inf, -1, (0.0, 0.0, 0.0)
+    while n > 0:
+        n -= 1
+        node = stack[n]
+        o = ob + 6 * node
+        if not (p[o] <= x <= p[o + 3] and p[o + 1] <= y <= p[o + 4] and p[o + 5] > best):
+            continue
+        if node < leaves - 1:
+            stack[n], stack[n + 1] = 2 * node + 1, 2 * node + 2
+            n += 2
+            continue
+        first = (node - (leaves - 1)) * LEAF
+        for f in range(first, min(first + LEAF, nf)):
+            a, b, c = _face(p, f)
+            det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])
+            if abs(det) <= 1e-14 * p[SCALE] * p[SCALE]:
+                continue
+            wb = ((x - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (y - a[1])) / det
+            wc = ((b[0] - a[0]) * (y - a[1]) - (x - a[0]) * (b[1] - a[1])) / det
+            wa = 1.0 - wb - wc
+            if wa >= -1e-12 and wb >= -1e-12 and wc >= -1e-12:
+                zz = wa * a[2] + wb * b[2] + wc * c[2]
+                if zz > best:
+                    best, best_f, best_w = zz, f, (wa, wb, wc)
+    if best_f < 0:
+        return math.nan, math.nan, math.nan
+    m = _smooth_normal(p, best_f, best_w)
+    nz = max(m[2], 1e-9)
+    return best, -m[0] / nz, -m[1] / nz
