@@ -124,6 +124,24 @@ def test_the_likelihood_gradient_is_the_derivative_of_the_likelihood(family):
     assert like(theta, gradient=False)[0] == value
 
 
+@pytest.mark.parametrize("family", ["iid", "exponential", "squared_exponential"])
+def test_a_tensor_grid_through_the_eigenpairs_is_the_full_covariance(family):
+    """Points filling a 9 x 7 grid along the fibres (shuffled, one measurement sd): ℓ and
+    its gradient through the 1-D eigenpairs equal the full covariance's to round-off; a
+    grid with a node missing or two measurement sds takes the full covariance."""
+    rng = np.random.default_rng(2)
+    a, b, y = synthetic_set(rng, "exponential", lattice=(9, 7), **TRUTH)
+    order = rng.permutation(len(y))
+    like = Likelihood(a[order], b[order], y[order], np.full(len(y), 0.5), family)
+    assert like.grid is not None
+    theta = np.log([4.0, 20.0, 10.0, 1.0])[:len(like.names)]
+    (value, grad), (dense, dense_grad) = like(theta), like.dense(theta)
+    assert value == pytest.approx(dense, rel=1e-13)
+    assert grad == pytest.approx(dense_grad, rel=1e-10, abs=1e-11)
+    assert Likelihood(a[1:], b[1:], y[1:], np.zeros(len(y) - 1), family).grid is None
+    assert Likelihood(a, b, y, np.r_[0.1, np.zeros(len(y) - 1)], family).grid is None
+
+
 def test_table_5_1_sd_interval_is_the_closed_form_chi_square_interval(tmp_path):
     """iid, n = 38, s = 5.6: the interval is s √((n-1)/χ²_{n-1}) at both tails, to 3 digits
     (the issue's 4.6-7.2 at 95 %); the mean is 42.7 - 45 with its Student-t interval."""

@@ -18,6 +18,13 @@ P = Σ⁻¹ − Σ⁻¹11ᵀΣ⁻¹ / 1ᵀΣ⁻¹1, one Cholesky factor and inve
 evaluation; ∂c/∂log L is a forward difference of the correlation function (relative
 step 1e-6), so the correlation is written once, in ``fields``.
 
+Points that fill a tensor grid along the fibres (every (a_i, b_j) once, as a study's
+lattice) with one measurement sd are evaluated through the eigenpairs of the two 1-D
+correlation matrices instead, as ``fields`` samples its lattices: Σ = (U1⊗U2)(σ² Λ1⊗Λ2
++ ν I)(U1⊗U2)ᵀ, so ℓ and its gradient cost O(na³ + nb³ + na nb (na + nb)) instead of
+O(n³) (a 40 x 40 grid: milliseconds instead of a second); the two ways agree to
+round-off (tested).
+
 The iid family has no length and no nugget: without per-point sds a nugget cannot be
 told from σ, so σ is then the sd of the measured values, measurement error included.
 """
@@ -56,6 +63,7 @@ class Likelihood:
         self.a, self.b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
         self.lag_a = np.abs(np.subtract.outer(self.a, self.a))
         self.lag_b = np.abs(np.subtract.outer(self.b, self.b))
+        self.grid = _tensor_grid(self.a, self.b, self.noise_var)
 
     def _correlations(self, theta):
         """The 1-D correlations (c1 along fibre 1, c2 along fibre 2) between the points."""
@@ -101,6 +109,13 @@ class Likelihood:
         """(ℓ, ∂ℓ/∂θ) at θ (∂ℓ/∂θ None unless ``gradient``: the value alone needs only the
         factor); (−inf, zeros) where Σ is not positive definite."""
         theta = np.asarray(theta, dtype=float)
+        if self.grid is not None:
+            return self._on_grid(theta, gradient)
+        return self.dense(theta, gradient)
+
+    def dense(self, theta, gradient: bool = True):
+        """(ℓ, ∂ℓ/∂θ) from the full covariance (any points): see :meth:`__call__`."""
+        theta = np.asarray(theta, dtype=float)
         c1, c2 = self._correlations(theta)
         done = self._factor(self.covariance(theta, (c1, c2)))
         if done is None:
@@ -132,6 +147,47 @@ class Likelihood:
                      -np.exp(2.0 * theta[3]) * np.trace(g)]
         return loglik, np.array(grad)
 
+    def _on_grid(self, theta, gradient: bool):
+        """(ℓ, ∂ℓ/∂θ) through the 1-D eigenpairs (points on a tensor grid, one noise sd)."""
+        order, ua, ub = self.grid
+        na, nb = len(ua), len(ub)
+        y = self.y[order].reshape(na, nb)
+        lengths = (None, None) if self.family == "iid" else np.exp(theta[1:3])
+        c1 = correlation_function(np.subtract.outer(ua, ua), self.family, lengths[0])
+        c2 = correlation_function(np.subtract.outer(ub, ub), self.family, lengths[1])
+        (lam1, u1), (lam2, u2) = (np.linalg.eigh(c) for c in (c1, c2))
+        sd2 = np.exp(2.0 * theta[0])
+        nugget2 = 0.0 if self.family == "iid" else np.exp(2.0 * theta[3])
+        d = sd2 * np.outer(np.clip(lam1, 0.0, None), np.clip(lam2, 0.0, None)) + nugget2 + self.noise_var[0]
+        if not np.all(d > 0.0):
+            return -np.inf, np.zeros(len(theta))
+
+        def solve(m):  # Σ⁻¹ m for an (na, nb) array m
+            return u1 @ ((u1.T @ m @ u2) / d) @ u2.T
+
+        w, v = solve(np.ones((na, nb))), solve(y)
+        total = w.sum()
+        mu = np.sum(w * y) / total
+        alpha = v - mu * w
+        loglik = -0.5 * (np.sum(np.log(d)) + np.log(total) + np.sum(alpha * (y - mu))
+                         + (self.n - 1) * np.log(2.0 * np.pi))
+        if not gradient:
+            return loglik, None
+
+        def term(scale, k1, k2):  # ∂ℓ/∂θ for ∂Σ/∂θ = scale (k1 ⊗ k2)
+            trace = np.sum(np.outer(np.einsum("ji,jk,ki->i", u1, k1, u1), np.einsum("ji,jk,ki->i", u2, k2, u2)) / d)
+            quad = lambda m: np.sum(m * (k1 @ m @ k2))  # noqa: E731
+            return 0.5 * scale * (quad(alpha) - trace + quad(w) / total)
+
+        grad = [term(2.0 * sd2, c1, c2)]
+        if self.family != "iid":
+            step = np.exp(_LOG_STEP)
+            d1 = correlation_function(np.subtract.outer(ua, ua), self.family, lengths[0] * step) - c1
+            d2 = correlation_function(np.subtract.outer(ub, ub), self.family, lengths[1] * step) - c2
+            eye_a, eye_b = np.eye(na), np.eye(nb)
+            grad += [term(sd2 / _LOG_STEP, d1, c2), term(sd2 / _LOG_STEP, c1, d2), term(2.0 * nugget2, eye_a, eye_b)]
+        return loglik, np.array(grad)
+
     def mean(self, theta) -> tuple[float, float]:
         """μ̂ (deg) and its variance 1 / 1ᵀΣ⁻¹1 (deg²) at θ."""
         inverse, _ = self._inverse(self.covariance(theta))
@@ -161,6 +217,20 @@ class Likelihood:
         field = mu + cross @ (inverse @ (self.y - mu))
         var = sd2 - np.sum((cross @ inverse) * cross, axis=1)
         return field, np.sqrt(np.clip(var, 0.0, None))
+
+
+def _tensor_grid(a, b, noise_var):
+    """(order, a values, b values) if the points are every node of a tensor grid in
+    (a, b) exactly once, at least 2 x 2, with one noise variance (``order`` sorts them
+    row-major, a slowest); else None. Coordinates are compared at 1e-9 mm."""
+    if len(a) < 4 or np.ptp(noise_var) != 0.0:
+        return None
+    ua, ia = np.unique(np.round(a, 9), return_inverse=True)
+    ub, ib = np.unique(np.round(b, 9), return_inverse=True)
+    key = ia * len(ub) + ib
+    if len(ua) < 2 or len(ub) < 2 or len(ua) * len(ub) != len(a) or len(np.unique(key)) != len(a):
+        return None
+    return np.argsort(key), ua, ub
 
 
 def maximise(like: Likelihood, x0, bounds, fixed: dict | None = None):
