@@ -169,6 +169,16 @@ def cmd_calibrate(args) -> int:
     return 0
 
 
+def cmd_serve(args) -> int:
+    from .workflow import load_study, serve_study
+
+    served = serve_study(load_study(args.study), host=args.host, port=args.port, qoi=args.qoi,
+                         max_requests=args.max_requests, timeout_s=args.timeout,
+                         announce=lambda line: print(line, flush=True))
+    print(f"served {served} evaluations")
+    return 0
+
+
 def _engine_options(p: argparse.ArgumentParser) -> None:
     """The options ``run`` and ``design`` share: where the drapes run and where they go."""
     p.add_argument("--scheduler", metavar="ADDRESS",
@@ -295,6 +305,29 @@ def build_parser() -> argparse.ArgumentParser:
                         "orientation)")
     e.add_argument("--out", metavar="STEM",
                    help="output path stem (default: the drape file without .nc, or RUN/export/RUN)")
+
+    srv = _command(
+        sub, "serve", cmd_serve, raw=True,
+        help="serve a study as a UM-Bridge model: its uncertain inputs in, chosen QoIs out",
+        description="Serve STUDY over HTTP as the UM-Bridge model 'forward', so that any UQ toolkit with a\n"
+                    "UM-Bridge client drives the drape. Input vector: the study's scalar factors at their\n"
+                    "physical values (study order and units), then each random field's KL modes (standard\n"
+                    "normals); output: one vector of the QoIs per blank-holder force level. The input\n"
+                    "names, the factors' distributions and the nominal input are printed at start.\n"
+                    "Listens on 127.0.0.1 (--host for others); stops on Ctrl-C, after --max-requests\n"
+                    "evaluations or after --timeout seconds. Exit codes: 0 stopped, 2 a bad study or\n"
+                    "argument, 3 the port is taken.\n\n"
+                    "Example:\n"
+                    "  uqdrape serve studies/sensitivity-vs-blankholder.toml --port 4242\n"
+                    "  # then from Python (pip install umbridge), X the printed nominal input:\n"
+                    "  #   umbridge.HTTPModel('http://127.0.0.1:4242', 'forward')([X])")
+    srv.add_argument("study", help="study file (TOML)")
+    srv.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1, this machine)")
+    srv.add_argument("--port", type=int, default=4242, help="TCP port (default 4242)")
+    srv.add_argument("--qoi", nargs="+", metavar="NAME",
+                     help="the outputs, names of uqdrape.stats.qoi (default: the study's [sensitivity] qoi)")
+    srv.add_argument("--max-requests", type=int, metavar="N", help="stop after N evaluations")
+    srv.add_argument("--timeout", type=float, metavar="S", help="stop after S seconds")
 
     m = _command(
         sub, "materials", cmd_materials, raw=True,

@@ -7,7 +7,8 @@
   and by ``uqdrape validate``;
 - ``commands``: one drape to files, material cards (show, derive, fit to shear tests),
   exports;
-- ``text``: the command line's descriptions of moulds, architectures and studies.
+- ``text``: the command line's descriptions of moulds, architectures and studies;
+- ``serve``: a study as a UM-Bridge model (``uqdrape serve``);
 - ``calibrate``: measured fibre angles -> a calibrated ``[uncertainty.zero_angle]`` block.
 
 The names below are imported on first use (PEP 562), so that ``uqdrape --help`` and the
@@ -25,6 +26,7 @@ _EXPORTS = {
     "commands": ("check_drape_inputs", "drape_to_files", "material_list", "material_text", "derive_material", "fit_material",
                  "export_result"),
     "text": ("geometry_help", "architectures", "describe_study", "version_text"),
+    "serve": ("serve_study", "input_names", "nominal_input"),
     "calibrate": ("calibrate_fibre_angles",),
 }
 _MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
