@@ -78,7 +78,7 @@ def test_a_long_bad_cell_is_quoted_short(tmp_path):
 @pytest.mark.parametrize("sections, key", [
     ({"fabric": {"material": "../secret.csv"}}, "fabric.material"),
     ({"report": {"experimental_csv": "../secret.csv"}}, "report.experimental_csv"),
-    ({"geometry": {"kind": "stl", "path": "../secret.stl", "radius": None}}, "geometry.path"),
+    ({"geometry": {"kind": "mesh", "path": "../secret.stl", "radius": None}}, "geometry.path"),
 ])
 def test_a_study_naming_a_file_outside_its_folder_is_refused(secret_outside, sections, key):
     (secret_outside.parent / "secret.stl").write_text("solid x\nendsolid x\n")

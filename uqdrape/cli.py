@@ -9,11 +9,15 @@ or after the sub-command.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import errno
+import math
+import os
 import shlex
 import signal
 import sys
 import threading
+import warnings
 from pathlib import Path
 
 
@@ -152,6 +156,9 @@ def cmd_report(args) -> int:
 def cmd_export(args) -> int:
     from .workflow import export_result
 
+    for flag, value in (("--reference", args.reference), ("--tolerance", args.tolerance)):
+        if value is not None and not math.isfinite(value):
+            raise ValueError(f"{flag} must be a finite number, got {value}")
     written, notes = export_result(args.result, args.to, out=args.out, mesh=args.mesh, tolerance=args.tolerance,
                                    reference=args.reference, flavours=args.flavour, trim=args.trim, ply=args.ply)
     for note in notes:
@@ -413,6 +420,29 @@ def _terminated(signum, frame):
     raise KeyboardInterrupt
 
 
+@contextlib.contextmanager
+def _no_warnings():
+    """Python warnings (numpy's floating-point ones, trimesh's, meshio's, xarray's, dask's)
+    kept off a command's stderr, in this process and in the worker processes it starts
+    (they read PYTHONWARNINGS): what matters to the user is said in uqdrape's own one-line
+    messages, and a refused value is refused before it overflows. Someone debugging who
+    asks for warnings (``python -W default``, ``PYTHONWARNINGS``) gets them."""
+    if sys.warnoptions:
+        yield
+        return
+    saved = os.environ.get("PYTHONWARNINGS")
+    os.environ["PYTHONWARNINGS"] = "ignore"
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            yield
+    finally:
+        if saved is None:
+            os.environ.pop("PYTHONWARNINGS", None)
+        else:
+            os.environ["PYTHONWARNINGS"] = saved
+
+
 def main(argv=None) -> int:
     """Exit codes: 0 done, 2 a user error (bad study, arguments or input file), 3 an I/O or
     environment error (disk full, permissions, unreachable scheduler, a busy output folder,
@@ -423,7 +453,8 @@ def main(argv=None) -> int:
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, _terminated)  # docker stop, batch schedulers: as Ctrl-C
     try:
-        return args.func(args)
+        with _no_warnings():
+            return args.func(args)
     except (ValueError, FileNotFoundError) as err:
         text = _os_error(err) if isinstance(err, OSError) and err.errno else str(err)
         print(f"uqdrape {args.command}: error: {text}", file=sys.stderr)

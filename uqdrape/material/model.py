@@ -29,6 +29,12 @@ LOCK_STIFFNESS_PER_RAD = 1.0e3
 DEFAULT_BENDING_STIFFNESS = 1.0e-6
 
 
+#: Largest normalised shear force a curve may give (N/m): a thousand times the 1000 N/m at
+#: which uqdrape's cards lock; beyond it a card is a unit mistake, and its energy integral
+#: and interpolants overflow.
+MAX_NS = 1e6
+
+
 class MaterialError(ValueError):
     """A bad material property; ``key`` names it as a card does (``shear.positive`` for a curve)."""
 
@@ -137,6 +143,9 @@ def _as_curve(branch, angles_deg, ns):
     if np.any(n < 0.0):
         k = int(np.argmax(n < 0.0))
         bad(f"N_s must be >= 0 (give the magnitude for the negative branch), got {n[k]:g} N/m at {a[k]:g} deg")
+    if np.any(n > MAX_NS):
+        k = int(np.argmax(n > MAX_NS))
+        bad(f"N_s must be at most {MAX_NS:g} N/m (a fabric locks near 1000 N/m), got {n[k]:g} N/m at {a[k]:g} deg")
     return a, n
 
 
