@@ -121,6 +121,15 @@ def test_a_target_run_stops_at_its_budget(tmp_path):
     z = stats.norm.ppf(0.975)
     assert record["rounds"][-1]["estimate"] == [0.0]
     assert record["half_width_reached"] == pytest.approx(z**2 / (40 + z**2) / 2, rel=1e-12)
+    # an interrupted last round (no target record yet, a chunk not written) resumes at its size
+    manifest = read_manifest(out)
+    del manifest["target"]
+    (out / "run.json").write_text(json.dumps(manifest))
+    (out / "chunks" / "r0000032-0000039.nc").unlink()
+    again = read_manifest(run_study(target_file(tmp_path, 1e-9, budget=40, statistic="probability",
+                                                qoi="any_locked"), scheduler="synchronous", progress=False))["target"]
+    assert [r["realizations"] for r in again["rounds"]] == [40] and again["half_width_reached"] == record[
+        "half_width_reached"]
 
 
 @pytest.mark.parametrize("changes, key, valid", [

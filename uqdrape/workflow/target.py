@@ -86,17 +86,17 @@ def run_to_target(study, run_round, *, chunk_size: int, resume: bool = True, pro
     """Run ``study`` (with a ``target``) in rounds: ``run_round(study_of_n, resume)`` drapes
     the study with n realisations into its output folder (resume True: extending what is
     there) and returns the folder. A round adds at least ``chunk_size`` realisations (one
-    randomisation of an rqmc plan). ``resume`` False starts afresh, True from the
-    realisations an earlier target run of the folder reached. Writes the ``target`` record
-    into the manifest; returns the folder."""
+    randomisation of an rqmc plan). ``resume`` False starts afresh, True from the size of
+    the folder's last round (an earlier run's, finished or interrupted). Writes the
+    ``target`` record into the manifest; returns the folder."""
     target, budget = study.target, study.max_realizations
     points = study.realizations // study.sampling.randomizations if study.sampling.randomizations else None
     step = points or chunk_size
     budget -= budget % points if points else 0  # whole randomisations
     n, rounds = study.realizations, []
-    earlier = (read_manifest(study.output_dir) or {}).get("target") if resume else None
-    if earlier:
-        n = max(n, earlier["realizations"])
+    earlier = read_manifest(study.output_dir) if resume else None
+    if earlier:  # the size of the folder's last round, finished or interrupted
+        n = max(n, earlier["study"]["study"]["realizations"])
     while True:
         out = run_round(_resized(study, n, points), resume or bool(rounds))
         levels = level_intervals(out, target, None if points is None else n // points)
