@@ -236,10 +236,10 @@ def test_truth_recovery_quick():
 @pytest.mark.slow
 @pytest.mark.timeout(3000)
 def test_truth_recovery_coverage_200_sets():
-    """200 sets, 100 per family: 40 of 38 scattered points, 30 10 x 10, 24 20 x 20 and
-    6 40 x 40 grids. The 90 % intervals of sd, L1 and L2 cover the truth in 90 ± 5 % of
+    """200 sets, 100 per family: 40 of 38 scattered points, 25 10 x 10, 20 20 x 20 and
+    15 40 x 40 grids. The 90 % intervals of sd, L1 and L2 cover the truth in 90 ± 5 % of
     the 200, and the estimates' RMS log error falls as the set grows."""
-    plan = {38: 40, 10: 30, 20: 24, 40: 6}
+    plan = {38: 40, 10: 25, 20: 20, 40: 15}
     total = {k: 0 for k in TRUE_VALUES}
     for family in ("exponential", "squared_exponential"):
         rms = {}
