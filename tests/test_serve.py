@@ -10,24 +10,23 @@ import time
 
 import numpy as np
 import pytest
+from conftest import write_study
 
 from uqdrape.cli import main
 from uqdrape.export import open_result
 from uqdrape.stats.qoi import realization_qois
 from uqdrape.workflow import input_names, load_study, nominal_input
 
-from conftest import write_study
-
 umbridge = pytest.importorskip("umbridge")
 requests = pytest.importorskip("requests")
 
 QOI = ["max_abs_shear", "asymmetry", "blankholder_energy", "max_draw_in"]
-SECTIONS = dict(
-    process={"blankholder_force_N": 100.0, "friction": 0.2, "blankholder_model": "slip"},
-    solver={"mode": "energy", "rings": 6},
-    uncertainty={"friction": {"dist": "uniform", "bounds": [0.15, 0.3]},
-                 "orientation": {"dist": "normal", "mean": 0.0, "sd": 2.0}},
-)
+SECTIONS = {
+    "process": {"blankholder_force_N": 100.0, "friction": 0.2, "blankholder_model": "slip"},
+    "solver": {"mode": "energy", "rings": 6},
+    "uncertainty": {"friction": {"dist": "uniform", "bounds": [0.15, 0.3]},
+                    "orientation": {"dist": "normal", "mean": 0.0, "sd": 2.0}},
+}
 
 
 def free_port() -> int:
