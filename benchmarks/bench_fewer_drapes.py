@@ -1,4 +1,4 @@
-"""Answers in fewer drapes (issue 29). Run: python benchmarks/bench_fewer_drapes.py [--part rqmc|subset|drape]
+"""Answers in fewer drapes (issue 29). Run: python benchmarks/bench_fewer_drapes.py [--part rqmc|subset|drape|mlmc]
 
 (a) ``rqmc``: randomised QMC against plain Monte Carlo on shipped studies, in one run:
     the Fig 5.19 study (``studies/nosecone-zero-angle.toml``, iid zero-angle field, 3600
@@ -20,6 +20,13 @@
     variables), P(max |shear| >= t) with t the 0.999 quantile of 200,000 MC drapes (MC's
     CoV 7 %), against 10 subset simulations of 1000 samples a level
     (``uqdrape.workflow.rare.drape_limit_state``).
+(d) ``mlmc``: is a two-level Monte Carlo over net resolution worth it? Energy drapes of
+    the nose cone with three scalar factors (friction, crossover offset, misalignment:
+    the same values at both resolutions, so the levels couple exactly) on the thesis net
+    (5 mm, 30 rings) and a coarse one (10 mm, 15 rings, the same extent): per QoI the
+    variance of the fine value and of the fine - coarse difference, each level's CPU time
+    a drape, and the two-level cost for the fine MC's variance, (sqrt(V_c C_c) +
+    sqrt(V_d (C_f + C_c)))^2, against V_f C_f (Giles 2008).
 
 The machine is shared: the load average (1 min) is printed before and after each part.
 """
@@ -182,16 +189,80 @@ def drape_part() -> None:
           f"{(1 - p_mc) / (p_mc * (est.std(ddof=1) / est.mean()) ** 2):.3g} ({load()})")
 
 
+NOSECONE_FACTORS = """\
+[study]
+name = "mlmc-nosecone"
+seed = 29
+realizations = {n}
+chunk_size = {n}
+[geometry]
+kind = "nose_cone"
+[fabric]
+material = "ebxhd936_like"
+spacing_mm = {spacing}
+[process]
+blankholder_force_N = 126.0
+[solver]
+mode = "energy"
+rings = {rings}
+[uncertainty.friction]
+dist = "uniform"
+bounds = [0.15, 0.3]
+[uncertainty.crossover_x]
+dist = "uniform"
+bounds = [-3.0, 3.0]
+[uncertainty.orientation]
+dist = "normal"
+mean = 0.0
+sd = 2.0
+"""
+
+
+def mlmc_part(n: int = 64) -> None:
+    from uqdrape.ensemble import drape_inputs, sampled_inputs
+
+    print(f"\n## two-level MC over net resolution, {n} coupled drapes a level ({load()})")
+    values, seconds = {}, {}
+    with tempfile.TemporaryDirectory() as folder:
+        for name, spacing, rings in (("fine", 5.0, 30), ("coarse", 10.0, 15)):
+            path = Path(folder) / f"{name}.toml"
+            path.write_text(NOSECONE_FACTORS.format(n=n, spacing=spacing, rings=rings))
+            study = load_study(path)
+            drape_inputs(study, [0], sampled_inputs(study, [0]))  # compile and warm up
+            start = time.process_time()
+            ds = drape_inputs(study, np.arange(n), sampled_inputs(study, np.arange(n)))
+            seconds[name] = (time.process_time() - start) / n
+            values[name] = ds
+    fine_k = realization_qois(values["fine"], ["mean_shear_positive"]).attrs["k_max"]
+    k = {"fine": fine_k - fine_k % 2, "coarse": (fine_k - fine_k % 2) // 2}  # the same line length, 5 k_fine mm
+    print(f"CPU a drape: fine {1e3 * seconds['fine']:.0f} ms, coarse {1e3 * seconds['coarse']:.0f} ms; "
+          f"line means over {5 * k['fine']:g} mm")
+    print("| QoI | V fine | V (fine - coarse) | two-level cost / fine MC cost |")
+    print("|---|---|---|---|")
+    qois = {name: realization_qois(ds, SENSITIVITY_QOIS, k[name]) for name, ds in values.items()}
+    for q in SENSITIVITY_QOIS:
+        f, c = (qois[name][q].values.ravel() for name in ("fine", "coarse"))
+        vf, vc, vd = f.var(ddof=1), c.var(ddof=1), (f - c).var(ddof=1)
+        if vf == 0:
+            print(f"| {q} | 0 | - | - |")
+            continue
+        cost = (np.sqrt(vc * seconds["coarse"]) + np.sqrt(vd * (seconds["fine"] + seconds["coarse"]))) ** 2
+        print(f"| {q} | {vf:.3g} | {vd:.3g} | {cost / (vf * seconds['fine']):.2f} |")
+    print(f"({load()})")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--part", choices=("rqmc", "subset", "drape"), action="append")
-    parts = parser.parse_args().part or ["rqmc", "subset", "drape"]
+    parser.add_argument("--part", choices=("rqmc", "subset", "drape", "mlmc"), action="append")
+    parts = parser.parse_args().part or ["rqmc", "subset", "drape", "mlmc"]
     if "rqmc" in parts:
         rqmc_part()
     if "subset" in parts:
         subset_part()
     if "drape" in parts:
         drape_part()
+    if "mlmc" in parts:
+        mlmc_part()
 
 
 if __name__ == "__main__":
