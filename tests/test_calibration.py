@@ -60,7 +60,7 @@ def _grid_csv(tmp_path, family, lattice=(8, 8), seed=5):
 def test_read_points_columns_in_any_order_with_measurement_sd(tmp_path):
     path = _csv(tmp_path, ["1.5,0.2,2,44.0,7", "", "3,0.0,1,136.5,8"], header="x_mm,sd_deg,fibre_set,angle_deg,y_mm")
     p = read_points(path)
-    assert len(p) == 2 and p.source == "points.csv"
+    assert len(p) == 2 and p.source == str(path) and p.rows.tolist() == [2, 4]
     assert p.x_mm.tolist() == [1.5, 3.0] and p.y_mm.tolist() == [7.0, 8.0] and p.sd_deg.tolist() == [0.2, 0.0]
     assert p.fibre_set.tolist() == [2, 1] and p.angle_deg.tolist() == [44.0, 136.5]
     assert read_points(_csv(tmp_path, ["0,0,45,1"])).sd_deg.tolist() == [0.0]
@@ -101,11 +101,20 @@ def test_a_fibre_below_nominal_is_a_negative_rest_shear_whichever_set():
     """Table 5.1's 42.7° from the weft is γ0 = -2.3° (the cards' FGE 106hd zero-force angle);
     the mirror reading of set 2 (137.3° = 180° - 42.7°) and the same line turned by 180°
     are the same rest shear."""
-    p = AnglePoints(*(np.zeros(4),) * 2, np.array([42.7, 137.3, 222.7, 47.0]), np.array([1, 2, 1, 2]),
-                    np.zeros(4), "x")
-    assert zero_angle_deg(p) == pytest.approx([-2.3, -2.3, -2.3, 88.0], abs=1e-12)
+    p = AnglePoints(*(np.zeros(4),) * 2, np.array([42.7, 137.3, 222.7, 160.0]), np.array([1, 2, 1, 2]),
+                    np.zeros(4), np.arange(2, 6), "x.csv")
+    assert zero_angle_deg(p) == pytest.approx([-2.3, -2.3, -2.3, -25.0], abs=1e-12)
     a, b = fibre_coordinates(np.array([1.0, -1.0]), np.array([1.0, 1.0]))
     assert a == pytest.approx([math.sqrt(2), 0.0], abs=1e-15) and b == pytest.approx([0.0, math.sqrt(2)], abs=1e-15)
+
+
+def test_a_fibre_far_from_its_nominal_direction_is_refused_by_row(tmp_path):
+    """Set 2 written as its acute angle from the weft (42.7 for 137.3) is 87.7° off: a
+    convention mistake, refused naming the row, not fitted as scatter."""
+    path = _csv(tmp_path, ["0,0,42.7,1", "0,10,42.7,2"])
+    with pytest.raises(PointsError) as err:
+        calibrate_points(read_points(path))
+    assert_one_line_error(str(err.value), file=path, key="angle_deg", valid=["row 3", "135", "45 deg"])
 
 
 # -- the likelihood ---------------------------------------------------------------------
@@ -165,7 +174,8 @@ def test_a_known_measurement_sd_is_taken_out_of_the_field_sd(tmp_path):
     depends on σ² + 2² alone, so σ̂ = √(5.6² − 4) and the interval's ends are
     √(closed-form end² − 4)."""
     plain = read_points(table_5_1_points(tmp_path))
-    points = AnglePoints(plain.x_mm, plain.y_mm, plain.angle_deg, plain.fibre_set, np.full(38, 2.0), plain.source)
+    points = AnglePoints(plain.x_mm, plain.y_mm, plain.angle_deg, plain.fibre_set, np.full(38, 2.0), plain.rows,
+                         plain.source)
     sd = calibrate_points(points, family="iid").fit.estimates["sd_deg"]
     m = TABLE_5_1["n"] - 1
     closed = TABLE_5_1["sd_deg"] * np.sqrt(m / scipy.stats.chi2.ppf([0.95, 0.05], m))

@@ -12,6 +12,7 @@ and fibre 2), each rounded to 4 significant digits.
 from __future__ import annotations
 
 from datetime import date
+from pathlib import Path
 
 from .. import __version__
 from ..files import toml_text
@@ -49,7 +50,7 @@ def block_text(calibration, command: str = "uqdrape calibrate") -> str:
     crit = fit.criterion.upper()
     lines = [
         f"[uncertainty.zero_angle] calibrated by `{command}` (uqdrape {__version__}, {date.today().isoformat()})",
-        f"from {points.source}: {len(points)} points (fibre set 1: {sets[1]}, set 2: {sets[2]}), fibre 1 "
+        f"from {Path(points.source).name}: {len(points)} points (fibre set 1: {sets[1]}, set 2: {sets[2]}), fibre 1 "
         f"nominally at {calibration.fibre1_deg:g} deg from x",
         "gamma0 = the measured fibre's deviation from nominal, that set rotating against the other "
         "(uqdrape.calibration.mapping); the mean offset reads as the stitch's rest shear",

@@ -33,7 +33,7 @@ def plot_calibration(calibration, path) -> Path:
     level = fit.level
     fig = _figure(17.0, 8.0)
     axes = fig.subplots(2, 4)
-    fig.suptitle(f"Fibre-angle calibration of {points.source}: {len(points)} points, {fit.family} field "
+    fig.suptitle(f"Fibre-angle calibration of {Path(points.source).name}: {len(points)} points, {fit.family} field "
                  f"(by {fit.criterion.upper()}), {100 * level:g} % intervals")
     lim = _colour_limits(calibration)
     _points(axes[0, 0], calibration, lim)

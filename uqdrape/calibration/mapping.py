@@ -31,7 +31,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .points import AnglePoints
+from .points import AnglePoints, PointsError
+
+#: Largest deviation of a measured fibre from its nominal direction accepted (deg): more
+#: is a different angle convention (e.g. set 2 given as its acute angle from the weft),
+#: not fabric scatter.
+MAX_DEVIATION_DEG = 45.0
 
 
 def wrap_deg(angle_deg) -> np.ndarray:
@@ -40,9 +45,18 @@ def wrap_deg(angle_deg) -> np.ndarray:
 
 
 def zero_angle_deg(points: AnglePoints, fibre1_deg: float = 45.0) -> np.ndarray:
-    """γ0 (deg) at each measured point: δ_1 for a set-1 fibre, −δ_2 for a set-2 fibre."""
+    """γ0 (deg) at each measured point: δ_1 for a set-1 fibre, −δ_2 for a set-2 fibre.
+    A deviation beyond MAX_DEVIATION_DEG raises PointsError naming its row."""
     nominal = np.where(points.fibre_set == 1, fibre1_deg, fibre1_deg + 90.0)
     delta = wrap_deg(points.angle_deg - nominal)
+    far = np.flatnonzero(np.abs(delta) > MAX_DEVIATION_DEG)
+    if far.size:
+        i = far[0]
+        raise PointsError(f"{points.source}: row {points.rows[i]}: column 'angle_deg' = {points.angle_deg[i]:g} is "
+                          f"{delta[i]:+.1f} deg from fibre set {points.fibre_set[i]}'s nominal {nominal[i]:g} deg "
+                          f"(valid: within {MAX_DEVIATION_DEG:g} deg of it); angle_deg is the fibre's plan direction, "
+                          "deg anticlockwise from x, and fibre 1's nominal direction is --fibre1-deg",
+                          points.source, "angle_deg")
     return np.where(points.fibre_set == 1, delta, -delta)
 
 

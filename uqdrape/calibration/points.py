@@ -41,13 +41,15 @@ class PointsError(FileFormatError):
 @dataclass(frozen=True)
 class AnglePoints:
     """Measured fibre angles: position (mm), plan angle (deg from x), fibre set (1 or 2),
-    the measurement sd (deg; 0 where the file gives none), and the file's name."""
+    the measurement sd (deg; 0 where the file gives none), each point's line in the file
+    (``rows``, for messages) and the file as it was named (``source``)."""
 
     x_mm: np.ndarray
     y_mm: np.ndarray
     angle_deg: np.ndarray
     fibre_set: np.ndarray
     sd_deg: np.ndarray
+    rows: np.ndarray
     source: str
 
     def __len__(self) -> int:
@@ -74,9 +76,11 @@ def read_points(path) -> AnglePoints:
         if name not in header:
             fail(f"row 1: column {name!r} is missing; the header is {','.join(header)!r}, valid: {valid}", name)
     values = {name: [] for name in header}
+    lines = []
     for line, row in enumerate(rows, start=2):
         if not any(cell.strip() for cell in row):
             continue  # a blank line
+        lines.append(line)
         if len(row) != len(header):
             fail(f"row {line}: {len(row)} values for {len(header)} columns")
         for name, cell in zip(header, row):
@@ -86,7 +90,7 @@ def read_points(path) -> AnglePoints:
     columns = {name: np.asarray(v, dtype=float) for name, v in values.items()}
     sd = columns.get(SD_COLUMN, np.zeros(len(columns["x_mm"])))
     return AnglePoints(columns["x_mm"], columns["y_mm"], columns["angle_deg"], columns["fibre_set"].astype(int),
-                       sd, path.name)
+                       sd, np.asarray(lines), str(path))
 
 
 def _value(name: str, text: str, fail) -> float:
