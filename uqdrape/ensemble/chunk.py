@@ -21,7 +21,9 @@ import xarray as xr
 from .. import files
 from ..drape import drape
 from ..material import load_material
+from ..material.scatter import card_scatter, scattered
 from ..schema import SOLVER_INPUTS
+from ..study.spec import CARD
 
 
 def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None, material=None) -> xr.Dataset:
@@ -37,9 +39,10 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
         raise ValueError(f"force={force!r}: pass one of study {study.name!r}'s blank-holder levels {list(levels)} N")
     fabric, process, solver = study.fabric, study.process, study.solver
     settings = {name: study.setting(name, force) for name in SOLVER_INPUTS}
-    unknown = sorted(set(inputs) - set(settings) - {"seg_i", "seg_j", "gamma0"})
+    unknown = sorted(set(inputs) - set(settings) - {"seg_i", "seg_j", "gamma0", CARD})
     if unknown:
-        raise ValueError(f"inputs {unknown} are not solver inputs; valid: seg_i, seg_j, gamma0, {', '.join(settings)}")
+        raise ValueError(f"inputs {unknown} are not solver inputs; valid: seg_i, seg_j, gamma0, {CARD}, "
+                         f"{', '.join(settings)}")
     R = len(r)
     value = {name: np.broadcast_to(inputs.get(name, fixed), (R,)) for name, fixed in settings.items()}
     ds = drape(
@@ -49,18 +52,31 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
         crossover=np.stack([value["crossover_x"], value["crossover_y"]], axis=-1),
         seg_i=inputs.get("seg_i"), seg_j=inputs.get("seg_j"), gamma0=inputs.get("gamma0"),
         mode=solver.mode,
-        material=load_material(fabric.material) if material is None else material,
+        material=_materials(fabric.material, material, inputs.get(CARD)),
         blankholder_force=value["blankholder_force"], friction=value["friction"],
         sectors=process.sectors, blankholder_model=process.blankholder_model,
         tolerance=solver.tolerance_deg, max_iterations=solver.max_iterations,
     )
     ds = ds.assign_coords(realization=r)
+    if CARD in inputs:
+        ds[CARD] = ("realization", np.asarray(inputs[CARD], dtype=float),
+                    {"units": "1", "long_name": "card scatter score z: N_s = mean + z sd of the card's specimens"})
     if "seg_i" in inputs:
         ds["seg_i"] = (("realization", "cell_i", "j"), inputs["seg_i"],
                        {"units": "mm", "long_name": "fibre-1 segment length (flat blank)"})
         ds["seg_j"] = (("realization", "i", "cell_j"), inputs["seg_j"],
                        {"units": "mm", "long_name": "fibre-2 segment length (flat blank)"})
     return ds
+
+
+def _materials(card: str, material, scores):
+    """The material of a chunk: ``material`` (or the card loaded), or with card scatter
+    scores z one card per realisation (``uqdrape.material.scatter``)."""
+    base = load_material(card) if material is None else material
+    if scores is None:
+        return base
+    scatter = card_scatter(card)
+    return [scattered(base, scatter, z) for z in np.asarray(scores, dtype=float)]
 
 
 def write_atomic(ds: xr.Dataset, path: Path, encoding: dict | None = None, *, keep=None) -> Path | None:

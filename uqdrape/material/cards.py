@@ -64,13 +64,14 @@ _RECORD_KEYS = ("shear", "scatter", "sheartest")
 _CSV_COLUMNS = ("angle_deg", "ns_positive", "ns_negative")
 
 
-def _cards_dir():
+def cards_dir():
+    """The folder of the shipped cards (package data)."""
     return resources.files("uqdrape.material").joinpath("cards")
 
 
 def available_materials() -> list[str]:
     """Names of the material cards shipped with uqdrape (sorted)."""
-    return sorted(p.name[: -len(".toml")] for p in _cards_dir().iterdir() if p.name.endswith(".toml"))
+    return sorted(p.name[: -len(".toml")] for p in cards_dir().iterdir() if p.name.endswith(".toml"))
 
 
 def load_material(name_or_path) -> Material:
@@ -78,7 +79,7 @@ def load_material(name_or_path) -> Material:
     text = str(name_or_path)
     shipped = available_materials()
     if text in shipped:
-        path = Path(str(_cards_dir().joinpath(text + ".toml")))
+        path = Path(str(cards_dir().joinpath(text + ".toml")))
         return _material_from_toml(Document(path, "material card"), path.stem)
     path = Path(name_or_path)
     suffix = path.suffix.lower()

@@ -62,6 +62,11 @@ TARGET_STATISTICS = {"mean": None, "probability": ("any_locked",)}
 #: Study-file parameter names of each factor distribution; "bounds" = [lower, upper].
 DIST_KEYS = {"normal": ("mean", "sd"), "truncnormal": ("mean", "sd", "bounds"),
              "uniform": ("bounds",), "lognormal": ("mean", "sd")}
+#: The card-scatter factor: a realisation's score z on its card's specimen scatter,
+#: N_s = mean + z sd at every angle (``uqdrape.material.scatter``); it varies the
+#: fabric's material, as the other factors vary the setting they name.
+CARD = "card"
+FACTOR_SETTINGS[CARD] = "fabric.material"
 
 
 @dataclass(frozen=True)

@@ -24,6 +24,9 @@ Sections and keys (units: mm, N, degrees)::
                    material card's [architecture] (uqdrape.material.architecture.material_zero_force_table);
                    needs a card derived from an architecture; not together with zero_angle
     [uncertainty.<factor>]    dist + parameters, factor in FACTOR_SETTINGS
+    [uncertainty.card]        dist + parameters of a score z (e.g. normal, mean 0, sd 1): each
+                   realisation's card is N_s = mean + z sd of the card's specimens (its [scatter]
+                   table, ``uqdrape materials fit``); energy mode only (uqdrape.material.scatter)
     [sampling]     plan = "monte_carlo" (or latin_hypercube, sobol, rqmc), randomizations (rqmc only, >= 2:
                    realizations = randomizations x a power of two; uqdrape.stochastic.sampling)
     [sensitivity]  method = "none", base_samples, qoi = SENSITIVITY_QOIS (any of uqdrape.schema.QOI_ATTRS)
@@ -84,7 +87,8 @@ from ..experimental import read_experimental
 from ..files import REQUIRED, Document, FileFormatError, Table, fmt, inside, is_int, is_number
 from ..stochastic.sampling import EXTENDABLE_PLANS, RQMC, STUDY_PLANS, rqmc_points
 from ..schema import BLANKHOLDER_MODELS, MAX_RINGS, MODES, QOI_ATTRS, SENSITIVITY_QOIS, SOLVER_INPUTS
-from .spec import (DESIGN_OBJECTIVES, DESIGN_STATISTICS, DESIGN_VARIABLES, DIST_KEYS, FACTOR_SETTINGS, FIELD_KEYS,
+from ..material.scatter import card_scatter
+from .spec import (CARD, DESIGN_OBJECTIVES, DESIGN_STATISTICS, DESIGN_VARIABLES, DIST_KEYS, FACTOR_SETTINGS, FIELD_KEYS,
                    FIELDS, SECTIONS, SENSITIVITY_METHODS, TARGET_STATISTICS, Design, Fabric, Geometry, Process,
                    RandomField, Report, Sampling, Sensitivity, Solver, Study, Target, Uncertainty, prestrain_map)
 
@@ -379,7 +383,11 @@ def _uncertainty(src: _Source, doc: dict, fabric: Fabric, process: Process, solv
         src.invalid("process.blankholder_force_N", list(process.blankholder_force_N),
                     "a sweep cannot be combined with [uncertainty.blankholder_force]; "
                     "give one nominal force or remove the factor")
+    if CARD in factors:
+        _card(src, t.data[CARD], fabric, solver)
     for name, factor in factors.items():
+        if name == CARD:
+            continue
         inp = SOLVER_INPUTS[name]
         lo, hi = _extent(factor)
         if not (inp.admits(lo) and inp.admits(hi)):
@@ -396,6 +404,17 @@ def _uncertainty(src: _Source, doc: dict, fabric: Fabric, process: Process, solv
                         f"crossovers up to x in [{xs[0]:g}, {xs[1]:g}], y in [{ys[0]:g}, {ys[1]:g}] mm "
                         f"leave the mould's domain ({_describe(mould)})")
     return Uncertainty(fields, factors)
+
+
+def _card(src: _Source, data, fabric: Fabric, solver: Solver) -> None:
+    """[uncertainty.card] needs an energy drape (a geodesic one reads no card) and a card
+    that records its specimens' scatter."""
+    if solver.mode != "energy":
+        src.invalid("uncertainty.card", data, 'the card scatter acts on the shear energy: it needs [solver] mode = '
+                                              '"energy"')
+    if not card_scatter(fabric.material):
+        src.invalid("uncertainty.card", data, f"the card {fabric.material} has no [scatter] table (the specimens' sd "
+                                              "of N_s): fit it from several specimens with `uqdrape materials fit`")
 
 
 def _extent(factor) -> tuple[float, float]:
