@@ -1,4 +1,4 @@
-"""The ``uqdrape`` command: drape | run | design | report | validate | materials | export.
+"""The ``uqdrape`` command: drape | run | design | report | validate | materials | export | serve.
 
 Heavy imports (xarray, dask, matplotlib, SALib) happen inside the sub-commands so that
 ``uqdrape --help`` answers at once. Every user error is printed as one line on stderr
