@@ -214,6 +214,9 @@ def compute_tasks(tasks: list, sizes: list, scheduler: str | None, workers: int 
                 return list(dask.compute(*tasks, scheduler="processes", pool=pool, chunksize=1))
     from distributed import Client, as_completed
 
+    from .handshake import check_scheduler
+
+    check_scheduler(scheduler, SCHEDULER_TIMEOUT)  # distributed trusts a non-dask server's first bytes
     try:
         client = Client(scheduler, timeout=SCHEDULER_TIMEOUT)
     except (OSError, TimeoutError) as err:
