@@ -113,3 +113,23 @@ def test_a_taken_port_is_an_environment_error(tmp_path, capsys):
         busy.listen()
         assert main(["serve", str(path), "--port", str(busy.getsockname()[1])]) == 3
     assert "uqdrape serve: error:" in capsys.readouterr().err
+
+
+def test_a_sweep_answers_one_vector_per_force_level_and_fields_take_their_modes(tmp_path):
+    from uqdrape.workflow.serve import evaluate
+
+    sweep = load_study(write_study(tmp_path, name="sweep", **dict(SECTIONS, process=dict(
+        SECTIONS["process"], blankholder_force_N=[0.0, 200.0]))))
+    low, high = evaluate(sweep, [0.2, 0.0], QOI)
+    energy = QOI.index("blankholder_energy")
+    assert low[energy] == 0.0 < high[energy]  # no force, no blank-holder work
+    field = load_study(write_study(tmp_path, name="field", **dict(SECTIONS, uncertainty=dict(
+        SECTIONS["uncertainty"], zero_angle={"mean_deg": 0.0, "sd_deg": 5.0, "correlation": "squared_exponential",
+                                             "length_mm": [20.0, 20.0], "kl_retained": 0.9}))))
+    x = nominal_input(field)
+    (at_mean,) = evaluate(field, x, QOI)
+    x[2] = 2.0  # the first KL mode two standard deviations out shifts the zero angle
+    (moved,) = evaluate(field, x, QOI)
+    assert at_mean != moved
+    with pytest.raises(ValueError, match="zero_angle"):
+        evaluate(field, x[:-1], QOI)
