@@ -147,6 +147,9 @@ def test_a_tensor_grid_through_the_eigenpairs_is_the_full_covariance(family):
     (value, grad), (dense, dense_grad) = like(theta), like.dense(theta)
     assert value == pytest.approx(dense, rel=1e-13)
     assert grad == pytest.approx(dense_grad, rel=1e-10, abs=1e-11)
+    full = Likelihood(a[order], b[order], y[order], np.full(len(y), 0.5), family)
+    full.grid = None  # the same points through the full covariance
+    assert like.mean(theta) == pytest.approx(full.mean(theta), rel=1e-10)
     assert Likelihood(a[1:], b[1:], y[1:], np.zeros(len(y) - 1), family).grid is None
     assert Likelihood(a, b, y, np.r_[0.1, np.zeros(len(y) - 1)], family).grid is None
 
@@ -203,6 +206,10 @@ def test_too_few_points_or_no_scatter_is_refused():
     with pytest.raises(ValueError, match="at least 8"):
         fit_field(np.arange(5.0), np.zeros(5), np.arange(5.0), family="exponential")
     assert fit_field(np.arange(5.0), np.zeros(5), np.arange(5.0)).family == "iid"  # auto: iid only
+    with pytest.raises(ValueError, match="2 of the 4 points share their place"):
+        fit_field([0, 1, 1, 2], [0, 0, 0, 0], [1.0, 2.0, 3.0, 2.0])
+    with pytest.raises(ValueError, match="all 9 points are at one place"):
+        fit_field(np.zeros(9), np.zeros(9), np.arange(9.0), np.full(9, 1.0))
 
 
 # -- truth recovery ---------------------------------------------------------------------

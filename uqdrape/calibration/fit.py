@@ -128,6 +128,15 @@ def fit_field(a, b, y, noise_sd=None, *, family: str = "auto", criterion: str = 
         raise ValueError(f"{n} measured points: a fit needs at least {MIN_POINTS}")
     if np.ptp(y) == 0.0:
         raise ValueError(f"all {n} measured angles are equal ({y[0]:g} deg): there is no scatter to fit")
+    places, index, count = np.unique(np.round(np.column_stack([a, b]), 9), axis=0, return_inverse=True,
+                                     return_counts=True)
+    shared = (count[index.ravel()] > 1) & (noise_sd == 0.0)
+    if shared.any():
+        raise ValueError(f"{int(shared.sum())} of the {n} points share their place with another and have no "
+                         "measurement sd: the field has one value per place; give each place once (the mean of "
+                         "its readings) or each reading its sd_deg")
+    if len(places) == 1:
+        raise ValueError(f"all {n} points are at one place: the field's scatter cannot be told from its mean")
     if family in ("exponential", "squared_exponential") and n < MIN_CORRELATED_POINTS:
         raise ValueError(f"{n} measured points: a correlated family needs at least {MIN_CORRELATED_POINTS}")
     families = ((FAMILIES if n >= MIN_CORRELATED_POINTS else ("iid",)) if family == "auto" else (family,))
@@ -150,12 +159,7 @@ def bounds(like: Likelihood, scale: float) -> list[tuple[float, float]]:
     sd = (math.log(1e-3 * scale), math.log(1e3 * scale))
     if like.family == "iid":
         return [sd]
-    distance = np.hypot(like.lag_a, like.lag_b)
-    diameter = float(distance.max())
-    distance[distance == 0.0] = np.inf
-    nearest = float(np.median(distance.min(axis=1)))
-    nearest = nearest if np.isfinite(nearest) else diameter
-    length = (math.log(0.1 * nearest), math.log(10.0 * diameter))
+    length = (math.log(0.1 * like.nearest), math.log(10.0 * like.diameter))
     return [sd, length, length, (math.log(1e-3 * scale), math.log(10.0 * scale))]
 
 

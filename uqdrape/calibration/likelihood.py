@@ -64,6 +64,13 @@ class Likelihood:
         self.lag_a = np.abs(np.subtract.outer(self.a, self.a))
         self.lag_b = np.abs(np.subtract.outer(self.b, self.b))
         self.grid = _tensor_grid(self.a, self.b, self.noise_var)
+        distance = np.hypot(self.lag_a, self.lag_b)
+        #: the largest distance between two points and the median distance from a point to
+        #: its nearest neighbour (mm; the diameter if all points coincide)
+        self.diameter = float(distance.max())
+        distance[distance == 0.0] = np.inf
+        nearest = float(np.median(distance.min(axis=1)))
+        self.nearest = nearest if np.isfinite(nearest) else self.diameter
 
     def _correlations(self, theta):
         """The 1-D correlations (c1 along fibre 1, c2 along fibre 2) between the points."""
@@ -147,20 +154,30 @@ class Likelihood:
                      -np.exp(2.0 * theta[3]) * np.trace(g)]
         return loglik, np.array(grad)
 
+    def _grid_parts(self, theta):
+        """On a tensor grid: the 1-D correlations c1, c2, their eigenvectors u1, u2 and the
+        eigenvalues d of Σ as an (na, nb) array (None if Σ is not positive definite)."""
+        _, ua, ub = self.grid
+        lengths = (None, None) if self.family == "iid" else np.exp(theta[1:3])
+        c1 = correlation_function(np.subtract.outer(ua, ua), self.family, lengths[0])
+        c2 = correlation_function(np.subtract.outer(ub, ub), self.family, lengths[1])
+        (lam1, u1), (lam2, u2) = (np.linalg.eigh(c) for c in (c1, c2))
+        nugget2 = 0.0 if self.family == "iid" else np.exp(2.0 * theta[3])
+        d = (np.exp(2.0 * theta[0]) * np.outer(np.clip(lam1, 0.0, None), np.clip(lam2, 0.0, None))
+             + nugget2 + self.noise_var[0])
+        return c1, c2, u1, u2, (d if np.all(d > 0.0) else None)
+
     def _on_grid(self, theta, gradient: bool):
         """(ℓ, ∂ℓ/∂θ) through the 1-D eigenpairs (points on a tensor grid, one noise sd)."""
         order, ua, ub = self.grid
         na, nb = len(ua), len(ub)
         y = self.y[order].reshape(na, nb)
-        lengths = (None, None) if self.family == "iid" else np.exp(theta[1:3])
-        c1 = correlation_function(np.subtract.outer(ua, ua), self.family, lengths[0])
-        c2 = correlation_function(np.subtract.outer(ub, ub), self.family, lengths[1])
-        (lam1, u1), (lam2, u2) = (np.linalg.eigh(c) for c in (c1, c2))
+        c1, c2, u1, u2, d = self._grid_parts(theta)
+        if d is None:
+            return -np.inf, np.zeros(len(theta))
         sd2 = np.exp(2.0 * theta[0])
         nugget2 = 0.0 if self.family == "iid" else np.exp(2.0 * theta[3])
-        d = sd2 * np.outer(np.clip(lam1, 0.0, None), np.clip(lam2, 0.0, None)) + nugget2 + self.noise_var[0]
-        if not np.all(d > 0.0):
-            return -np.inf, np.zeros(len(theta))
+        lengths = (None, None) if self.family == "iid" else np.exp(theta[1:3])
 
         def solve(m):  # Σ⁻¹ m for an (na, nb) array m
             return u1 @ ((u1.T @ m @ u2) / d) @ u2.T
@@ -190,6 +207,12 @@ class Likelihood:
 
     def mean(self, theta) -> tuple[float, float]:
         """μ̂ (deg) and its variance 1 / 1ᵀΣ⁻¹1 (deg²) at θ."""
+        theta = np.asarray(theta, dtype=float)
+        if self.grid is not None:
+            order, ua, ub = self.grid
+            _, _, u1, u2, d = self._grid_parts(theta)
+            w = u1 @ ((u1.T @ np.ones((len(ua), len(ub))) @ u2) / d) @ u2.T
+            return float(np.sum(w * self.y[order].reshape(d.shape)) / w.sum()), float(1.0 / w.sum())
         inverse, _ = self._inverse(self.covariance(theta))
         w = inverse.sum(axis=1)
         return float(w @ self.y / w.sum()), float(1.0 / w.sum())
