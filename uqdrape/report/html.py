@@ -136,7 +136,8 @@ LOAD_BYTES = 2**30
 def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None = None,
                  study_text: str | None = None, histogram_nodes: Sequence[Sequence[int]] | None = None,
                  experimental_csv=None, summary: Mapping | None = None, sensitivity: xr.Dataset | None = None,
-                 sensitivity_maps: xr.Dataset | None = None, wall_time_s: float | None = None) -> Path:
+                 sensitivity_maps: xr.Dataset | None = None, wall_time_s: float | None = None,
+                 replicates: int | None = None) -> Path:
     """Write the figures of ensemble ``ds``'s report plan, ``summary.json`` and ``index.html``
     into ``out_dir``; returns the index.html path.
 
@@ -168,7 +169,7 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None
     out.mkdir(parents=True, exist_ok=True)
 
     kind = study_kind(ds)
-    node_stats = node_statistics(ds)
+    node_stats = node_statistics(ds, replicates=replicates)
     exceedance = wrinkle_risk(ds) if kind == RANDOM else None
     nodes = default_histogram_nodes(ds, node_stats) if histogram_nodes is None else histogram_nodes
     c = Context(ds, kind, out, node_stats, exceedance, nodes, points, sensitivity, sensitivity_maps)

@@ -214,4 +214,5 @@ def run_report(output_dir, out_dir=None) -> Path:
                         histogram_nodes=list(study.report.histogram_nodes) or None,
                         experimental_csv=study.report.experimental_csv,
                         wall_time_s=manifest.get("wall_time_s"),
+                        replicates=study.sampling.randomizations if study.sampling.plan == "rqmc" else None,
                         **({} if sensitivity is None else dict(zip(("sensitivity", "sensitivity_maps"), sensitivity))))
