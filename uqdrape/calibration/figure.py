@@ -154,6 +154,7 @@ def _criteria(ax, fit):
     values = [getattr(fit.fits[n], fit.criterion) for n in names]
     colours = ["C0" if n == fit.family else "0.7" for n in names]
     ax.bar(range(len(names)), np.asarray(values) - min(values), color=colours)
+    ax.text(names.index(fit.family), 0.0, "kept", ha="center", va="bottom", color="C0")
     ax.set_xticks(range(len(names)), [n.replace("_", "\n") for n in names], fontsize=8)
-    ax.set(title=f"{fit.criterion.upper()} − least (the kept family in blue)",
+    ax.set(title=f"{fit.criterion.upper()} − least of the families",
            ylabel=f"Δ{fit.criterion.upper()}")
