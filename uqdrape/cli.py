@@ -53,35 +53,26 @@ def cmd_drape(args) -> int:
     return 0
 
 
-def cmd_derive(args) -> int:
-    from .workflow import derive_material
+def cmd_card(args) -> int:
+    """``materials derive ARCH --out CARD`` and ``materials fit RIG --out CARD``: a card written from a file."""
+    from .workflow import derive_material, fit_material
 
+    verb, source, make = {"derive": ("derive", "ARCH.toml", derive_material),
+                          "fit": ("fit", "RIG.toml", fit_material)}[args.name]
     if not args.source:
-        raise ValueError("derive needs an architecture: uqdrape materials derive ARCH.toml --out CARD.toml")
+        raise ValueError(f"{verb} needs a {'rig file' if verb == 'fit' else 'fabric architecture'}: "
+                         f"uqdrape materials {verb} {source} --out CARD.toml")
     if not args.out or Path(args.out).suffix.lower() != ".toml":
-        raise ValueError(f"derive needs --out CARD.toml (a .toml path), got {args.out!r}")
-    print(derive_material(args.source, args.out, args.plot))
-    return 0
-
-
-def cmd_fit(args) -> int:
-    from .workflow import fit_material
-
-    if not args.source:
-        raise ValueError("fit needs a rig file: uqdrape materials fit RIG.toml --out CARD.toml")
-    if not args.out or Path(args.out).suffix.lower() != ".toml":
-        raise ValueError(f"fit needs --out CARD.toml (a .toml path), got {args.out!r}")
-    print(fit_material(args.source, args.out, args.plot))
+        raise ValueError(f"{verb} needs --out CARD.toml (a .toml path), got {args.out!r}")
+    print(make(args.source, args.out, args.plot))
     return 0
 
 
 def cmd_materials(args) -> int:
     from .workflow import material_list, material_text
 
-    if args.name == "derive":
-        return cmd_derive(args)
-    if args.name == "fit":
-        return cmd_fit(args)
+    if args.name in ("derive", "fit"):
+        return cmd_card(args)
     if args.source or args.out:
         raise ValueError("only `uqdrape materials derive ARCH.toml --out CARD.toml` and `uqdrape materials fit "
                          "RIG.toml --out CARD.toml` take a second argument or --out")
