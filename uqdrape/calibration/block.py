@@ -50,13 +50,13 @@ def block_text(calibration, command: str = "uqdrape calibrate") -> str:
     crit = fit.criterion.upper()
     lines = [
         f"[uncertainty.zero_angle] calibrated by `{command}` (uqdrape {__version__}, {date.today().isoformat()})",
-        f"from {Path(points.source).name}: {len(points)} points (fibre set 1: {sets[1]}, set 2: {sets[2]}), fibre 1 "
-        f"nominally at {calibration.fibre1_deg:g} deg from x",
-        "gamma0 = the measured fibre's deviation from nominal, that set rotating against the other "
-        "(uqdrape.calibration.mapping); the mean offset reads as the stitch's rest shear",
+        (f"from {Path(points.source).name}: {len(points)} points (fibre set 1: {sets[1]}, set 2: {sets[2]}), "
+         f"fibre 1 nominally at {calibration.fibre1_deg:g} deg from x"),
+        ("gamma0 = the measured fibre's deviation from nominal, that set rotating against the other "
+         "(uqdrape.calibration.mapping); the mean offset reads as the stitch's rest shear"),
         f"family by {crit} of the restricted likelihood (least is kept):",
-        *[f"  {name:20s} {crit} {getattr(f, fit.criterion):10.2f}  log-likelihood {f.loglik:10.2f}"
-          f"{'  <- kept' if name == fit.family else ''}" for name, f in fit.fits.items()],
+        *[(f"  {name:20s} {crit} {getattr(f, fit.criterion):10.2f}  log-likelihood {f.loglik:10.2f}"
+           f"{'  <- kept' if name == fit.family else ''}") for name, f in fit.fits.items()],
         f"estimates and {100 * fit.level:g} % profile-likelihood intervals (uqdrape.calibration.fit):",
     ]
     for name, estimate in fit.estimates.items():

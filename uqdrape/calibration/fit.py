@@ -196,7 +196,7 @@ def _estimates(like: Likelihood, fit: FamilyFit, scale: float, level: float, int
     optimum (``fit.theta`` itself unless a profile found a higher one)."""
     names = parameter_names(fit.family)
     box = bounds(like, scale)
-    theta, best = fit.theta.copy(), fit.loglik
+    theta, best = fit.theta, fit.loglik
     estimates, profiles = {}, {}
     for k, name in enumerate(names[:3]):
         cuts = sd_cuts(like.n, level) if name == "sd" else (scipy.stats.chi2.ppf(level, 1),) * 2
@@ -262,7 +262,7 @@ class _ProfileSearch:
         centre = self.theta[self.k]
         reach = (self.box[self.k][1] - centre) if side > 0 else (centre - self.box[self.k][0])
         target = math.sqrt(cut)
-        f = lambda u: self._root_deviance(centre + side * u) - target  # noqa: E731
+        f = lambda u: self._root_deviance(centre + side * u) - target
         u_in, f_in = 0.0, -target
         u = min(0.2, reach)
         for _ in range(60):

@@ -32,8 +32,8 @@ told from σ, so σ is then the sd of the measured values, measurement error inc
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg.lapack as lapack
 import scipy.optimize
+from scipy.linalg import lapack
 
 from ..stochastic.fields import CORRELATIONS, correlation_function
 
@@ -193,7 +193,7 @@ class Likelihood:
 
         def term(scale, k1, k2):  # ∂ℓ/∂θ for ∂Σ/∂θ = scale (k1 ⊗ k2)
             trace = np.sum(np.outer(np.einsum("ji,jk,ki->i", u1, k1, u1), np.einsum("ji,jk,ki->i", u2, k2, u2)) / d)
-            quad = lambda m: np.sum(m * (k1 @ m @ k2))  # noqa: E731
+            quad = lambda m: np.sum(m * (k1 @ m @ k2))
             return 0.5 * scale * (quad(alpha) - trace + quad(w) / total)
 
         grad = [term(2.0 * sd2, c1, c2)]

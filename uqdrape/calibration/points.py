@@ -84,7 +84,8 @@ def read_points(path) -> AnglePoints:
         if len(row) != len(header):
             fail(f"row {line}: {len(row)} values for {len(header)} columns")
         for name, cell in zip(header, row):
-            values[name].append(_value(name, cell.strip(), lambda why, n=name: fail(f"row {line}: {why}", n)))
+            values[name].append(_value(name, cell.strip(),
+                                       lambda why, n=name, at=line: fail(f"row {at}: {why}", n)))
     if not values["x_mm"]:
         fail("no data rows after the header")
     columns = {name: np.asarray(v, dtype=float) for name, v in values.items()}
