@@ -8,6 +8,11 @@ family chosen by AIC or BIC and every parameter given a profile-likelihood inter
 (:mod:`.fit`), and the result written as the study block ``[uncertainty.zero_angle]``
 (:mod:`.block`) with a figure (:mod:`.figure`). :mod:`.synthetic` draws measurement sets
 from known fields to check a fit.
+
+Not here yet (issue 25's second half): an orientation field measured from a photograph
+(structure tensor), calibration from measured drapes through an emulator, a posterior
+sample of the parameters, and a hierarchical ensemble drawing sd and lengths per
+realisation from the calibration's uncertainty.
 """
 
 from __future__ import annotations
