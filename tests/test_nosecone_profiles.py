@@ -15,7 +15,7 @@ from uqdrape.geometry import MeshSurface, NoseCone
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "tools"))
-import nosecone_profiles as npf  # noqa: E402  (tools/nosecone_profiles.py, a script of the checkout)
+import nosecone_profiles as npf  # tools/nosecone_profiles.py, a script of the checkout
 
 R, H = 225.0, NoseCone().tip_height  # the default cone's base radius and height (mm)
 

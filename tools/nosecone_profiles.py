@@ -105,7 +105,7 @@ def resample(points: np.ndarray, step: float) -> np.ndarray:
     """The polyline ``points`` (n, 2) resampled at even arc length, at most ``step`` mm
     apart, keeping both ends."""
     s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(points, axis=0).T))]
-    m = max(int(math.ceil(s[-1] / step)), 1) + 1
+    m = max(math.ceil(s[-1] / step), 1) + 1
     t = np.linspace(0.0, s[-1], m)
     return np.c_[np.interp(t, s, points[:, 0]), np.interp(t, s, points[:, 1])]
 
@@ -118,7 +118,7 @@ def revolve(meridian: np.ndarray, *, step: float = STEP_MM, sections: int = SECT
 
     wall = resample(meridian, step)
     base = wall[-1, 0]
-    k = max(int(math.ceil((FLANGE_FACTOR - 1.0) * base / FLANGE_STEP_MM)), 1)
+    k = max(math.ceil((FLANGE_FACTOR - 1.0) * base / FLANGE_STEP_MM), 1)
     flange = np.c_[np.linspace(base, FLANGE_FACTOR * base, k + 1)[1:], np.zeros(k)]
     return trimesh.creation.revolve(np.r_[wall, flange], sections=sections)
 
@@ -178,23 +178,26 @@ def profiles(mesh_dir: Path) -> tuple[list[Profile], dict]:
     from uqdrape.geometry import NoseCone
 
     base = NoseCone()
-    out = [Profile(f"cone {a:g} deg, tip {t:g} mm", "cone", f"half-angle {a:g} deg, tip radius {t:g} mm, "
-                   f"base radius {base.base_radius:g} mm, height {NoseCone(half_angle_deg=a, tip_radius=t).tip_height:.1f} mm",
-                   "nose_cone", {"half_angle_deg": a, "tip_radius": t})
-           for t in TIP_RADII for a in HALF_ANGLES]
+    out = []
+    for t in TIP_RADII:
+        for a in HALF_ANGLES:
+            cone = NoseCone(half_angle_deg=a, tip_radius=t)
+            out.append(Profile(f"cone {a:g} deg, tip {t:g} mm", "cone",
+                               f"half-angle {a:g} deg, tip radius {t:g} mm, base radius {cone.base_radius:g} mm, "
+                               f"height {cone.tip_height:.1f} mm", "nose_cone", {"half_angle_deg": a, "tip_radius": t}))
     R, H = base.base_radius, base.tip_height
     meshes = {}
-    for label, mesh, err in (
-            ("tangent ogive", ogive_mesh(R, H), lambda m: wall_error(m, lambda p: ogive_distance(p, R, H))),
-            ("half-ellipsoid", ellipsoid_mesh(R, H), lambda m: wall_error(m, lambda p: ellipsoid_distance(p, R, H))),
+    for label, mesh, distance in (
+            ("tangent ogive", ogive_mesh(R, H), lambda p: ogive_distance(p, R, H)),
+            ("half-ellipsoid", ellipsoid_mesh(R, H), lambda p: ellipsoid_distance(p, R, H)),
             ("cone 35 deg, tip 50 mm, meshed", revolve(nosecone_meridian(base, 20000)), None)):
         path = mesh_dir / f"{label.split(',')[0].replace(' ', '_')}.stl"
         mesh.export(path)
         edges = mesh.edges_unique_length
-        meshes[label] = {"faces": int(len(mesh.faces)), "edge_length_mm_max": round(float(edges.max()), 3),
-                         "edge_length_mm_wall_max": round(float(edges[mesh.vertices[mesh.edges_unique].min(1)[:, 2] > 0]
-                                                               .max()), 3),
-                         "chord_error_mm": None if err is None else float(f"{err(mesh):.3g}")}
+        on_wall = mesh.vertices[mesh.edges_unique].min(1)[:, 2] > 0
+        meshes[label] = {"faces": len(mesh.faces), "edge_length_mm_max": round(float(edges.max()), 3),
+                         "edge_length_mm_wall_max": round(float(edges[on_wall].max()), 3),
+                         "chord_error_mm": None if distance is None else float(f"{wall_error(mesh, distance):.3g}")}
         family = "mesh control" if label.endswith("meshed") else "mesh"
         shape = (f"base radius {R:g} mm, height {H:.1f} mm (the default cone's)" if family == "mesh"
                  else "the default analytic cone, revolved as the meshes are")
@@ -209,9 +212,10 @@ def settings(model: str) -> dict:
     st = load_study(STUDIES[model])
     f, s, p = st.fabric, st.solver, st.process
     return {"material": f.material, "spacing": f.spacing_mm, "rings": s.rings,
-            "kwargs": dict(friction=p.friction, blankholder_model=p.blankholder_model, orientation=f.orientation_deg,
-                           pre_shear=f.pre_shear_deg, skew=f.skew_deg, crossover=tuple(f.crossover),
-                           tolerance=s.tolerance_deg, max_iterations=s.max_iterations)}
+            "kwargs": {"friction": p.friction, "blankholder_model": p.blankholder_model,
+                       "orientation": f.orientation_deg, "pre_shear": f.pre_shear_deg, "skew": f.skew_deg,
+                       "crossover": tuple(f.crossover), "tolerance": s.tolerance_deg,
+                       "max_iterations": s.max_iterations}}
 
 
 def run(profile: Profile, model: str) -> dict:
