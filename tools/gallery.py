@@ -400,6 +400,13 @@ def write_readme() -> Path:
                      f"[![{entry.name}]({entry.name}/{entry.picture})]({entry.name}/index.html) "
                      f"| {_cell(record['thesis_figure'])}: {_cell(record['thesis'])} | {numbers} |")
     lines += _comparison_section()
+    lines += ["", "## Beyond a study file", "",
+              "- [nosecone-profiles](nosecone-profiles/README.md): the symmetrising blank-holder force of the "
+              "picture-frame-scale card over 17 nose-cone profiles, both blank-holder models "
+              "(`python tools/nosecone_profiles.py`).",
+              "- [sheartest-normalisation](sheartest-normalisation/synthetic_pf.png): raw picture-frame specimens, "
+              "their normalised curves and the fitted card with its band (`uqdrape materials fit "
+              "studies/sheartests/pf-rig.toml --plot`)."]
     shots = sorted((GALLERY_DIR / "screenshots").glob("*.png"))
     if shots:
         lines += ["", "## What a report page looks like", "",
