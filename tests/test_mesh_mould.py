@@ -423,3 +423,32 @@ def test_a_mesh_study_gives_the_same_numbers_in_two_processes_and_after_a_resume
     chunk = sorted((tmp_path / "two" / "chunks").glob("*.nc"))[1]
     chunk.unlink()
     xr.testing.assert_identical(one, ensemble("two", chunk_size=2, workers=1))
+
+
+def test_fe_export_maps_the_elements_of_a_wall(tmp_path):
+    """FE export onto the box drape: a part mesh of the box (12.5 mm triangles) has its wall
+    elements carried onto the mesh by closest point and located on the net in space; those
+    under the net get fibre directions tangent to the wall; none is off the mould."""
+    import meshio
+
+    from uqdrape.drape import drape
+    from uqdrape.export import levels, open_result
+    from uqdrape.export.fe import OFF_MOULD, ON_NET, centroids, map_level, read_surface_mesh
+
+    box = trimesh.creation.box(extents=(100.0, 100.0, 60.0))
+    box.apply_translation((0.0, 0.0, -30.0))
+    surface = MeshSurface(_save(box, tmp_path / "box.stl"))
+    drape(surface, S, 16).to_netcdf(tmp_path / "box.nc")
+    part = _save(box.subdivide().subdivide().subdivide(), tmp_path / "part.stl")
+    result, ensemble = open_result(tmp_path / "box.nc")
+    mesh, blocks = read_surface_mesh(part)
+    c = centroids(mesh, blocks)
+    values = map_level(levels(result, ensemble)[0], surface, c, S)
+    status = values["map_status"]
+    wall = (np.abs(np.abs(c[:, 0]) - 50.0) < 1e-6) & (c[:, 2] < -5.0)
+    assert (status != OFF_MOULD).all() and (status[wall] == ON_NET).sum() >= 100
+    foot, _, _ = surface.project(c)
+    n = surface.normal_at(foot)
+    for name in ("fibre1", "fibre2"):
+        d = values[name][status == ON_NET]
+        assert np.abs((d * n[status == ON_NET]).sum(1)).max() < 1e-12, name

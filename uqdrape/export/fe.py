@@ -4,7 +4,9 @@ Each element's centroid (mean of its corner nodes) is moved along the mould norm
 the mould, located in a cell of the draped net in plan (each quad split into two
 triangles along its (i, j)-(i+1, j+1) diagonal) and given the net's node values by
 linear barycentric interpolation: exact for fields linear in plan position, error
-O(s^2) for smooth fields at spacing s. The fibre directions are interpolated, laid on
+O(s^2) for smooth fields at spacing s. On a mesh mould, whose walls have no plan
+position, the centroid goes to its closest point on the mesh and is located on the
+nearest net triangle in space (within half the tolerance; farther is off the net). The fibre directions are interpolated, laid on
 the mould's tangent plane and opened to 90 deg - the interpolated shear
 (``fibre_frame``). Elements are never dropped: ``map_status`` says why one has no values.
 """
@@ -102,6 +104,24 @@ def onto_mould(surface, c: np.ndarray, iterations: int = 30):
     return xy, d, surface.inside(xy[:, 0], xy[:, 1])
 
 
+def locate_on(points: np.ndarray, tri: np.ndarray, reach: float):
+    """Triangle index (M,) (-1: none within ``reach`` mm) and barycentric weights (M, 3) of
+    the points (M, 3) on their nearest of the triangles ``tri`` (T, 3, 3) in space."""
+    import trimesh
+
+    tree = cKDTree(tri.mean(1))
+    k = min(CANDIDATES, len(tri))
+    _, cand = tree.query(points, k=k)
+    cand = cand.reshape(len(points), k)
+    near = trimesh.triangles.closest_point(tri[cand.ravel()], np.repeat(points, k, axis=0)).reshape(-1, k, 3)
+    dist = np.linalg.norm(near - points[:, None], axis=-1)
+    best = np.argmin(dist, axis=1)
+    rows = np.arange(len(points))
+    pick = cand[rows, best]
+    lam = trimesh.triangles.points_to_barycentric(tri[pick], near[rows, best])
+    return np.where(dist[rows, best] <= reach, pick, -1), lam
+
+
 def locate(points: np.ndarray, tri_xy: np.ndarray):
     """Triangle index (M,) (-1: none) and barycentric weights (M, 3) of plan ``points``
     (M, 2) in the triangles ``tri_xy`` (T, 3, 2)."""
@@ -131,9 +151,16 @@ def map_level(level: Level, surface, mesh_centroids: np.ndarray, tolerance_mm: f
     kept, quads = net_quads(valid)
     tris = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
     pts = P.reshape(-1, 3)[kept]
-    xy, dist, on_mould = onto_mould(surface, mesh_centroids)
+    if hasattr(surface, "project"):  # a mesh mould: onto it and onto the net in space
+        foot, dist, on_mould = surface.project(mesh_centroids)
+        normal = surface.normal_at(foot)
+        tri, lam = (locate_on(foot, pts[tris], 0.5 * tolerance_mm) if len(tris)
+                    else (np.full(len(foot), -1), np.zeros((len(foot), 3))))
+    else:
+        xy, dist, on_mould = onto_mould(surface, mesh_centroids)
+        normal = surface.normal(xy[:, 0], xy[:, 1])
+        tri, lam = locate(xy, pts[tris, :2]) if len(tris) else (np.full(len(xy), -1), np.zeros((len(xy), 3)))
     near = on_mould & (np.abs(dist) <= tolerance_mm)
-    tri, lam = locate(xy, pts[tris, :2]) if len(tris) else (np.full(len(xy), -1), np.zeros((len(xy), 3)))
     hit = near & (tri >= 0)
     status = np.where(~near, OFF_MOULD, np.where(hit, ON_NET, OFF_NET)).astype(np.int8)
     corner = tris[np.where(hit, tri, 0)]
@@ -145,7 +172,6 @@ def map_level(level: Level, surface, mesh_centroids: np.ndarray, tolerance_mm: f
         out[~hit] = np.nan
         return out
 
-    normal = surface.normal(xy[:, 0], xy[:, 1])
     shear = interp(level.shear)
     with np.errstate(invalid="ignore"):
         e1, e2 = fibre_frame(interp(d1), interp(d2), normal, shear)

@@ -208,6 +208,17 @@ def signed_distance(p, x, y, z):
 
 
 @jit
+def closest_many(p, points, foot, phi):
+    """Closest points ``foot`` (M, 3) on the mesh and the signed distances ``phi`` (M,) of
+    ``points`` (M, 3) mm, filled in place (NaN for a non-finite point)."""
+    for m in range(points.shape[0]):
+        x, y, z = points[m, 0], points[m, 1], points[m, 2]
+        c = closest(p, x, y, z)[1]
+        foot[m, 0], foot[m, 1], foot[m, 2] = c
+        phi[m] = signed_distance(p, x, y, z)[0]
+
+
+@jit
 def _smooth_normal(p, f, w):
     """Unit normal at barycentric weights w of face f: the corners' normals (vertex normal,
     or the face normal at a creased corner) interpolated."""
