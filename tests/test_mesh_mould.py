@@ -429,11 +429,15 @@ def test_fe_export_maps_the_elements_of_a_wall(tmp_path):
     """FE export onto the box drape: a part mesh of the box (12.5 mm triangles) has its wall
     elements carried onto the mesh by closest point and located on the net in space; those
     under the net get fibre directions tangent to the wall; none is off the mould."""
-    import meshio
-
     from uqdrape.drape import drape
     from uqdrape.export import levels, open_result
-    from uqdrape.export.fe import OFF_MOULD, ON_NET, centroids, map_level, read_surface_mesh
+    from uqdrape.export.fe import (
+        OFF_MOULD,
+        ON_NET,
+        centroids,
+        map_level,
+        read_surface_mesh,
+    )
 
     box = trimesh.creation.box(extents=(100.0, 100.0, 60.0))
     box.apply_translation((0.0, 0.0, -30.0))

@@ -22,7 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import compiled, meshquery as mq
+from . import compiled
+from . import meshquery as mq
 from .analytic import MAX_LENGTH_MM
 from .base import Surface
 
