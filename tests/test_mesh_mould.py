@@ -456,3 +456,20 @@ def test_fe_export_maps_the_elements_of_a_wall(tmp_path):
     for name in ("fibre1", "fibre2"):
         d = values[name][status == ON_NET]
         assert np.abs((d * n[status == ON_NET]).sum(1)).max() < 1e-12, name
+
+
+def test_nodes_over_a_hole_in_the_mesh_are_off_the_mould(tmp_path):
+    """A plate with a 40 x 40 mm hole cut at x = 40 mm: the nodes over the hole land on the
+    tangent plane that continues the mesh past its open edge, so they are flagged
+    off_mould (and the nodes built from them dependent), never placed as on the tool."""
+    from uqdrape.drape import Status, drape
+
+    sheet = _grid_sheet(np.linspace(-100, 100, 21), np.linspace(-100, 100, 21), lambda X, Y: 0 * X)
+    centre = sheet.triangles.mean(1)
+    hole = (np.abs(centre[:, 0] - 40.0) < 20.0) & (np.abs(centre[:, 1]) < 20.0)
+    holed = trimesh.Trimesh(sheet.vertices, sheet.faces[~hole], process=False)
+    ds = drape(MeshSurface(_save(holed, tmp_path / "holed.stl")), S, 12)
+    st, P = ds.status.values[0], _positions(ds)[0]
+    over = (np.abs(P[..., 0] - 40.0) < 20.0 - 1e-9) & (np.abs(P[..., 1]) < 20.0 - 1e-9)
+    assert (st == Status.OFF_MOULD).sum() > 0 and not over[st == Status.OK].any()
+    assert (st == Status.OK).sum() > 0.6 * st.size
