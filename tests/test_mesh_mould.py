@@ -473,3 +473,24 @@ def test_nodes_over_a_hole_in_the_mesh_are_off_the_mould(tmp_path):
     over = (np.abs(P[..., 0] - 40.0) < 20.0 - 1e-9) & (np.abs(P[..., 1]) < 20.0 - 1e-9)
     assert (st == Status.OFF_MOULD).sum() > 0 and not over[st == Status.OK].any()
     assert (st == Status.OK).sum() > 0.6 * st.size
+
+
+@pytest.mark.parametrize("suffix", [".ply", ".obj", ".vtu", ".msh"])
+def test_other_mesh_formats_give_the_same_mould(tmp_path, suffix):
+    """The box in PLY, OBJ (trimesh) and VTU, Gmsh (meshio) drapes as its STL does."""
+    import meshio
+
+    from uqdrape.drape import drape
+
+    box = trimesh.creation.box(extents=(101.0, 101.0, 60.0))
+    box.apply_translation((0.0, 0.0, -30.0))
+    path = tmp_path / f"box{suffix}"
+    if suffix in (".ply", ".obj"):
+        box.export(path)
+    else:
+        meshio.write(path, meshio.Mesh(np.asarray(box.vertices), [("triangle", np.asarray(box.faces))]),
+                     **({"file_format": "gmsh22"} if suffix == ".msh" else {}))
+    a = drape(MeshSurface(path), S, 12)
+    b = drape(MeshSurface(_save(box, tmp_path / "box.stl")), S, 12)
+    np.testing.assert_array_equal(a.status.values, b.status.values)
+    assert np.nanmax(np.abs(_positions(a) - _positions(b))) < 1e-4  # STL stores float32
