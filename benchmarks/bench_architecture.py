@@ -15,8 +15,8 @@ import time
 
 import numpy as np
 
-from uqdrape.material import architecture
 from uqdrape.material.architecture import derive_card, load_architecture, zero_force_table
+from uqdrape.material.architecture.crossover import crossover_slip
 
 
 def median_time(fn, repeats):
@@ -31,7 +31,7 @@ def median_time(fn, repeats):
 def cold(fn):
     """fn without the crossover path-line cache, as in a fresh process."""
     def run():
-        architecture._crossover_slip.cache_clear()
+        crossover_slip.cache_clear()
         return fn()
     return run
 

@@ -1,6 +1,7 @@
-"""Fixtures shared by the test modules.
+"""Fixtures and helpers shared by the test modules.
 
-The suite caches compiled bytecode even where the environment sets
+``write_study`` is the one builder of study files; ``assert_one_line_error`` the one check
+of an error message's essentials. The suite caches compiled bytecode even where the environment sets
 PYTHONDONTWRITEBYTECODE: without it every test process (pytest-xdist's workers included)
 recompiles uqdrape and re-rewrites the test modules' asserts, 5 s of an 8 s collection on
 the 2-core machine. The caches go to the ``__pycache__`` folders, beside numba's.
@@ -8,11 +9,16 @@ the 2-core machine. The caches go to the ``__pycache__`` folders, beside numba's
 
 from __future__ import annotations
 
+import copy
+import re
 import sys
+from pathlib import Path
 
 import pytest
 from matplotlib.figure import Figure
 from PIL import Image
+
+from uqdrape.files import toml_text
 
 sys.dont_write_bytecode = False
 
@@ -35,3 +41,62 @@ def unrasterised(monkeypatch):
 
     monkeypatch.setattr(Figure, "savefig", savefig)
     return saved
+
+
+# -- study files -----------------------------------------------------------------------
+
+#: The smallest valid study: a geodesic drape of 4 rings on a 50 mm dome, nothing random.
+STUDY = {
+    "study": {"name": "tiny", "seed": 3, "realizations": 6, "chunk_size": 2},
+    "geometry": {"kind": "hemisphere", "radius": 50.0},
+    "fabric": {"material": "generic_woven", "spacing_mm": 5.0},
+    "process": {"blankholder_force_N": 50.0},
+    "solver": {"mode": "geodesic", "rings": 4},
+}
+
+
+def write_study(folder, name="tiny", **sections) -> Path:
+    """Write ``folder/name.toml`` (the text of ``study_text``); returns the path."""
+    path = Path(folder) / f"{name}.toml"
+    path.write_text(study_text(folder, name, **sections), encoding="utf-8")
+    return path
+
+
+def study_text(folder, name="tiny", **sections) -> str:
+    """A study named ``name`` writing to ``folder/name``: STUDY with each keyword's table merged
+    into the section of that name (sub-tables such as ``uncertainty={"spacing": {"cv": 0.01}}``
+    merge the same way; None drops a key, a sub-table or a section), as TOML text."""
+    doc = _merged(copy.deepcopy(STUDY), {"study": {"name": name}, "output": {"directory": Path(folder) / name}})
+    return toml_text(_merged(doc, sections))
+
+
+def _merged(base: dict, changes: dict) -> dict:
+    for key, value in changes.items():
+        if value is None:
+            base.pop(key, None)
+        elif isinstance(value, dict):
+            base[key] = _merged(base.get(key, {}) if isinstance(base.get(key), dict) else {}, value)
+        else:
+            base[key] = value
+    return base
+
+
+
+
+# -- error messages --------------------------------------------------------------------
+
+def assert_one_line_error(text: str, *, file=None, key=None, value=None, valid=()) -> None:
+    """Check what a user needs to fix an input, not the wording: ``text`` (an exception's
+    message or a command's stderr) is one line without a traceback, names ``file``, names
+    ``key`` as a whole dotted key (as ``key = value`` when ``value``, TOML text, is given)
+    and holds each string of ``valid`` (the valid values or range)."""
+    lines = text.splitlines()
+    assert len(lines) == 1 and lines[0].strip() and text in (lines[0], lines[0] + "\n"), text
+    assert "Traceback" not in text, text
+    if file is not None:
+        assert str(file) in text, (file, text)
+    if key is not None:
+        named = key if value is None else f"{key} = {value}"
+        assert re.search(rf"(?<![\w.]){re.escape(named)}(?![\w])", text), (named, text)
+    for part in valid:
+        assert part in text, (part, text)

@@ -11,40 +11,28 @@ import pytest
 import xarray as xr
 
 from uqdrape import design
+from uqdrape.drape import draw_in
+from uqdrape.workflow import run_design
 from uqdrape.cli import main as cli
 from uqdrape.study import StudyError, load_study
 
+from conftest import assert_one_line_error, study_text, write_study
+
 STUDIES = Path(__file__).resolve().parents[1] / "studies"
 
-BASE = """\
-[study]
-name = "d"
-seed = 7
-realizations = 32
-chunk_size = 16
-
-[geometry]
-kind = "hemisphere"
-radius = 100.0
-
-[fabric]
-material = "generic_woven"
-spacing_mm = 5.0
-
-[process]
-blankholder_force_N = 100.0
-
-[solver]
-rings = 4
-
-[uncertainty.zero_angle]
-sd_deg = 2.0
-"""
+def _sections(realizations=32, rings=4):
+    """The base study (``write_study``'s keywords): a R 100 mm hemisphere, a random zero angle."""
+    return dict(study={"seed": 7, "realizations": realizations, "chunk_size": 16}, geometry={"radius": 100.0},
+                process={"blankholder_force_N": 100.0}, solver={"mode": None, "rings": rings},
+                uncertainty={"zero_angle": {"sd_deg": 2.0}})
 
 
-def write(tmp_path, design_text: str, name="d.toml") -> Path:
+def write(tmp_path, design_text: str, name="d.toml", **base) -> Path:
+    """The base study (``_sections``' keywords) with ``design_text`` as its [design] section
+    (TOML text, the input under test); its output folder is tmp_path/out."""
+    text = study_text(tmp_path, "d", output={"directory": tmp_path / "out"}, **_sections(**base))
     path = tmp_path / name
-    path.write_text(BASE + "\n[design]\n" + design_text + f'\n[output]\ndirectory = "{tmp_path / "out"}"\n')
+    path.write_text(text + "\n[design]\n" + design_text + "\n", encoding="utf-8")
     return path
 
 
@@ -83,7 +71,7 @@ def synthetic_drape(study, realizations, force, sectors, friction):
 
 def run(path, out=None, drape=synthetic_drape):
     study = load_study(path)
-    folder = design.run_design(study, output_dir=out, scheduler="synchronous", progress=False, drape=drape)
+    folder = run_design(study, output_dir=out, scheduler="synchronous", progress=False, drape=drape)
     return xr.load_dataset(folder / design.DESIGN_FILE)
 
 
@@ -180,9 +168,9 @@ def test_draw_in_is_zero_on_a_plate_and_the_arc_deficit_on_a_hemisphere():
 
     n, s, R = 6, 5.0, 100.0
     plate = drape(build("plate"), s, n, orientation=[0.0, 30.0])
-    assert float(abs(design.draw_in(plate)).max()) < 1e-12
+    assert float(abs(draw_in(plate)).max()) < 1e-12
     dome = drape(build("hemisphere", radius=R), s, n)
-    d = design.draw_in(dome).isel(realization=0)
+    d = draw_in(dome).isel(realization=0)
     a = 2 * np.arcsin(s / (2 * R))
     np.testing.assert_allclose(float(d.sel(i=n, j=0)), n * s - R * np.sin(n * a), rtol=1e-9)
     edge = d.where(np.isfinite(d), drop=True)
@@ -213,33 +201,31 @@ def test_interrupted_design_resumes_to_the_same_result(tmp_path):
     assert resumed.attrs["summary"] == clean.attrs["summary"]
 
 
-@pytest.mark.parametrize("text, expected", [
+FORCE = 'variables = "force"\nforce_bounds_N = [0.0, 100.0]\nobjective = "p_locked"'
+
+
+# (design text, the key, its value as written, what the message must offer as valid)
+@pytest.mark.parametrize("text, key, value, valid", [
     ('variables = "force"\nforce_bounds_N = [500.0, 100.0]\nobjective = "p_locked"',
-     "design.force_bounds_N = [500.0, 100.0] is invalid: force_bounds_N must be two numbers [lo, hi] with 0 <= lo < hi "
-     "(N, total force)"),
+     "design.force_bounds_N", "[500.0, 100.0]", ["two numbers [lo, hi] with 0 <= lo < hi", "(N, total force)"]),
     ('variables = "sectors"\nsectors = 4\nforce_bounds_N = [100.0, 500.0]\nbudget_N = 300.0\nobjective = "p_locked"',
-     "design.budget_N = 300.0 is invalid: budget_N must be >= the smallest total force the bounds allow, 4 x 100 = 400 N"),
+     "design.budget_N", "300.0", [">= the smallest total force the bounds allow", "4 x 100 = 400 N"]),
     ('variables = "force"\nforce_bounds_N = [0.0, 100.0]\nobjective = "p_wrinkle"',
-     'design.objective = "p_wrinkle" is invalid: objective must be one of "p_locked", "q95_max_abs_shear", '
-     '"abs_mean_asymmetry", "q95_max_draw_in"'),
+     "design.objective", '"p_wrinkle"', ['"p_locked"', '"q95_max_abs_shear"', '"abs_mean_asymmetry"', '"q95_max_draw_in"']),
     ('variables = "sectors"\nsectors = 1\nforce_bounds_N = [0.0, 100.0]\nobjective = "p_locked"',
-     "design.sectors = 1 is invalid: sectors must be an integer >= 2"),
-    ('variables = "force"\nforce_bounds_N = [0.0, 100.0]\nobjective = "p_locked"\nmax_draw_in_mm = -5.0',
-     "design.max_draw_in_mm = -5.0 is invalid: max_draw_in_mm must be a number > 0"),
-    ('variables = "force"\nforce_bounds_N = [0.0, 100.0]\nobjective = "p_locked"\nmax_draw_in_mm = "20 mm"',
-     'design.max_draw_in_mm = "20 mm" is invalid: max_draw_in_mm must be a number > 0'),
-    ('variables = "force"\nforce_bounds_N = [0.0, 100.0]\nobjective = "p_locked"\nmax_draw_in_mm = 20.0',
-     'study.realizations = 32 is invalid: the upper 0.95 confidence limit of a 95 % quantile needs at least 72 '
-     'realisations; use more, or statistic = "estimate"'),
+     "design.sectors", "1", ["integer >= 2"]),
+    (FORCE + "\nmax_draw_in_mm = -5.0", "design.max_draw_in_mm", "-5.0", ["number > 0"]),
+    (FORCE + '\nmax_draw_in_mm = "20 mm"', "design.max_draw_in_mm", '"20 mm"', ["number > 0"]),
+    (FORCE + "\nmax_draw_in_mm = 20.0", "study.realizations", "32", ["at least 72", 'statistic = "estimate"']),
 ])
-def test_bad_design_is_refused_in_one_line(tmp_path, capsys, text, expected):
+def test_bad_design_is_refused_in_one_line(tmp_path, capsys, text, key, value, valid):
     path = write(tmp_path, text)
     with pytest.raises(StudyError) as err:
         load_study(path)
-    assert str(err.value) == f"{path}: {expected}"
+    assert str(err.value).startswith(f"{path}: ")
+    assert_one_line_error(str(err.value), file=path, key=key, value=value, valid=valid)
     assert cli(["validate", str(path)]) == 2
-    stderr = capsys.readouterr().err
-    assert stderr.count("\n") == 1 and "Traceback" not in stderr and expected in stderr
+    assert_one_line_error(capsys.readouterr().err, file=path, key=key, value=value, valid=valid)
 
 
 def test_design_round_trips_through_the_study_dict():
@@ -255,27 +241,23 @@ def test_symmetric_woven_on_the_hemisphere_gets_equal_sector_forces(tmp_path):
     """Real drapes: a woven fabric on a hemisphere is symmetric under a quarter turn, so
     the 4-sector design of least 95 % quantile of max |shear| at a fixed budget is the
     equal split (to the DE tolerance, 40 N of 800 N)."""
-    path = tmp_path / "h.toml"
-    path.write_text(BASE.replace("rings = 4", "rings = 8").replace("realizations = 32", "realizations = 16")
-                    + '\n[design]\nvariables = "sectors"\nsectors = 4\nforce_bounds_N = [0.0, 400.0]\n'
-                      'budget_N = 800.0\nobjective = "q95_max_abs_shear"\nstatistic = "estimate"\n'
-                      f'max_evaluations = 48\n[output]\ndirectory = "{tmp_path / "out"}"\n')
-    ds = xr.load_dataset(design.run_design(load_study(path), scheduler="synchronous", progress=False)
+    path = write(tmp_path, 'variables = "sectors"\nsectors = 4\nforce_bounds_N = [0.0, 400.0]\nbudget_N = 800.0\n'
+                           'objective = "q95_max_abs_shear"\nstatistic = "estimate"\nmax_evaluations = 48',
+                 "h.toml", realizations=16, rings=8)
+    ds = xr.load_dataset(run_design(load_study(path), scheduler="synchronous", progress=False)
                          / design.DESIGN_FILE)
     opt = np.asarray(ds.attrs["optimum"])
     np.testing.assert_allclose(opt, opt.mean(), atol=40.0)
 
 
 def test_design_command_needs_a_design_section(tmp_path, capsys):
-    path = tmp_path / "plain.toml"
-    path.write_text(BASE)
+    path = write_study(tmp_path, "plain", **_sections())
     assert cli(["design", str(path)]) == 2
-    err = capsys.readouterr().err
-    assert err == f"uqdrape design: error: study 'd' ({path}) has no [design] section; run it with `uqdrape run`\n"
+    assert_one_line_error(capsys.readouterr().err, file=path, key="[design]", valid=["uqdrape run"])
 
 
 def test_run_of_a_design_study_refuses_ensemble_options(tmp_path, capsys):
-    path = write(tmp_path, 'variables = "force"\nforce_bounds_N = [0.0, 100.0]\nobjective = "p_locked"')
+    path = write(tmp_path, FORCE)
     assert cli(["run", str(path), "--method", "morris"]) == 2
-    assert capsys.readouterr().err == (f"uqdrape run: error: {path} is a [design] study: --method, --chunk-size "
-                                       "and --no-resume do not apply\n")
+    assert_one_line_error(capsys.readouterr().err, file=path, key="[design]",
+                          valid=["--method", "--chunk-size", "--no-resume", "do not apply"])

@@ -87,20 +87,20 @@ def test_no_import_cycle_between_the_parts_of_uqdrape():
 
 
 def test_the_flow_points_down_from_the_cli():
-    """cli -> workflow -> {study, ensemble, stats, sensitivity, report} -> drape -> {geometry,
-    material}: nothing below imports the workflow or the cli, the solver imports none of the
-    study-level parts, and sensitivity and report never open the ensemble's chunk store."""
+    """cli -> workflow -> {design, export, report, sensitivity, ensemble, stats} -> drape and
+    study -> {geometry, material, stochastic}: the cli imports only the workflow, nothing below
+    imports the workflow or the cli, the solver imports none of the study-level parts, and
+    sensitivity and report never open the ensemble's chunk store."""
     graph = _graph()
+    assert graph["cli"] == {"workflow"}
     for part, targets in graph.items():
         assert "cli" not in targets, part
         if part != "cli":
             assert "workflow" not in targets, part
     assert not graph.get("drape", set()) & {"study", "ensemble", "stats", "sensitivity", "report", "workflow"}
-    # the study file's specification and validator know nothing of running or reporting a
-    # study (they ask sensitivity only for its design-size rule, to refuse a bad one at validation)
-    assert not graph["study"] & {"ensemble", "report", "design", "workflow"}
-    # the names, the netCDF conventions and the measured points sit below every part
-    for bottom in ("schema", "conventions", "experimental"):
+    # the names, the netCDF conventions, the measured points, the file reader/writer and
+    # the argument error sit below every part
+    for bottom in ("schema", "conventions", "experimental", "files", "errors"):
         assert graph.get(bottom, set()) == set(), bottom
     for part in ("sensitivity", "report"):
         assert "ensemble" not in graph.get(part, set()), part
@@ -114,3 +114,40 @@ def test_no_private_name_is_imported_from_another_module():
                 offenders += [f"{_module_name(path)}: from {target} import {n}" for n in names
                               if n.startswith("_") and n != "__version__"]
     assert offenders == []
+
+
+README = PACKAGE.parent / "README.md"
+GRAPH_START, GRAPH_END = "<!-- import graph: tests/test_layout.py checks it -->", "<!-- end of import graph -->"
+
+
+def _readme_graph() -> dict[str, set[str]]:
+    """The import graph README.md draws: one ``part -> part, part`` line per importing part."""
+    text = README.read_text(encoding="utf-8")
+    block = text[text.index(GRAPH_START) + len(GRAPH_START):text.index(GRAPH_END)]
+    graph, part = {}, None
+    for line in block.splitlines():
+        if "->" in line:  # a part and its targets; an indented line without "->" continues them
+            part, _, line = line.partition("->")
+            part = part.strip()
+        if part is not None and line.strip() and not line.startswith("`"):
+            graph.setdefault(part, set()).update(t.strip() for t in line.split(",") if t.strip())
+    return graph
+
+
+def test_the_import_graph_is_the_one_readme_draws():
+    graph = _graph()
+    print("\n".join(f"{part:12s} -> {', '.join(sorted(targets))}" for part, targets in sorted(graph.items())))
+    assert graph == _readme_graph()
+
+
+def test_the_study_spec_is_at_the_bottom():
+    """Reading a study file drapes, analyses, samples an ensemble and reports nothing."""
+    graph = _graph()
+    below = set()
+    todo = ["study"]
+    while todo:  # everything the study layer reaches, directly or not
+        for target in graph.get(todo.pop(), ()):
+            if target not in below:
+                below.add(target)
+                todo.append(target)
+    assert not below & {"drape", "stats", "sensitivity", "report", "ensemble", "design", "workflow", "export"}, below

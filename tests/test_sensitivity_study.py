@@ -9,8 +9,6 @@ nothing and the zero-angle field must carry all the variance.
 
 from __future__ import annotations
 
-import re
-import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -19,69 +17,39 @@ import xarray as xr
 from SALib.analyze import sobol as salib_sobol_analyze
 from SALib.sample import sobol as salib_sobol_sample
 from SALib.test_functions import Ishigami
-from scipy.stats import qmc
+from scipy.stats import norm, qmc
 
 from uqdrape.cli import main
 from uqdrape.ensemble import inputs_from_design, open_ensemble
 from uqdrape.sensitivity import qoi_indices
-from uqdrape.stats import QOIS, realization_qois
+from uqdrape.stats import SENSITIVITY_QOIS as QOIS, realization_qois
 from uqdrape.study import StudyError, load_study
-from uqdrape.workflow import (
-    MORRIS_SCREENING_TRAJECTORIES,
-    design_base_samples,
-    open_sensitivity,
-    run_study,
-    study_design,
-    study_problem,
-)
+from uqdrape.sensitivity import MORRIS_SCREENING_TRAJECTORIES, design_base_samples, study_design, study_problem
+from uqdrape.workflow import open_sensitivity, run_study
+
+from conftest import assert_one_line_error, write_study
+from golden import ISHIGAMI_S1, ISHIGAMI_ST
 
 FORCES = (0.0, 378.0)
-ISHIGAMI_S1 = np.array([0.3139, 0.4424, 0.0])
-ISHIGAMI_ST = np.array([0.5576, 0.4424, 0.2437])
 
 
-def study_file(tmp_path, name="sens", *, force="[0.0, 378.0]", rings=6, base=128, method="sobol",
-               uncertainty=None, geometry='kind = "nose_cone"', mode="energy"):
-    """Write a small sensitivity study; its output folder is tmp_path/name."""
-    uncertainty = uncertainty or """
-        [uncertainty.zero_angle]
-        sd_deg = 5.0
+#: The default inputs of the sensitivity studies: an iid zero-angle field and friction.
+INPUTS = {"zero_angle": {"sd_deg": 5.0}, "friction": {"dist": "uniform", "bounds": [0.15, 0.3]}}
 
-        [uncertainty.friction]
-        dist = "uniform"
-        bounds = [0.15, 0.3]
-    """
-    text = textwrap.dedent(f"""
-        [study]
-        name = "{name}"
-        seed = 3
-        realizations = 8
-        chunk_size = 128
 
-        [geometry]
-        {geometry}
-
-        [fabric]
-        material = "ebxhd936_like"
-        spacing_mm = 5.0
-
-        [process]
-        blankholder_force_N = {force}
-
-        [solver]
-        mode = "{mode}"
-        rings = {rings}
-    """) + textwrap.dedent(uncertainty) + textwrap.dedent(f"""
-        [sensitivity]
-        method = "{method}"
-        base_samples = {base}
-
-        [output]
-        directory = "{tmp_path / name}"
-    """)
-    path = tmp_path / f"{name}.toml"
-    path.write_text(text)
-    return path
+def study_file(tmp_path, name="sens", *, force=(0.0, 378.0), rings=6, base=128, method="sobol",
+               uncertainty=INPUTS, mode="energy"):
+    """Write a small nose-cone sensitivity study; its output folder is tmp_path/name."""
+    return write_study(
+        tmp_path, name,
+        study={"realizations": 8, "chunk_size": 128},
+        geometry={"kind": "nose_cone", "radius": None},
+        fabric={"material": "ebxhd936_like"},
+        process={"blankholder_force_N": list(force) if isinstance(force, tuple) else force},
+        solver={"mode": mode, "rings": rings},
+        uncertainty=uncertainty,
+        sensitivity={"method": method, "base_samples": base},
+    )
 
 
 @pytest.fixture(scope="module")
@@ -207,12 +175,9 @@ def test_qois_of_a_drape(sweep_run):
 def test_ishigami_through_the_study_design_path_reproduces_salib(tmp_path):
     """Swap the drape for Ishigami: study factors -> standard design -> inputs_from_design
     (physical values) -> qoi_indices gives SALib's own indices and the analytic ones."""
-    uncertainty = "".join(f"""
-        [uncertainty.{name}]
-        dist = "uniform"
-        bounds = [-3.141592653589793, 3.141592653589793]
-    """ for name in ("orientation", "pre_shear", "skew"))
-    study = load_study(study_file(tmp_path, force="0.0", base=1024, uncertainty=uncertainty))
+    uncertainty = {name: {"dist": "uniform", "bounds": [-np.pi, np.pi]}
+                   for name in ("orientation", "pre_shear", "skew")}
+    study = load_study(study_file(tmp_path, force=0.0, base=1024, uncertainty=uncertainty))
     design = study_design(study)
     inputs = inputs_from_design(study, design.standard)
     x = np.stack([inputs["orientation"], inputs["pre_shear"], inputs["skew"]], axis=1)
@@ -232,23 +197,15 @@ def test_ishigami_through_the_study_design_path_reproduces_salib(tmp_path):
 
 
 def test_unbounded_factors_are_coded_as_standard_normals(tmp_path):
-    uncertainty = """
-        [uncertainty.orientation]
-        dist = "normal"
-        mean = 0.0
-        sd = 2.0
-
-        [uncertainty.crossover_x]
-        dist = "uniform"
-        bounds = [-3.0, 3.0]
-    """
-    study = load_study(study_file(tmp_path, force="0.0", base=64, uncertainty=uncertainty))
+    uncertainty = {"orientation": {"dist": "normal", "mean": 0.0, "sd": 2.0},
+                   "crossover_x": {"dist": "uniform", "bounds": [-3.0, 3.0]}}
+    study = load_study(study_file(tmp_path, force=0.0, base=64, uncertainty=uncertainty))
     problem = study_problem(study)
     assert problem["names"] == ["orientation", "crossover_x"] and problem["dists"] == ["norm", "unif"]
     morris = study_design(study, "morris")
     values = inputs_from_design(study, morris.standard)["orientation"]
     # Morris end levels at the 0.5 % / 99.5 % quantiles (+-2.58 sd), not u = 0 / 1 (+-7 sd)
-    assert np.abs(values).max() == pytest.approx(2.0 * 2.5758, rel=1e-3)
+    assert np.abs(values).max() == pytest.approx(2.0 * norm.ppf(0.995), rel=1e-9)
     assert morris.meta["base_samples"] == MORRIS_SCREENING_TRAJECTORIES == design_base_samples(study, "morris")
 
 
@@ -258,22 +215,20 @@ def test_unbounded_factors_are_coded_as_standard_normals(tmp_path):
 @pytest.mark.parametrize("method, base, minimum", [("sobol", 32, "the minimum is 64"),
                                                    ("morris", 4, "the minimum is 10 trajectories")])
 def test_too_small_base_sample_is_refused_with_the_minimum(tmp_path, method, base, minimum):
-    with pytest.raises(StudyError, match=re.escape(f"sensitivity.base_samples = {base} is invalid")) as err:
-        load_study(study_file(tmp_path, base=base, method=method))
-    assert minimum in str(err.value)
+    path = study_file(tmp_path, base=base, method=method)
+    with pytest.raises(StudyError) as err:
+        load_study(path)
+    assert_one_line_error(str(err.value), file=path, key="sensitivity.base_samples", value=str(base), valid=[minimum])
 
 
 def test_one_group_and_huge_sobol_designs_are_refused(tmp_path):
     # the validator refuses it before anything runs
-    with pytest.raises(StudyError, match=r"sensitivity.method.*at least two \[uncertainty.\*\] inputs \(found: zero_angle\)"):
-        load_study(study_file(tmp_path, name="alone", uncertainty="[uncertainty.zero_angle]\nsd_deg = 5.0\n"))
-    big = """
-        [uncertainty.spacing]
-        cv = 0.001
-
-        [uncertainty.zero_angle]
-        sd_deg = 5.0
-    """
+    alone = study_file(tmp_path, name="alone", uncertainty={"zero_angle": {"sd_deg": 5.0}})
+    with pytest.raises(StudyError) as err:
+        load_study(alone)
+    assert_one_line_error(str(err.value), file=alone, key="sensitivity.method",
+                          valid=["at least two [uncertainty.*] inputs", "(found: zero_angle)"])
+    big = {"spacing": {"cv": 0.001}, "zero_angle": {"sd_deg": 5.0}}
     huge = load_study(study_file(tmp_path, name="huge", rings=30, uncertainty=big))
     with pytest.raises(ValueError, match=r"more than scipy's 21201 .*'spacing': 7320, 'zero_angle': 3600"):
         study_design(huge)

@@ -342,3 +342,24 @@ def test_line_scalars_and_asymmetry():
     assert ms["mean"].item() == pytest.approx(-0.75 * c.mean(), rel=1e-12)
     with pytest.raises(ValueError, match="k_max must be an integer in 1..4"):
         line_scalars(ds, k_max=7)
+
+
+def test_an_rqmc_sample_takes_the_interval_of_its_mean_from_its_randomisations():
+    """K randomisations of one point set: Student t over the K group means (K - 1 dof),
+    not over the K M points, which are not independent."""
+    rng = np.random.default_rng(1)
+    R, K = 64, 8
+    x = rng.normal(size=(1, R, 2, 2))
+    x[0, 3, 1, 1] = np.nan  # an invalid node in one realisation: its group's mean skips it
+    ds = xr.Dataset({"shear": (("blankholder_force", "realization", "i", "j"), x, {"units": "degree"})},
+                    coords={"blankholder_force": [0.0], "realization": np.arange(R), "i": [0, 1], "j": [0, 1]})
+    st = node_statistics(ds, replicates=K)
+    for i, j in ((0, 0), (1, 1)):
+        means = np.nanmean(x[0, :, i, j].reshape(K, R // K), axis=1)
+        half = stats.t.ppf(0.975, K - 1) * means.std(ddof=1) / np.sqrt(K)
+        np.testing.assert_allclose([float(st.mean_lower[0, i, j]), float(st.mean_upper[0, i, j])],
+                                   [means.mean() - half, means.mean() + half], rtol=1e-12)
+    assert st.mean_lower.attrs["method"].startswith("Student t over randomisations")
+    assert float(st["sd"][0, 0, 0]) == pytest.approx(np.std(x[0, :, 0, 0], ddof=1), rel=1e-12)  # sd of all points
+    with pytest.raises(ValueError, match="replicates=5 must be >= 2 and divide the 64 realisations"):
+        node_statistics(ds, replicates=5)

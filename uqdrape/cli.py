@@ -1,4 +1,4 @@
-"""The ``uqdrape`` command: drape | run | design | report | validate | materials | export.
+"""The ``uqdrape`` command: drape | run | design | report | validate | materials | export | serve.
 
 Heavy imports (xarray, dask, matplotlib, SALib) happen inside the sub-commands so that
 ``uqdrape --help`` answers at once. Every user error is printed as one line on stderr
@@ -9,30 +9,16 @@ or after the sub-command.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import errno
-import inspect
+import math
+import os
 import shlex
 import signal
 import sys
 import threading
+import warnings
 from pathlib import Path
-
-
-def _geometry_help() -> str:
-    from .geometry import KINDS
-
-    lines = []
-    for kind, cls in KINDS.items():
-        sig = inspect.signature(cls.__init__)
-        params = ", ".join(f"{p.name}={p.default!r}" if p.default is not p.empty else p.name
-                           for p in list(sig.parameters.values())[1:])
-        lines.append(f"  {kind:12s} {params}")
-    return "\n".join(lines)
-
-
-def _architectures() -> list[str]:
-    """Shipped architecture names, without importing the (numpy/scipy) material package."""
-    return sorted(p.stem for p in (Path(__file__).parent / "material" / "architectures").glob("*.toml"))
 
 
 def _parse_params(pairs):
@@ -49,127 +35,74 @@ def _parse_params(pairs):
 
 
 def cmd_drape(args) -> int:
-    import numpy as np
+    from .workflow import check_drape_inputs, drape_to_files
 
-    from .conventions import cf_encode
-    from .drape import drape
-    from .ensemble import Progress, write_atomic
-    from .geometry import build
-    from .material import load_material
-    from .report import plot_lines, plot_net
-
-    surface = build(args.geometry, **_parse_params(args.param))
-    material = load_material(args.material) if args.material else None
-    # a ring k/n counter: a bar on a terminal, elsewhere a line every PLAIN_EVERY s of a long drape
-    bar = Progress(args.rings, enabled=args.verbosity > 0, desc="ring", unit="ring", last_line=False)
-    ds = drape(surface, args.spacing, args.rings, orientation=args.orientation, pre_shear=args.pre_shear,
-               skew=args.skew, crossover=tuple(args.crossover), mode=args.mode, material=material,
-               blankholder_force=args.blankholder_force, friction=args.friction,
-               blankholder_model=args.blankholder_model, tolerance=args.tolerance,
-               progress=lambda k: bar.update(k - bar.n))
-    bar.close()
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    encoded, encoding = cf_encode(ds, title=f"uqdrape {args.mode} drape of {surface.describe()}",
-                                  history="uqdrape " + shlex.join(args.argv))
-    nc = write_atomic(encoded, out.with_suffix(".nc"), encoding)
-    net_png = plot_net(ds, out.with_name(out.name + "-net.png"),
-                       title=f"{surface.describe()}, {args.mode} drape, s = {args.spacing} mm")
-    lines_png = plot_lines(ds, out.with_name(out.name + "-lines.png"))
-    valid = float((ds.status == 0).mean())
-    shear = ds.shear.values
-    print(f"wrote {nc}, {net_png}, {lines_png}")
-    print(f"valid nodes {valid:.1%}; shear {np.nanmin(shear):.1f} to {np.nanmax(shear):.1f} deg; "
-          f"energy shear {float(ds.energy_shear[0]):.4g} J, blank-holder {float(ds.energy_blankholder[0]):.4g} J; "
-          f"converged {bool(ds.converged[0])} ({int(ds.iterations[0])} iterations)")
+    options = dict(orientation=args.orientation, pre_shear=args.pre_shear, skew=args.skew,
+                   crossover=tuple(args.crossover), mode=args.mode, blankholder_force=args.blankholder_force,
+                   friction=args.friction, blankholder_model=args.blankholder_model, tolerance=args.tolerance)
+    try:
+        check_drape_inputs(args.spacing, args.rings, options)
+    except ValueError as err:  # a ParameterError: name the flags
+        flags = " and ".join("--" + name.replace("_", "-") for name in getattr(err, "names", ()))
+        raise ValueError(f"{flags}: {err}" if flags else str(err)) from None
+    written, summary = drape_to_files(
+        args.geometry, _parse_params(args.param), args.spacing, args.rings, args.out, material=args.material,
+        progress=args.verbosity > 0, command="uqdrape " + shlex.join(args.argv), **options)
+    print("wrote " + ", ".join(map(str, written)))
+    print(summary)
     return 0
 
 
 def cmd_derive(args) -> int:
-    from .material.architecture import derive_card, load_architecture, summed
-    from .material.cards import card_material, card_text
-    from .material.plot import plot_architecture
+    from .workflow import derive_material
 
     if not args.source:
         raise ValueError("derive needs an architecture: uqdrape materials derive ARCH.toml --out CARD.toml")
     if not args.out or Path(args.out).suffix.lower() != ".toml":
         raise ValueError(f"derive needs --out CARD.toml (a .toml path), got {args.out!r}")
-    out = Path(args.out)
-    arch = load_architecture(args.source)
-    terms = summed(arch)
-    doc = derive_card(arch, name=out.stem, source=Path(args.source).name, terms=terms)
-    text = card_text(doc, f"Material card derived by `uqdrape materials derive {Path(args.source).name}`: "
-                          "regenerate it, do not edit it.")
-    material = card_material(text, str(out))  # a card that would not load is not written
-    gamma0 = doc["architecture"]["zero_force_angle_deg"]
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if args.plot:  # the picture first: if it fails, no card is left behind either
-        png = out.with_suffix(".png") if args.plot is True else Path(args.plot)
-        png.parent.mkdir(parents=True, exist_ok=True)
-        plot_architecture(arch, png, terms, gamma0)
-    tmp = out.with_name(out.name + ".tmp")
-    tmp.write_text(text, encoding="utf-8")
-    tmp.replace(out)
-    print(f"wrote {out}: {material.name}, zero-force angle {gamma0:.2f} deg, locking +{material.locking_angle_deg:g} / "
-          f"-{material.locking_angle_neg_deg:g} deg (pre-strain {100 * arch.prestrain:.3g} %, beta {arch.beta:.4g})")
-    if args.plot:
-        print(f"wrote {png}")
+    print(derive_material(args.source, args.out, args.plot))
+    return 0
+
+
+def cmd_fit(args) -> int:
+    from .workflow import fit_material
+
+    if not args.source:
+        raise ValueError("fit needs a rig file: uqdrape materials fit RIG.toml --out CARD.toml")
+    if not args.out or Path(args.out).suffix.lower() != ".toml":
+        raise ValueError(f"fit needs --out CARD.toml (a .toml path), got {args.out!r}")
+    print(fit_material(args.source, args.out, args.plot))
     return 0
 
 
 def cmd_materials(args) -> int:
-    from .material import available_materials, load_material, plot_material
+    from .workflow import material_list, material_text
 
     if args.name == "derive":
         return cmd_derive(args)
+    if args.name == "fit":
+        return cmd_fit(args)
     if args.source or args.out:
-        raise ValueError("only `uqdrape materials derive ARCH.toml --out CARD.toml` takes a second argument or --out")
+        raise ValueError("only `uqdrape materials derive ARCH.toml --out CARD.toml` and `uqdrape materials fit "
+                         "RIG.toml --out CARD.toml` take a second argument or --out")
     if args.plot is True:
         raise ValueError("--plot needs a PNG path when showing a card")
     if not args.name:
-        names = available_materials()
-        width = max(map(len, names))
-        for name in names:
-            print(f"{name:{width}s}  {load_material(name).description}")
+        cards = material_list()
+        width = max(len(name) for name, _ in cards)
+        for name, description in cards:
+            print(f"{name:{width}s}  {description}")
         return 0
-    m = load_material(args.name)
-    print(f"{m.name}: {m.description}\nlocking angle +{m.locking_angle_deg} / -{m.locking_angle_neg_deg} deg, "
-          f"bending stiffness {m.bending_stiffness} N m^2\n{m.note}")
-    if args.plot:
-        print(f"wrote {plot_material(m, args.plot)}")
+    print(material_text(args.name, args.plot))
     return 0
-
-
-def _study_summary(s) -> str:
-    """A few lines saying what a validated study will run."""
-    material = Path(s.fabric.material).name
-    levels = ", ".join(f"{f:g}" for f in s.force_levels)
-    force = f"sweep {levels} N" if s.is_sweep else f"{levels} N"
-    varying = []
-    for name, f in s.uncertainty.fields.items():
-        what = ", ".join(f"{k} {v:g}" for k, v in f.params.items())
-        length = f", L = {f.length_mm[0]:g} x {f.length_mm[1]:g} mm" if f.length_mm else ""
-        varying.append(f"{name} field ({what}; {f.correlation}{length})")
-    varying += [f"{name} ~ {factor.describe()}" for name, factor in s.uncertainty.factors.items()]
-    sens = s.sensitivity.method
-    if sens != "none":
-        sens += f", {s.sensitivity.base_samples} base samples"
-    return "\n".join([
-        f"{s.name}: {s.realizations} realisations, seed {s.seed}, {s.sampling.plan} plan, chunks of {s.chunk_size}",
-        f"  mould {s.geometry.build_mould().describe()}; "
-        f"material {material}; spacing {s.fabric.spacing_mm:g} mm, {s.solver.rings} rings, {s.solver.mode} mode",
-        f"  blank-holder force {force}, friction {s.process.friction:g}, {s.process.blankholder_model} friction model",
-        f"  varying: {'; '.join(varying) if varying else 'nothing (deterministic)'}",
-        f"  sensitivity: {sens}; output: {s.output_dir}",
-    ])
 
 
 def cmd_validate(args) -> int:
     """Print each study's summary; the first invalid file ends the command (exit 2)."""
-    from .study import load_study
+    from .workflow import describe_study, validate_study
 
     for name in args.files:
-        print(_study_summary(load_study(name)))
+        print(describe_study(validate_study(name)))
     return 0
 
 
@@ -177,7 +110,7 @@ def _engine_study(args):
     """The study of ``run`` or ``design``, its output folder replaced by ``--out`` if given."""
     import dataclasses
 
-    from .study import load_study
+    from .workflow import load_study
 
     study = load_study(args.study)
     return dataclasses.replace(study, output_dir=Path(args.out)) if args.out else study
@@ -221,31 +154,35 @@ def cmd_report(args) -> int:
 
 
 def cmd_export(args) -> int:
-    import numpy as np
+    from .workflow import export_result
 
-    from .export import fe_files, flat_files, levels, open_result, vtk_files, write_all
-
-    if "fe" in args.to and not args.mesh:
-        raise ValueError("--to fe needs --mesh FILE (a surface mesh meshio reads: .inp, .msh, .vtu, .stl, ...)")
-    result = Path(args.result)
-    ds, is_ensemble = open_result(result)
-    stem = Path(args.out) if args.out else (result / "export" / result.name if is_ensemble else result.with_suffix(""))
-    levels_ = levels(ds, is_ensemble)
-    for level in levels_ if args.reference is not None else ():
-        level.orientation = args.reference
-    writers = {}  # every file is computed first and written together: all or nothing
-    if "vtk" in args.to:
-        writers.update(vtk_files(levels_, ds, stem))
-    if "fe" in args.to:
-        fe, statuses = fe_files(levels_, ds, args.mesh, stem, args.tolerance)
-        writers.update(fe)
-        counts = [int(n) for n in np.bincount(statuses[0], minlength=3)]
-        print(f"{args.mesh}: {sum(counts)} elements, {counts[0]} on the net, {counts[1]} outside it, "
-              f"{counts[2]} off the mould (flagged in map_status and *ELSET UQDRAPE_UNMAPPED)")
-    if "flat" in args.to:
-        writers.update(flat_files(levels_, stem))
-    written = write_all(writers)
+    for flag, value in (("--reference", args.reference), ("--tolerance", args.tolerance)):
+        if value is not None and not math.isfinite(value):
+            raise ValueError(f"{flag} must be a finite number, got {value}")
+    written, notes = export_result(args.result, args.to, out=args.out, mesh=args.mesh, tolerance=args.tolerance,
+                                   reference=args.reference, flavours=args.flavour, trim=args.trim, ply=args.ply)
+    for note in notes:
+        print(note)
     print("wrote " + ", ".join(map(str, written)))
+    return 0
+
+
+def cmd_calibrate(args) -> int:
+    from .workflow import calibrate_fibre_angles
+
+    print(calibrate_fibre_angles(args.points, args.out, args.plot, family=args.family, criterion=args.criterion,
+                                 level=args.level, fibre1_deg=args.fibre1_deg,
+                                 command="uqdrape " + shlex.join(args.argv)))
+    return 0
+
+
+def cmd_serve(args) -> int:
+    from .workflow import load_study, serve_study
+
+    served = serve_study(load_study(args.study), host=args.host, port=args.port, qoi=args.qoi,
+                         max_requests=args.max_requests, timeout_s=args.timeout,
+                         announce=lambda line: print(line, flush=True))
+    print(f"served {served} evaluations")
     return 0
 
 
@@ -258,15 +195,26 @@ def _engine_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-report", action="store_true", help="skip the report")
 
 
+def _command(sub, name: str, func, *, raw: bool = False, **kwargs) -> argparse.ArgumentParser:
+    """The sub-command ``name`` run by ``func``; ``raw``: its description keeps its own line
+    breaks (examples), else argparse wraps it."""
+    formatter = argparse.RawDescriptionHelpFormatter if raw else argparse.HelpFormatter
+    parser = sub.add_parser(name, formatter_class=formatter, **kwargs)
+    parser.set_defaults(func=func)
+    return parser
+
+
 def build_parser() -> argparse.ArgumentParser:
+    from .workflow.text import architectures, geometry_help
+
     p = argparse.ArgumentParser(
         prog="uqdrape",
         description="Uncertainty quantification of kinematic drape of dry textile preforms. "
                     "Units: mm, N, J, degrees.")
     sub = p.add_subparsers(dest="command", required=True)
 
-    d = sub.add_parser(
-        "drape", formatter_class=argparse.RawDescriptionHelpFormatter,
+    d = _command(
+        sub, "drape", cmd_drape, raw=True,
         help="one deterministic drape: netCDF + pictures",
         description="Drape one pin-jointed net over a mould from a crossover point and write "
                     "OUT.nc (xarray/netCDF), OUT-net.png (the net coloured by shear) and "
@@ -275,7 +223,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "  uqdrape drape --geometry hemisphere --param radius=100 --spacing 5 --rings 20\n"
                     "  uqdrape drape --mode energy --material ebxhd936_like --blankholder-force 126 \\\n"
                     "      --friction 0.2 --geometry nose_cone --spacing 5 --rings 30",
-        epilog="geometry kinds and their parameters (mm, degrees):\n" + _geometry_help())
+        epilog="geometry kinds and their parameters (mm, degrees):\n" + geometry_help())
     d.add_argument("--geometry", default="hemisphere", help="mould kind (see below; default hemisphere)")
     d.add_argument("--param", action="append", metavar="KEY=VALUE",
                    help="a shape parameter of the mould, repeatable (e.g. --param radius=80)")
@@ -297,12 +245,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "draw-in only (radial, thesis Eq 5.1-5.5)")
     d.add_argument("--tolerance", type=float, default=1e-3, help="minimiser tolerance on turn angles, deg")
     d.add_argument("--out", default="results/drape/drape", help="output path stem (default results/drape/drape)")
-    d.set_defaults(func=cmd_drape)
 
-    r = sub.add_parser("run", help="run a study file: ensemble (netCDF chunks) + report",
-                       description="Sample the study's uncertain inputs, drape every realisation in "
-                                   "parallel with dask, store chunks under the study's output folder "
-                                   "(resuming finished chunks) and write the report.")
+    r = _command(sub, "run", cmd_run, help="run a study file: ensemble (netCDF chunks) + report",
+                 description="Sample the study's uncertain inputs, drape every realisation in parallel with "
+                             "dask, store chunks under the study's output folder (resuming finished chunks) "
+                             "and write the report.")
     r.add_argument("study", help="study file (TOML), e.g. studies/nosecone-zero-angle.toml")
     _engine_options(r)
     r.add_argument("--chunk-size", type=int, help="realisations per chunk (default: the study's)")
@@ -311,43 +258,52 @@ def build_parser() -> argparse.ArgumentParser:
                         "(20 trajectories unless the study is a Morris study), 'none' for the Monte Carlo "
                         "sample; output goes to <output directory>-<method>")
     r.add_argument("--no-resume", action="store_true", help="recompute chunks that already exist")
-    r.set_defaults(func=cmd_run)
 
-    dsg = sub.add_parser("design", help="run a study's [design]: the blank-holder force(s) under uncertainty",
-                        description="Optimise the blank-holder force (total or per sector, optionally the "
-                                    "friction) of a study with a [design] section: every candidate drapes the "
-                                    "study's realisations (common random numbers), the optimum is re-draped on "
-                                    "a fresh sample; writes design.nc and the report (resumes from the designs "
-                                    "already draped). `uqdrape run` on such a study does the same.")
+    dsg = _command(sub, "design", cmd_design,
+                   help="run a study's [design]: the blank-holder force(s) under uncertainty",
+                   description="Optimise the blank-holder force (total or per sector, optionally the friction) "
+                               "of a study with a [design] section: every candidate drapes the study's "
+                               "realisations (common random numbers), the optimum is re-draped on a fresh "
+                               "sample; writes design.nc and the report (resumes from the designs already "
+                               "draped). `uqdrape run` on such a study does the same.")
     dsg.add_argument("study", help="study file (TOML) with a [design] section, e.g. studies/design-nosecone-symmetrise.toml")
     _engine_options(dsg)
-    dsg.set_defaults(func=cmd_design)
 
-    rep = sub.add_parser("report", help="write the report of a finished run")
+    rep = _command(sub, "report", cmd_report, help="write the report of a finished run")
     rep.add_argument("results", help="a run's output folder, e.g. results/nosecone-zero-angle")
     rep.add_argument("--out", help="report folder (default RESULTS/report)")
-    rep.set_defaults(func=cmd_report)
 
-    v = sub.add_parser("validate", help="check study files without running them")
+    v = _command(sub, "validate", cmd_validate, help="check study files without running them")
     v.add_argument("files", nargs="+", help="study files (TOML)")
-    v.set_defaults(func=cmd_validate)
 
-    e = sub.add_parser(
-        "export", formatter_class=argparse.RawDescriptionHelpFormatter,
-        help="write a drape or an ensemble as VTK, FE-mesh orientations or a flat pattern",
+    e = _command(
+        sub, "export", cmd_export, raw=True,
+        help="write a drape or an ensemble as VTK, FE-mesh orientations, a flat pattern or a cutting pattern",
         description="Export a result: a drape file (uqdrape drape --out) or a run folder\n"
                     "(uqdrape run; its per-node statistics). One file set per force level of a sweep;\n"
                     "every file of a call is written, or none.\n\n"
                     "  vtk   STEM.vtu (net: shear, status, locked or ensemble statistics, fibre directions,\n"
                     "        fibre deviation) and STEM-mould.vtu\n"
-                    "  fe    STEM-fe.vtu (the mesh with per-element fibre directions and shear) and\n"
-                    "        STEM-orientations.inp (Abaqus *DISTRIBUTION + *ORIENTATION); needs --mesh\n"
-                    "  flat  STEM-flat-nodes.csv, STEM-flat-outline.csv, STEM-flat.dxf (flat blank, mm)\n\n"
+                    "  fe    STEM-fe.vtu (the mesh with per-element yarn directions and angles, shear, area\n"
+                    "        ratio) and per --flavour the solver's cards of both yarns: abaqus\n"
+                    "        STEM-orientations.inp (two *DISTRIBUTION + *ORIENTATION), lsdyna STEM-lsdyna.k\n"
+                    "        (*ELEMENT_SHELL_BETA, two layers), nastran STEM-nastran.bdf (MCID, two layers);\n"
+                    "        needs --mesh\n"
+                    "  flat  STEM-flat-nodes.csv, STEM-flat-outline.csv, STEM-flat.dxf (flat blank, mm)\n"
+                    "  cut   STEM-cut.dxf (layers CUT, ENVELOPE, FIBRE, SEED, LABEL) and STEM-cut.csv: the\n"
+                    "        part's edge (--trim, or the mould's outline) in the flat blank, fabric axes\n\n"
                     "Examples:\n"
                     "  uqdrape export results/drape/nosecone.nc --to vtk flat\n"
-                    "  uqdrape export results/nosecone-zero-angle --to fe --mesh part.inp")
+                    "  uqdrape export results/drape/nosecone.nc --to cut --trim edge.csv --ply P1\n"
+                    "  uqdrape export results/nosecone-zero-angle --to fe --mesh part.inp --flavour abaqus lsdyna")
     e.add_argument("result", help="a drape netCDF file or a run folder")
-    e.add_argument("--to", nargs="+", required=True, choices=("vtk", "fe", "flat"), help="what to write")
+    e.add_argument("--to", nargs="+", required=True, choices=("vtk", "fe", "flat", "cut"), help="what to write")
+    e.add_argument("--flavour", nargs="+", choices=("abaqus", "lsdyna", "nastran"), default=["abaqus"],
+                   help="the FE solvers whose cards --to fe writes (default abaqus)")
+    e.add_argument("--trim", metavar="CSV",
+                   help="the part's edge for --to cut: a closed polyline in plan, x_mm,y_mm a row (default: the "
+                        "mould's own outline, where it has one)")
+    e.add_argument("--ply", help="the ply label on the cutting pattern (default: the result's name)")
     e.add_argument("--mesh", help="surface mesh for --to fe (any format meshio reads), in mm")
     e.add_argument("--tolerance", type=float, metavar="MM",
                    help="how far an element may lie from the mould for --to fe (default: the fibre spacing)")
@@ -356,26 +312,78 @@ def build_parser() -> argparse.ArgumentParser:
                         "orientation)")
     e.add_argument("--out", metavar="STEM",
                    help="output path stem (default: the drape file without .nc, or RUN/export/RUN)")
-    e.set_defaults(func=cmd_export)
 
-    m = sub.add_parser(
-        "materials", formatter_class=argparse.RawDescriptionHelpFormatter,
-        help="list material cards, show and plot one, or derive one from a fabric architecture",
-        description="List the shipped material cards, show one, or derive a card from a fabric "
-                    "architecture (thesis ch. 4 stitch and compaction model).\n\n"
+    srv = _command(
+        sub, "serve", cmd_serve, raw=True,
+        help="serve a study as a UM-Bridge model: its uncertain inputs in, chosen QoIs out",
+        description="Serve STUDY over HTTP as the UM-Bridge model 'forward', so that any UQ toolkit with a\n"
+                    "UM-Bridge client drives the drape. Input vector: the study's scalar factors at their\n"
+                    "physical values (study order and units), then each random field's KL modes (standard\n"
+                    "normals); output: one vector of the QoIs per blank-holder force level. The input\n"
+                    "names, the factors' distributions and the nominal input are printed at start.\n"
+                    "Listens on 127.0.0.1 (--host for others); stops on Ctrl-C, after --max-requests\n"
+                    "evaluations or after --timeout seconds. Exit codes: 0 stopped, 2 a bad study or\n"
+                    "argument, 3 the port is taken.\n\n"
+                    "Example:\n"
+                    "  uqdrape serve studies/sensitivity-vs-blankholder.toml --port 4242\n"
+                    "  # then from Python (pip install umbridge), X the printed nominal input:\n"
+                    "  #   umbridge.HTTPModel('http://127.0.0.1:4242', 'forward')([X])")
+    srv.add_argument("study", help="study file (TOML)")
+    srv.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1, this machine)")
+    srv.add_argument("--port", type=int, default=4242, help="TCP port (default 4242)")
+    srv.add_argument("--qoi", nargs="+", metavar="NAME",
+                     help="the outputs, names of uqdrape.stats.qoi (default: the study's [sensitivity] qoi)")
+    srv.add_argument("--max-requests", type=int, metavar="N", help="stop after N evaluations")
+    srv.add_argument("--timeout", type=float, metavar="S", help="stop after S seconds")
+
+    m = _command(
+        sub, "materials", cmd_materials, raw=True,
+        help="list material cards, show and plot one, derive one from a fabric architecture or fit one to "
+             "shear tests",
+        description="List the shipped material cards, show one, derive a card from a fabric "
+                    "architecture (thesis ch. 4 stitch and compaction model), or fit one to picture-frame "
+                    "or bias-extension test files (thesis ch. 3; the rig file's format: "
+                    "uqdrape.material.sheartest.reader).\n\n"
                     "Examples:\n"
                     "  uqdrape materials\n"
                     "  uqdrape materials ebxhd936_like --plot ebx.png\n"
                     "  uqdrape materials derive fge106hd --out fge.toml --plot\n"
-                    "  uqdrape materials derive my_fabric.toml --out cards/my_fabric.toml\n\n"
-                    "Shipped architectures: " + ", ".join(_architectures()))
-    m.add_argument("name", nargs="?", help="a card name or path, or the word derive")
-    m.add_argument("source", nargs="?", help="derive: an architecture TOML file or a shipped architecture name")
-    m.add_argument("--out", metavar="CARD.toml", help="derive: the card to write")
+                    "  uqdrape materials derive my_fabric.toml --out cards/my_fabric.toml\n"
+                    "  uqdrape materials fit pf_rig.toml --out cards/pf.toml --plot\n\n"
+                    "Shipped architectures: " + ", ".join(architectures()))
+    m.add_argument("name", nargs="?", help="a card name or path, or the word derive or fit")
+    m.add_argument("source", nargs="?", help="derive: an architecture TOML file or a shipped architecture name; "
+                                             "fit: a shear-test rig file (TOML)")
+    m.add_argument("--out", metavar="CARD.toml", help="derive, fit: the card to write")
     m.add_argument("--plot", metavar="PNG", nargs="?", const=True,
                    help="write the card's N_s and W curves to this PNG; with derive, the contributions "
-                        "of each term (thesis Fig 4.18), by default next to the card")
-    m.set_defaults(func=cmd_materials)
+                        "of each term (thesis Fig 4.18), with fit the specimens, their normalised curves and "
+                        "the card's band, by default next to the card")
+
+    cal = _command(
+        sub, "calibrate", cmd_calibrate, raw=True,
+        help="fit a study's zero-angle field to measured fibre angles: a [uncertainty.zero_angle] block",
+        description="Fit a Gaussian field (mean, sd, correlation lengths along fibre 1 and 2, a nugget for\n"
+                    "measurement error) to local fibre angles measured on a flat sample, by restricted maximum\n"
+                    "likelihood for each correlation family (iid, exponential, squared_exponential); keep the\n"
+                    "family of least AIC (or BIC) and write it as a study block, its profile-likelihood\n"
+                    "intervals in the comments. A fibre's deviation from nominal is read as the zero-energy\n"
+                    "shear angle gamma0 of that set rotating against the other (uqdrape.calibration.mapping).\n\n"
+                    "CSV columns: x_mm,y_mm,angle_deg,fibre_set[,sd_deg] (angle: plan direction of the fibre,\n"
+                    "deg from x; fibre_set 1 or 2; sd_deg: the point's measurement sd).\n\n"
+                    "Example:\n"
+                    "  uqdrape calibrate points.csv --out zero_angle.toml --plot")
+    cal.add_argument("points", help="CSV of measured fibre angles")
+    cal.add_argument("--out", required=True, metavar="BLOCK.toml", help="the study block to write")
+    cal.add_argument("--plot", metavar="PNG", nargs="?", const=True,
+                     help="write the calibration figure (points, fitted field, predictive check, profile "
+                          "likelihoods), by default next to the block")
+    cal.add_argument("--family", choices=("auto", "iid", "exponential", "squared_exponential"), default="auto",
+                     help="the correlation family; auto (default): the one of least --criterion")
+    cal.add_argument("--criterion", choices=("aic", "bic"), default="aic", help="how auto chooses (default aic)")
+    cal.add_argument("--level", type=float, default=0.9, help="the intervals' confidence level (default 0.9)")
+    cal.add_argument("--fibre1-deg", type=float, default=45.0,
+                     help="nominal plan direction of fibre 1, deg from x (default 45; fibre 2 at +90)")
 
     p.add_argument("--version", action=_Version)
     p.set_defaults(verbosity=1)
@@ -395,7 +403,7 @@ class _Version(argparse.Action):
         super().__init__(option_strings, dest, nargs=0, help="print the version and exit")
 
     def __call__(self, parser, namespace, values, option_string=None):
-        from .conventions import version_text
+        from .workflow.text import version_text
 
         print(version_text())
         parser.exit()
@@ -412,6 +420,29 @@ def _terminated(signum, frame):
     raise KeyboardInterrupt
 
 
+@contextlib.contextmanager
+def _no_warnings():
+    """Python warnings (numpy's floating-point ones, trimesh's, meshio's, xarray's, dask's)
+    kept off a command's stderr, in this process and in the worker processes it starts
+    (they read PYTHONWARNINGS): what matters to the user is said in uqdrape's own one-line
+    messages, and a refused value is refused before it overflows. Someone debugging who
+    asks for warnings (``python -W default``, ``PYTHONWARNINGS``) gets them."""
+    if sys.warnoptions:
+        yield
+        return
+    saved = os.environ.get("PYTHONWARNINGS")
+    os.environ["PYTHONWARNINGS"] = "ignore"
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            yield
+    finally:
+        if saved is None:
+            os.environ.pop("PYTHONWARNINGS", None)
+        else:
+            os.environ["PYTHONWARNINGS"] = saved
+
+
 def main(argv=None) -> int:
     """Exit codes: 0 done, 2 a user error (bad study, arguments or input file), 3 an I/O or
     environment error (disk full, permissions, unreachable scheduler, a busy output folder,
@@ -422,7 +453,8 @@ def main(argv=None) -> int:
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, _terminated)  # docker stop, batch schedulers: as Ctrl-C
     try:
-        return args.func(args)
+        with _no_warnings():
+            return args.func(args)
     except (ValueError, FileNotFoundError) as err:
         text = _os_error(err) if isinstance(err, OSError) and err.errno else str(err)
         print(f"uqdrape {args.command}: error: {text}", file=sys.stderr)

@@ -41,29 +41,36 @@ class ExperimentalPoints:
 
 
 def read_experimental(path) -> ExperimentalPoints:
-    """Read and check an experimental CSV (see module docstring); ValueError naming file, row and column."""
+    """Read and check an experimental CSV (see module docstring); ValueError naming file, row
+    and column. A file without the required header is not echoed (it may be any file named
+    by mistake); past the header a bad cell is quoted (40 characters at most)."""
     path = Path(path)
     if not path.is_file():
         raise ValueError(f"experimental CSV {str(path)!r} does not exist")
-    with path.open(newline="", encoding="utf-8-sig") as fh:
+    try:
+        fh = path.open(newline="", encoding="utf-8-sig")
+    except OSError as err:
+        raise ValueError(f"experimental CSV {str(path)!r}: cannot read it: {err.strerror or err}") from None
+    try:
         reader = csv.DictReader(fh)
         header = [h.strip() for h in (reader.fieldnames or [])]
         missing = [c for c in REQUIRED_COLUMNS if c not in header]
         if missing:
             raise ValueError(
-                f"experimental CSV {str(path)!r}: missing column(s) {missing}; header is {header}, "
+                f"experimental CSV {str(path)!r}: missing column(s) {missing} in its first line (the header); "
                 f"required: {', '.join(REQUIRED_COLUMNS)} (optional: {FORCE_COLUMN})"
             )
         reader.fieldnames = header
         columns = {c: [] for c in (*REQUIRED_COLUMNS, FORCE_COLUMN)}
         for row_number, row in enumerate(reader, start=2):
             for name in columns:
-                text = (row.get(name) or "").strip()
-                if name == FORCE_COLUMN and not text:
+                cell = (row.get(name) or "").strip()
+                text = cell[:40]  # as quoted in a message
+                if name == FORCE_COLUMN and not cell:
                     columns[name].append(np.nan)
                     continue
                 try:
-                    value = float(text)
+                    value = float(cell)
                 except ValueError:
                     value = None
                 why = (f"column {name!r} = {text!r} is not a number" if value is None
@@ -75,6 +82,13 @@ def read_experimental(path) -> ExperimentalPoints:
                 if why is not None:
                     raise ValueError(f"experimental CSV {str(path)!r} row {row_number}: {why}")
                 columns[name].append(value)
+    except csv.Error as err:
+        raise ValueError(f"experimental CSV {str(path)!r}: not a CSV ({err})") from None
+    except UnicodeDecodeError as err:
+        raise ValueError(f"experimental CSV {str(path)!r}: not UTF-8 text (byte offset {err.start}); "
+                         "save it as UTF-8") from None
+    finally:
+        fh.close()
     if not columns["distance_mm"]:
         raise ValueError(f"experimental CSV {str(path)!r} has a header but no data rows")
     return ExperimentalPoints(*(np.asarray(columns[c], dtype=float) for c in (*REQUIRED_COLUMNS, FORCE_COLUMN)),

@@ -1,10 +1,12 @@
 """Names shared by every stage: ensemble dimensions and variables, quadrant labels, the
-dims of a net site, the table of the solver's scalar inputs, and the ensemble layout of a
-drape Dataset.
+dims of a net site, the solver's modes and scalar inputs, the per-drape quantities of
+interest, and the ensemble layout of a drape Dataset.
 
 Everything that reads or writes a drape or ensemble Dataset takes its names from here, so
 that a dimension, a quadrant or an input is spelt once. The module imports nothing of
-uqdrape: it sits below the solver.
+uqdrape: it sits below the solver and the study file. The names here are the solver's
+and the analysis's own; where a study file sets each of them is the study spec's
+business (``uqdrape.study.spec``).
 
 The ensemble layout. An ensemble (as the ensemble engine writes it, ``open_ensemble``
 opens it and stats and report read it) has the dims (``blankholder_force``,
@@ -53,30 +55,22 @@ class SolverInput:
     """A scalar input of ``uqdrape.drape.drape`` that a study fixes or samples per realisation.
 
     ``name`` is the drape argument, the drape Dataset's variable (an ensemble's is
-    ``variable``) and the ``[uncertainty.<name>]`` factor; ``section``/``key`` the study-file setting that fixes it (``index`` picks an
-    element of a list setting); ``lower``/``upper`` its physical range, exclusive where
-    ``open_range`` (a value at an open end would make the net degenerate).
+    ``variable``) and the ``[uncertainty.<name>]`` factor; ``lower``/``upper`` its physical
+    range, exclusive where ``open_range`` (a value at an open end would make the net
+    degenerate).
     """
 
     name: str
-    section: str
-    key: str
     units: str
     long_name: str
     lower: float = -math.inf
     upper: float = math.inf
     open_range: bool = False
-    index: int | None = None
 
     @property
     def variable(self) -> str:
         """The input's per-realisation variable in an ensemble (the force's name is the dimension's)."""
         return APPLIED_FORCE if self.name == FORCE else self.name
-
-    @property
-    def setting(self) -> str:
-        """The dotted study-file key of the fixed setting, e.g. ``fabric.crossover[0]``."""
-        return f"{self.section}.{self.key}" + ("" if self.index is None else f"[{self.index}]")
 
     def admits(self, value: float) -> bool:
         """Whether ``value`` lies in the input's physical range."""
@@ -96,14 +90,42 @@ class SolverInput:
 #: The scalar solver inputs, in the order studies list them as factors.
 SOLVER_INPUTS = {i.name: i for i in (
     # upper ends: far beyond any press (1 MN) and any fabric on steel (mu 2): a typo, not a process
-    SolverInput("blankholder_force", "process", "blankholder_force_N", "N", "total blank-holder force", 0.0, 1e6),
-    SolverInput("friction", "process", "friction", "1", "fabric/blank-holder friction coefficient", 0.0, 2.0),
-    SolverInput("orientation", "fabric", "orientation_deg", "degree", "fibre-1 plan angle from the x axis"),
-    SolverInput("crossover_x", "fabric", "crossover", "mm", "crossover x", index=0),
-    SolverInput("crossover_y", "fabric", "crossover", "mm", "crossover y", index=1),
-    SolverInput("pre_shear", "fabric", "pre_shear_deg", "degree", "shear of the flat blank", -90.0, 90.0, True),
-    SolverInput("skew", "fabric", "skew_deg", "degree", "generator-path skew at the crossover", -90.0, 90.0, True),
+    SolverInput("blankholder_force", "N", "total blank-holder force", 0.0, 1e6),
+    SolverInput("friction", "1", "fabric/blank-holder friction coefficient", 0.0, 2.0),
+    SolverInput("orientation", "degree", "fibre-1 plan angle from the x axis"),
+    SolverInput("crossover_x", "mm", "crossover x"),
+    SolverInput("crossover_y", "mm", "crossover y"),
+    SolverInput("pre_shear", "degree", "shear of the flat blank", -90.0, 90.0, True),
+    SolverInput("skew", "degree", "generator-path skew at the crossover", -90.0, 90.0, True),
 )}
+
+#: The largest net the solver is meant for: rings n, (2n + 1)^2 nodes (1000: 4 M nodes,
+#: about 2.4 GB of working arrays for one energy drape). What fits this machine's memory
+#: is checked before a run (``uqdrape.workflow.preflight``).
+MAX_RINGS = 1000
+
+#: Drape modes: geodesic generator arms, or arms steered to minimise the forming energy.
+MODES = ("geodesic", "energy")
+#: Blank-holder friction models: what the friction work of a held boundary segment acts
+#: on (``uqdrape.drape.energy.BlankHolder``).
+BLANKHOLDER_MODELS = ("slip", "radial")
+
+#: Per-drape quantities of interest -> their CF attributes (units, long_name); computed by
+#: ``uqdrape.stats.qoi`` (the registry), ranked by sensitivity studies, summarised by
+#: designs and reports.
+QOI_ATTRS = {name: {"units": units, "long_name": long_name} for name, units, long_name in (
+    ("max_abs_shear", "degree", "largest absolute node shear"),
+    ("mean_shear_positive", "degree", "mean shear along the max-shear lines of the i*j > 0 quadrants"),
+    ("mean_shear_negative", "degree", "mean shear along the max-shear lines of the i*j < 0 quadrants"),
+    ("asymmetry", "degree", "mean_shear_positive + mean_shear_negative (0 when mirrored)"),
+    ("blankholder_energy", "J", "blank-holder friction energy"),
+    ("locked_fraction", "1", "fraction of the valid cells that are locked"),
+    ("any_locked", "1", "1 if any node of the net is locked, else 0"),
+    ("max_draw_in", "mm", "largest radial draw-in of the held edge"),
+)}
+#: The quantities a sensitivity study ranks unless its [sensitivity] qoi says otherwise.
+SENSITIVITY_QOIS = ("max_abs_shear", "mean_shear_positive", "mean_shear_negative", "asymmetry",
+                    "blankholder_energy", "locked_fraction")
 
 
 def at_level(ds: xr.Dataset, force: float) -> xr.Dataset:

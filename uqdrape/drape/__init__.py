@@ -1,8 +1,10 @@
 """The batched pin-jointed-net drape solver (geodesic and energy-minimising modes)."""
 
-from .energy import BLANKHOLDER_MODELS
+from ..schema import BLANKHOLDER_MODELS, MODES
+from .flat import draw_in, flat_positions
 from .lines import max_shear_lines, min_shear_lines
-from .solver import MODES, drape
+from .solver import drape
 from .status import Status, placement_failures
 
-__all__ = ["drape", "MODES", "BLANKHOLDER_MODELS", "placement_failures", "Status", "max_shear_lines", "min_shear_lines"]
+__all__ = ["drape", "MODES", "BLANKHOLDER_MODELS", "placement_failures", "Status", "max_shear_lines", "min_shear_lines",
+           "flat_positions", "draw_in"]

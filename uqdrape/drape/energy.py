@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from .._jit import jit
+from ..schema import BLANKHOLDER_MODELS
 
 MM_TO_M = 1e-3
 
@@ -69,10 +70,6 @@ def segment_energy(bh, p1, p2, f1, f2, centre, force, friction):
 def _segment_energy_many(bh, p1, p2, f1, f2, centre, force, friction, out):
     for m in range(out.size):
         out[m] = segment_energy(bh, p1[m], p2[m], f1[m], f2[m], centre[m], force[m], friction[m])
-
-
-#: Blank-holder friction models: what the friction work of a held boundary segment acts on.
-BLANKHOLDER_MODELS = ("slip", "radial")
 
 
 class BlankHolder:

@@ -25,9 +25,6 @@ from . import ring
 from .energy import MM_TO_M, bending_energy
 from .status import Status
 
-#: Per quadrant: its i-family arm and side, its j-family arm and side, its signs (si, sj).
-QUADRANTS = dict(zip(("++", "-+", "--", "+-"), ring.CORNERS))
-
 
 class NetProblem:
     """Validated, broadcast inputs of a batch of R drapes (see ``uqdrape.drape.drape``)."""
@@ -44,12 +41,27 @@ class NetProblem:
         self.seg_j = seg_j  # (R, 2n+1, 2n) mm
         self.gamma0 = gamma0  # (R, 2n, 2n) rad
         self.blankholder = blankholder
-        self.material = material
+        #: the material of every realisation (one, or one per realisation), and the first
+        #: (what they share: locking angles, phi0, bending stiffness); None for a geodesic net
+        self.materials = None if material is None else list(material) if isinstance(material, (list, tuple)) \
+            else [material]
+        self.material = None if material is None else self.materials[0]
         self.tol = tol
         self.R = crossover.shape[0]
         # The flat blank at nominal spacing (thesis Fig 5.2), (R, 3, 2): node (i, j) lies at
         # blank[0] + i blank[1] + j blank[2] (``ring._flat``).
         self.blank = np.stack([crossover, spacing * flat_e1, spacing * flat_e2], axis=1)
+
+    def kernel(self, r: int):
+        """The compiled shear energy (``Material.kernel``) of realisation ``r``."""
+        return self.materials[r if len(self.materials) > 1 else 0].kernel
+
+    def same_material(self, rows: slice) -> list[slice]:
+        """``rows`` cut into slices of realisations that share one material: ``rows`` itself,
+        or one realisation each when every realisation has its own card."""
+        if len(self.materials) == 1:
+            return [rows]
+        return [slice(r, r + 1) for r in range(rows.start, rows.stop)]
 
     @functools.cached_property
     def cell_s1(self):
@@ -142,7 +154,7 @@ class EnergyRings:
         St = np.empty((R, M, 4, 2, k), np.int8)
         energy = np.empty((R, M, 4))
         for r in range(R):
-            ring.sides(*self._realisation(P, r, k), self.first_dir[r], self.bend, self.prob.material.kernel,
+            ring.sides(*self._realisation(P, r, k), self.first_dir[r], self.bend, self.prob.kernel(r),
                        self.prob.blankholder.kernel, np.ascontiguousarray(turn[r], float), S[r], St[r], energy[r])
         return S, St, energy
 
@@ -155,7 +167,7 @@ class EnergyRings:
         energy = np.empty((R, C, 4))
         pairs = np.array(combos, np.int64).reshape(C, 2)
         for r in range(R):
-            ring.corners(*self._realisation(P, r, k), self.prob.material.kernel, self.prob.blankholder.kernel,
+            ring.corners(*self._realisation(P, r, k), self.prob.kernel(r), self.prob.blankholder.kernel,
                          np.ascontiguousarray(S[r]), pairs, X[r], Xs[r], energy[r])
         return X, Xs, energy
 
@@ -188,9 +200,14 @@ class EnergyRings:
         """Ring k of every realisation from its rings < k in P, status and turns (rad), all
         filled in place (``ring.drape_ring``), the realisations shared among ``threads``."""
         prob = self.prob
-        on_threads(self.threads, prob.R, lambda r: ring.drape_ring(
-            prob.surface.kernel, prob.tol, prob.n, k, P[r], status[r], prob.blank[r], prob.seg_i[r],
-            prob.seg_j[r], prob.cell_s1[r], prob.cell_s2[r], prob.gamma0[r], prob.crossover[r],
-            prob.blankholder.force[r], prob.blankholder.friction[r], self.first_dir[r], self.bend,
-            prob.material.kernel, prob.blankholder.kernel, self.tol, self.max_iterations, self.max_turn, turns[r],
-            iterations[r], converged[r]))
+
+        def place(rows):
+            for r in prob.same_material(rows):  # a compiled call takes one card
+                ring.drape_ring(
+                    prob.surface.kernel, prob.tol, prob.n, k, P[r], status[r], prob.blank[r], prob.seg_i[r],
+                    prob.seg_j[r], prob.cell_s1[r], prob.cell_s2[r], prob.gamma0[r], prob.crossover[r],
+                    prob.blankholder.force[r], prob.blankholder.friction[r], self.first_dir[r], self.bend,
+                    prob.kernel(r.start), prob.blankholder.kernel, self.tol, self.max_iterations, self.max_turn,
+                    turns[r], iterations[r], converged[r])
+
+        on_threads(self.threads, prob.R, place)

@@ -14,14 +14,13 @@ import xarray as xr
 
 from .. import __version__
 from .._jit import on_threads
-from ..schema import SOLVER_INPUTS
+from ..schema import MODES, QUADRANTS, SOLVER_INPUTS
 from .energy import BlankHolder
 from .kernels import net_node_mean, net_shear
-from .net import QUADRANTS, EnergyRings, NetProblem, build_geodesic
+from .net import EnergyRings, NetProblem, build_geodesic
 from .ring import boundary_blankholder
 from .status import Status
 
-MODES = ("geodesic", "energy")
 #: Realisations solved and post-processed together per block (the solver is compiled per
 #: realisation; the block bounds the memory of the Dataset's temporaries).
 BLOCK = 1024
@@ -88,7 +87,9 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     seg_i, seg_j       fibre-1 / fibre-2 segment lengths (mm), (2n, 2n+1) / (2n+1, 2n); default s
     gamma0             zero-energy shear angle per cell (deg), (2n, 2n); default 0
     mode               "geodesic" (straightest arms) or "energy" (arms steered per step)
-    material           a ``uqdrape.material.Material``; needed for mode="energy"
+    material           a ``uqdrape.material.Material``, or one per realisation (a sequence
+                       of R, e.g. a card's specimen scatter sampled per drape) sharing
+                       locking angles, phi0 and bending stiffness; needed for mode="energy"
     blankholder_force  total blank-holder force F_BH (N); friction: mu_BH (-)
     sectors            relative blank-holder force per equal angular sector (None: uniform)
     blankholder_model  "slip" (friction on the held fabric's whole plan slip, the default) or
@@ -113,6 +114,7 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
         raise ValueError(f"rings must be an integer >= 1, got {rings!r}")
     if mode == "energy" and material is None:
         raise ValueError("mode='energy' needs a material (e.g. load_material('generic_woven'))")
+    materials = _materials(material)
     if not isinstance(max_iterations, numbers.Integral) or max_iterations < 1:
         raise ValueError(f"max_iterations must be an integer >= 1, got {max_iterations!r}")
     for name, v in (("tolerance", tolerance), ("max_turn", max_turn)):
@@ -127,6 +129,9 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
                   crossover=(crossover, 1), seg_i=(seg_i, 2), seg_j=(seg_j, 2), gamma0=(gamma0, 2),
                   blankholder_force=(blankholder_force, 0), friction=(friction, 0))
     R = _batch_size(**shapes)
+    if materials is not None and len(materials) not in (1, R):
+        raise ValueError(f"material is a sequence of {len(materials)} materials; give one, or one per realisation "
+                         f"(R = {R})")
     orientation = _per_realisation("orientation", orientation, (), R)
     pre_shear = _per_realisation("pre_shear", pre_shear, (), R)
     skew = _per_realisation("skew", skew, (), R)
@@ -166,7 +171,7 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
         b = slice(start, start + BLOCK)
         prob = NetProblem(surface, float(spacing), n, crossover[b], arm_angles[b], seg_i[b], seg_j[b],
                           np.deg2rad(gamma0[b]), e1[b], e2[b], BlankHolder(force[b], mu[b], sectors, blankholder_model),
-                          material, tol)
+                          None if materials is None else materials[b] if len(materials) > 1 else materials, tol)
         if mode == "geodesic":
             P, status = build_geodesic(prob, threads)
             if progress is not None:
@@ -174,7 +179,7 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
             r = prob.R
             solved = (P, status, np.zeros((r, n, 4)), np.zeros(r), np.zeros(r, np.int32), np.ones(r, bool))
         else:
-            solved = EnergyRings(prob, material.bending_stiffness, np.deg2rad(tolerance),
+            solved = EnergyRings(prob, prob.material.bending_stiffness, np.deg2rad(tolerance),
                                  int(max_iterations), np.deg2rad(max_turn), threads).run(progress)
         blocks.append(_dataset(prob, *solved, mode, {k: v[b] for k, v in stored.items()}, gamma0[b], threads))
     if len(blocks) == 1:
@@ -216,13 +221,33 @@ def _coords(R, n):
                            "ring": np.arange(1, n + 1), "arm": ["+i", "+j", "-i", "-j"], "quadrant": list(QUADRANTS)})
 
 
+def _materials(material):
+    """``material`` as a list (one Material, or one per realisation), None for none. A
+    sequence must agree on what the solver and the lock flags take from one card: locking
+    angles, phi0 and bending stiffness."""
+    if material is None:
+        return None
+    materials = list(material) if isinstance(material, (list, tuple)) else [material]
+    if not materials:
+        raise ValueError("material is an empty sequence; give a Material or one per realisation")
+    first = materials[0]
+    key = ("locking_angle_deg", "locking_angle_neg_deg", "phi0_deg", "bending_stiffness")
+    if any(tuple(getattr(m, k) for k in key) != tuple(getattr(first, k) for k in key) for m in materials):
+        raise ValueError(f"the materials of a batch must share {', '.join(key)}; they differ")
+    return materials
+
+
 def _dataset(prob, P, status, turns, bending, iterations, converged, mode, factors, gamma0_deg, threads):
     """The drape Dataset of one block; ``gamma0_deg`` is the caller's zero-energy angles (deg)."""
     n = prob.n
     gamma = cell_shear(P, threads)
     material = prob.material
     if material is not None:
-        cell_e = material.cell_energy(gamma, prob.cell_s1, prob.cell_s2, prob.gamma0)
+        if len(prob.materials) == 1:
+            cell_e = material.cell_energy(gamma, prob.cell_s1, prob.cell_s2, prob.gamma0)
+        else:  # one card per realisation
+            cell_e = np.stack([m.cell_energy(gamma[r], prob.cell_s1[r], prob.cell_s2[r], prob.gamma0[r])
+                               for r, m in enumerate(prob.materials)])
         shear_energy = np.nansum(cell_e, axis=(1, 2))
         locked = material.is_locked(gamma - prob.gamma0)
         # a node is locked when a valid cell next to it is (branch- and zero-angle-aware)
@@ -274,7 +299,7 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
     coords = _coords(prob.R, n)
     return xr.Dataset(
         variables, coords=coords,
-        attrs={"spacing_mm": prob.s, "rings": n, "mode": mode, "geometry": prob.surface.describe(),
+        attrs={"spacing_mm": prob.s, "rings": n, "mode": mode, "mould": prob.surface.describe(),
                "material": getattr(material, "name", "none"),
                "locking_angle_deg": float(getattr(material, "locking_angle_deg", np.nan) or np.nan),
                "blankholder_model": prob.blankholder.model,

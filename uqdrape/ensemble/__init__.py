@@ -8,7 +8,7 @@ drapes them (e.g. for a sensitivity design); ``compute_tasks`` runs any such bat
 dask tasks on the same schedulers (e.g. the candidate designs of ``uqdrape.design``).
 """
 
-from .chunk import drape_inputs, write_atomic
+from .chunk import drape_inputs, write_atomic, write_netcdf
 from .inputs import design_variables, inputs_from_design, sampled_inputs
 from .hygiene import local_pool, run_lock
 from .progress import Progress
@@ -16,4 +16,4 @@ from .run import compute_tasks, run_ensemble
 from .store import open_ensemble, read_manifest
 
 __all__ = ["run_ensemble", "open_ensemble", "sampled_inputs", "inputs_from_design", "design_variables",
-           "drape_inputs", "write_atomic", "read_manifest", "compute_tasks", "Progress", "local_pool", "run_lock"]
+           "drape_inputs", "write_atomic", "write_netcdf", "read_manifest", "compute_tasks", "Progress", "local_pool", "run_lock"]

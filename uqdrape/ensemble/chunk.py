@@ -12,16 +12,18 @@ force each drape was run with in ``applied_blankholder_force``.
 from __future__ import annotations
 
 import errno
-import os
 import shutil
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
+from .. import files
 from ..drape import drape
 from ..material import load_material
+from ..material.scatter import card_scatter, scattered
 from ..schema import SOLVER_INPUTS
+from ..study.spec import CARD
 
 
 def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None, material=None) -> xr.Dataset:
@@ -37,9 +39,10 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
         raise ValueError(f"force={force!r}: pass one of study {study.name!r}'s blank-holder levels {list(levels)} N")
     fabric, process, solver = study.fabric, study.process, study.solver
     settings = {name: study.setting(name, force) for name in SOLVER_INPUTS}
-    unknown = sorted(set(inputs) - set(settings) - {"seg_i", "seg_j", "gamma0"})
+    unknown = sorted(set(inputs) - set(settings) - {"seg_i", "seg_j", "gamma0", CARD})
     if unknown:
-        raise ValueError(f"inputs {unknown} are not solver inputs; valid: seg_i, seg_j, gamma0, {', '.join(settings)}")
+        raise ValueError(f"inputs {unknown} are not solver inputs; valid: seg_i, seg_j, gamma0, {CARD}, "
+                         f"{', '.join(settings)}")
     R = len(r)
     value = {name: np.broadcast_to(inputs.get(name, fixed), (R,)) for name, fixed in settings.items()}
     ds = drape(
@@ -49,12 +52,15 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
         crossover=np.stack([value["crossover_x"], value["crossover_y"]], axis=-1),
         seg_i=inputs.get("seg_i"), seg_j=inputs.get("seg_j"), gamma0=inputs.get("gamma0"),
         mode=solver.mode,
-        material=load_material(fabric.material) if material is None else material,
+        material=_materials(fabric.material, material, inputs.get(CARD)),
         blankholder_force=value["blankholder_force"], friction=value["friction"],
         sectors=process.sectors, blankholder_model=process.blankholder_model,
         tolerance=solver.tolerance_deg, max_iterations=solver.max_iterations,
     )
     ds = ds.assign_coords(realization=r)
+    if CARD in inputs:
+        ds[CARD] = ("realization", np.asarray(inputs[CARD], dtype=float),
+                    {"units": "1", "long_name": "card scatter score z: N_s = mean + z sd of the card's specimens"})
     if "seg_i" in inputs:
         ds["seg_i"] = (("realization", "cell_i", "j"), inputs["seg_i"],
                        {"units": "mm", "long_name": "fibre-1 segment length (flat blank)"})
@@ -63,27 +69,43 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
     return ds
 
 
+def _materials(card: str, material, scores):
+    """The material of a chunk: ``material`` (or the card loaded), or with card scatter
+    scores z one card per realisation (``uqdrape.material.scatter``)."""
+    base = load_material(card) if material is None else material
+    if scores is None:
+        return base
+    scatter = card_scatter(card)
+    return [scattered(base, scatter, z) for z in np.asarray(scores, dtype=float)]
+
+
 def write_atomic(ds: xr.Dataset, path: Path, encoding: dict | None = None, *, keep=None) -> Path | None:
     """Write ``ds`` (with netCDF ``encoding``) to ``path`` via ``<path>.part`` in the same
-    directory and a rename, so ``path`` exists only complete. A leftover ``.part`` (a
-    killed writer) is overwritten, never read; a failed write removes its ``.part`` and
-    raises OSError naming the path and the cause (a full disk is said so: netCDF itself
-    only reports "HDF error"). ``keep()``, if given, is asked before the rename: False
-    drops the finished file (a worker whose run has died) and returns None."""
+    directory and a rename (uqdrape.files.write_atomic), so ``path`` exists only complete.
+    A leftover ``.part`` (a killed writer) is overwritten, never read; a failed write
+    removes its ``.part`` and raises OSError naming the path and the cause (a full disk is
+    said so: netCDF itself only reports "HDF error"). ``keep()``, if given, is asked
+    before the rename: False drops the finished file (a worker whose run has died) and
+    returns None."""
     path = Path(path)
-    part = path.with_name(path.name + ".part")
+
+    def write(part):
+        write_netcdf(ds, part, encoding, target=path)
+        return keep is None or bool(keep())
+
+    return files.write_atomic(path, write, keep_suffix=False)
+
+
+def write_netcdf(ds: xr.Dataset, part: Path, encoding: dict | None = None, *, target: Path) -> None:
+    """Write ``ds`` to the temporary file ``part`` of ``target`` (netCDF4, ``encoding``);
+    a failure removes ``part`` and raises OSError naming ``target`` and the cause (a full
+    disk said so: netCDF itself only reports "HDF error")."""
     try:
         ds.to_netcdf(part, engine="netcdf4", encoding=encoding)
-    except BaseException as err:
-        part.unlink(missing_ok=True)
-        named = isinstance(err, OSError) and err.errno is not None  # the OS said what went wrong
-        if named or not isinstance(err, Exception):  # ... or an interrupt: pass it on as it is
+    except Exception as err:
+        if isinstance(err, OSError) and err.errno is not None:  # the OS said what went wrong
             raise
-        if shutil.disk_usage(path.parent).free < ds.nbytes:
-            raise OSError(errno.ENOSPC, "the disk is full", str(path)) from err
-        raise OSError(errno.EIO, f"netCDF could not write it ({err})", str(path)) from err
-    if keep is not None and not keep():
-        part.unlink(missing_ok=True)
-        return None
-    os.replace(part, path)
-    return path
+        Path(part).unlink(missing_ok=True)  # first, so that the free space below is without it
+        if shutil.disk_usage(Path(target).parent).free < ds.nbytes:
+            raise OSError(errno.ENOSPC, "the disk is full", str(target)) from err
+        raise OSError(errno.EIO, f"netCDF could not write it ({err})", str(target)) from err

@@ -7,9 +7,12 @@
   its workers instead of waiting for their chunks. :func:`orphaned` tells a worker not to
   commit a chunk file after its run has gone.
 * :func:`run_lock`: one run per output folder. The lock file records pid, host and start
-  time; a lock whose process is gone on this host is stale and taken over, a live one
-  refuses the second run naming the first. Taken before anything in the folder is
-  touched, so ``--no-resume`` never deletes what another live run is writing.
+  time, and is created whole (written beside, then hard-linked into place: there is no
+  moment at which it exists empty); a lock whose process is gone on this host is stale
+  and taken over, a live one refuses the second run naming the first, and a lock from
+  another host, or one that is not a lock uqdrape wrote, is refused, not guessed about.
+  Taken before anything in the folder is touched, so ``--no-resume`` never deletes what
+  another live run is writing.
 """
 
 from __future__ import annotations
@@ -71,12 +74,27 @@ class RunLocked(OSError):
     """Another live run writes to the output folder."""
 
 
-def _alive(owner: dict) -> bool:
-    """Whether the lock's owner may still be running (on another host we cannot tell)."""
-    if owner.get("host") != socket.gethostname():
-        return True
+#: Largest process id a lock may name (Linux's pid_max ceiling, 2^22).
+MAX_PID = 2**22
+
+
+def _owner(path: Path) -> dict | None:
+    """The run a lock file names: {pid, host, started}, or None if the file is not a lock
+    uqdrape wrote (hand-edited, truncated, another program's)."""
     try:
-        os.kill(int(owner["pid"]), 0)
+        owner = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError):
+        return None
+    ok = (isinstance(owner, dict) and isinstance(owner.get("pid"), int) and not isinstance(owner["pid"], bool)
+          and 0 < owner["pid"] <= MAX_PID and isinstance(owner.get("host"), str)
+          and isinstance(owner.get("started"), str))
+    return owner if ok else None
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` of this host may still be running."""
+    try:
+        os.kill(pid, 0)
     except ProcessLookupError:
         return False
     except PermissionError:
@@ -89,24 +107,28 @@ def run_lock(out: Path):
     """Hold ``out/run.lock`` for the duration of a run; raise RunLocked if a live run holds it."""
     out.mkdir(parents=True, exist_ok=True)
     path = out / LOCK
-    me = {"pid": os.getpid(), "host": socket.gethostname(), "started": time.strftime("%Y-%m-%d %H:%M:%S %Z")}
-    while True:
-        try:
-            fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-        except FileExistsError:
+    host = socket.gethostname()
+    me = {"pid": os.getpid(), "host": host, "started": time.strftime("%Y-%m-%d %H:%M:%S %Z")}
+    mine = out / f".{LOCK}.{os.getpid()}.{threading.get_ident()}"
+    mine.write_text(json.dumps(me), encoding="utf-8")
+    try:
+        while True:
             try:
-                owner = json.loads(path.read_text(encoding="utf-8"))
-            except (OSError, ValueError):
-                owner = {}  # unreadable or half-written: its writer died at once
-            if owner and _alive(owner):
+                os.link(mine, path)  # atomic, and the lock has its content from its first moment
+                break
+            except FileExistsError:
+                pass
+            owner = _owner(path)
+            if owner is None:
+                raise RunLocked(errno.EBUSY, f"{LOCK} is not a lock uqdrape wrote; delete it if no run is writing "
+                                "to this folder", str(out)) from None
+            if owner["host"] != host or _alive(owner["pid"]):
                 raise RunLocked(errno.EBUSY, f"another run (pid {owner['pid']} on {owner['host']}, started "
                                 f"{owner['started']}) is writing to this folder; wait for it, or use another "
                                 f"--out (delete {LOCK} only if that run is certainly gone)", str(out)) from None
-            path.unlink(missing_ok=True)  # stale: its run is gone
-            continue
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            json.dump(me, fh)
-        break
+            path.unlink(missing_ok=True)  # stale: its run on this host is gone
+    finally:
+        mine.unlink(missing_ok=True)
     try:
         yield
     finally:

@@ -13,8 +13,12 @@ own unit). Two sources of standard variables share one map (:func:`_inputs`):
   ``latin_hypercube`` / ``sobol`` take row r of the global design
   ``sample_uniforms(plan, N, d, seed)`` (N = study realisations, d = number of
   factors; cheap, recomputed wherever needed). Fields stay exact Monte Carlo under every
-  plan. Either way realisation r's numbers never depend on the chunk it is in or on
-  which worker runs it.
+  plan. Under ``rqmc`` every standard variable comes from a scrambled Sobol' point instead:
+  realisation r is point r mod M of randomisation r // M (``rqmc_uniforms``), its
+  columns those of :func:`design_variables` (factor uniforms, then the fields' truncated
+  KL modes as Phi^-1(u), keeping ``kl_retained`` of each field's variance), mapped by
+  :func:`inputs_from_design`. Either way realisation r's numbers never depend on the chunk
+  it is in or on which worker runs it.
 - :func:`inputs_from_design` -- an explicit design matrix (e.g. a sensitivity design),
   columns as named by :func:`design_variables`: factor uniforms first, then each field's
   truncated Karhunen-Loeve mode variables (standard normals), ``name[k]``.
@@ -30,7 +34,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import ndtr
 
-from ..stochastic import realization_normals, sample_uniforms
+from ..stochastic import realization_normals, sample_uniforms, uniforms_to_normals
+from ..stochastic.sampling import RQMC, rqmc_points, rqmc_uniforms
 
 
 def _realizations(study, realizations) -> np.ndarray:
@@ -70,6 +75,8 @@ def _inputs(study, fields: dict, xi: dict, u: np.ndarray) -> dict:
 def sampled_inputs(study, realizations) -> dict:
     """Solver inputs of the given realisation indices of the study's ensemble."""
     r = _realizations(study, realizations)
+    if study.sampling.plan == RQMC:
+        return inputs_from_design(study, rqmc_design(study, r))
     fields = _field_inputs(study, kl=False)
     d = len(study.uncertainty.factors)
     monte_carlo = study.sampling.plan == "monte_carlo"
@@ -78,6 +85,21 @@ def sampled_inputs(study, realizations) -> dict:
     xi = dict(zip(fields, normals))
     u = ndtr(normals[-1]) if monte_carlo else sample_uniforms(study.sampling.plan, study.realizations, d, study.seed)[r]
     return _inputs(study, fields, xi, u)
+
+
+def rqmc_design(study, realizations) -> np.ndarray:
+    """Rows of the study's rqmc plan for the given realisation indices, in the standard
+    variables of :func:`design_variables` (uniforms for the factors, normals for the KL
+    modes). Each randomisation's points are drawn once per call."""
+    r = np.asarray(realizations, dtype=np.int64)
+    points = rqmc_points(study.realizations, study.sampling.randomizations)
+    d_factors, d = len(study.uncertainty.factors), len(design_variables(study))
+    X = np.empty((r.size, d))
+    for k in np.unique(r // points):
+        rows = np.flatnonzero(r // points == k)
+        X[rows] = rqmc_uniforms(study.seed, int(k), points, d)[r[rows] % points]
+    X[:, d_factors:] = uniforms_to_normals(X[:, d_factors:])
+    return X
 
 
 def design_variables(study) -> list[str]:

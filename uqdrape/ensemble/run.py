@@ -12,6 +12,14 @@ Resume: the run folder's manifest records the study (and, once the run is done, 
 time in s, summed over resumed calls); a rerun of the same study skips
 chunks whose final file exists (a ``.part`` file is an unfinished chunk and is redone).
 
+Extension: ``realizations`` is not part of the resume identity. A finished (or
+interrupted) run resumed with more realisations keeps every chunk of its plan as it is,
+the last partial one included, and adds chunks of ``chunk_size`` from where it stopped;
+realisation r's inputs depend only on the study and r (under the plans of
+``uqdrape.stochastic.sampling.EXTENDABLE_PLANS``), so the result is bitwise that of the larger run from the start.
+Fewer realisations than a run holds, or another number under a plan whose points depend
+on N (latin_hypercube, sobol), are refused.
+
 Given a design matrix (a sensitivity study's rows, ``uqdrape.workflow.study_design``),
 its rows are draped as realisations 0..n-1 instead of the Monte Carlo sample, through
 the same chunks; what the outputs mean is not this package's business.
@@ -22,6 +30,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import json
+import re
 import sys
 import time
 from dataclasses import dataclass
@@ -30,15 +39,17 @@ from pathlib import Path
 import dask
 import errno
 import numpy as np
+import xarray as xr
 from dask.callbacks import Callback
 
 from .. import __version__
 from .. import geometry as _geometry
 from ..conventions import cf_encode
-from ..schema import at_level
-from ..study import Study
-from ..drape import placement_failures
+from ..files import read_text
+from ..schema import FORCE, REALIZATION, at_level
+from ..study import Study, identity
 from ..stochastic.inputs import positive_int
+from ..stochastic.sampling import extension_problem
 from .chunk import drape_inputs, write_atomic
 from .inputs import inputs_from_design, sampled_inputs
 from .hygiene import local_pool, orphaned, run_lock
@@ -62,19 +73,49 @@ class Chunk:
     name: str
 
 
-def plan_chunks(study: Study, chunk_size: int, realizations: int | None = None) -> list[Chunk]:
+_RANGE = re.compile(r"r(\d{7})-(\d{7})\.nc$")
+
+
+def plan_chunks(study: Study, chunk_size: int, realizations: int | None = None, kept=()) -> list[Chunk]:
     """The chunks of a study: consecutive ranges of its realisations (default
     ``study.realizations``; a sensitivity design's row count) at each force level, named
-    ``r<first>-<last>.nc``, prefixed ``f<level>-`` in a sweep."""
+    ``r<first>-<last>.nc``, prefixed ``f<level>-`` in a sweep. ``kept``: the chunk names of
+    an earlier run of the same study, whose ranges stay as they are (an extension); the
+    realisations after them are cut into ``chunk_size`` pieces."""
     n = study.realizations if realizations is None else realizations
+    ranges = sorted({tuple(int(v) for v in _RANGE.search(name).groups()) for name in kept})
+    ranges = [(a, b + 1) for a, b in ranges]
+    start = ranges[-1][1] if ranges else 0
+    ranges += [(a, min(a + chunk_size, n)) for a in range(start, n, chunk_size)]
     levels = study.force_levels
     chunks = []
     for k, force in enumerate(levels):
         prefix = f"f{k:03d}-" if len(levels) > 1 else ""
-        for a in range(0, n, chunk_size):
-            b = min(a + chunk_size, n)
-            chunks.append(Chunk(a, b, force, f"{prefix}r{a:07d}-{b - 1:07d}.nc"))
+        chunks += [Chunk(a, b, force, f"{prefix}r{a:07d}-{b - 1:07d}.nc") for a, b in ranges]
     return chunks
+
+
+def _kept_chunks(out: Path, provenance: dict, study: Study, chunk_size: int, n: int, resume: bool) -> list[str]:
+    """The chunk names of an earlier run in ``out`` of the same study (by ``identity``)
+    that this one keeps: all of them, or none without one (or with resume False). Raises
+    ValueError for another chunk size, fewer realisations than the run holds, or more
+    under a plan that does not extend."""
+    old = read_manifest(out) if resume else None
+    if old is None or identity(old["study"]) != identity(provenance):
+        return []  # nothing to keep; another study's folder is refused by _prepare
+    if old["chunk_size"] != chunk_size:
+        raise ValueError(
+            f"{out} was run with chunk_size={old['chunk_size']}; resume with chunk_size={old['chunk_size']} "
+            "or run with resume=False (--no-resume)")
+    held = max((int(_RANGE.search(name).group(2)) + 1 for name in old["chunks"]), default=0)
+    if n < held:
+        raise ValueError(f"{out} holds {held} realisations, more than the {n} asked for: set "
+                         f"study.realizations >= {held}, or run with resume=False (--no-resume)")
+    why = extension_problem(study.sampling, held, n) if n > held else None
+    if why:
+        raise ValueError(f"{out} holds {held} realisations and cannot be extended to {n}: {why}; "
+                         "run with resume=False (--no-resume)")
+    return old["chunks"]
 
 
 def _run_chunk(study: Study, chunk: Chunk, folder: str, attrs: dict, design_rows=None) -> str:
@@ -86,6 +127,19 @@ def _run_chunk(study: Study, chunk: Chunk, folder: str, attrs: dict, design_rows
                                        f"{chunk.start}-{chunk.stop - 1} at {chunk.force:g} N",
                              history=f"uqdrape run {Path(study.path).name}", float32=study.float32)
     return str(write_atomic(ds, Path(folder) / chunk.name, encoding, keep=lambda: not orphaned()))
+
+
+def chunk_intact(path: Path, chunk: Chunk) -> bool:
+    """Whether ``path`` is the finished chunk ``chunk``: a netCDF file that opens, holds the
+    node shear and exactly the chunk's realisations at its force level. Reads only the
+    file's metadata and two coordinates."""
+    try:
+        with xr.open_dataset(path, engine="netcdf4", decode_cf=False) as ds:
+            return ("shear" in ds.variables and FORCE in ds.variables and REALIZATION in ds.variables
+                    and ds[FORCE].values.tolist() == [chunk.force]
+                    and ds[REALIZATION].values.tolist() == list(range(chunk.start, chunk.stop)))
+    except (OSError, ValueError, KeyError, RuntimeError):
+        return False
 
 
 @functools.lru_cache(maxsize=2)
@@ -110,18 +164,11 @@ def _drape(study: Study, r, force: float, design_rows):
     return drape_inputs(study, r, inputs, force=force, surface=_study_mould(study))
 
 
-def _identity(manifest: dict) -> dict:
-    """What must match for chunks to be reused: the study without its chunk size."""
-    study = json.loads(json.dumps(manifest["study"]))
-    study["study"].pop("chunk_size", None)
-    return study
-
-
 def _prepare(out: Path, manifest: dict, resume: bool) -> None:
     """Check a previous run in ``out`` can be resumed, or clear it; then record this run.
     Called under the folder's run lock, so a ``.part`` file here is a killed run's."""
     folder = out / CHUNKS
-    old = read_manifest(out)
+    old = read_manifest(out) if resume else None
     for path in folder.glob("*.nc.part"):
         path.unlink()
     if not resume:
@@ -132,7 +179,7 @@ def _prepare(out: Path, manifest: dict, resume: bool) -> None:
             raise ValueError(f"{folder} holds chunk files but {out} has no run manifest; "
                              "they cannot be checked against this study: run with resume=False (--no-resume)")
     else:
-        before, now = _identity(old), _identity(manifest)
+        before, now = identity(old["study"]), identity(manifest["study"])
         if before != now:
             changed = sorted(f"{section}.{key}" for section in set(before) | set(now)
                              for key in set(before.get(section, {})) | set(now.get(section, {}))
@@ -140,10 +187,6 @@ def _prepare(out: Path, manifest: dict, resume: bool) -> None:
             raise ValueError(
                 f"{out} holds a run of a different study definition (changed: {', '.join(changed)}); "
                 "run with resume=False (--no-resume) to replace it, or set another [output] directory")
-        if old["chunks"] != manifest["chunks"]:
-            raise ValueError(
-                f"{out} was run with chunk_size={old['chunk_size']}; resume with chunk_size={old['chunk_size']} "
-                "or run with resume=False (--no-resume)")
     folder.mkdir(parents=True, exist_ok=True)
     write_manifest(out, manifest)
 
@@ -171,6 +214,9 @@ def compute_tasks(tasks: list, sizes: list, scheduler: str | None, workers: int 
                 return list(dask.compute(*tasks, scheduler="processes", pool=pool, chunksize=1))
     from distributed import Client, as_completed
 
+    from .handshake import check_scheduler
+
+    check_scheduler(scheduler, SCHEDULER_TIMEOUT)  # distributed trusts a non-dask server's first bytes
     try:
         client = Client(scheduler, timeout=SCHEDULER_TIMEOUT)
     except (OSError, TimeoutError) as err:
@@ -187,7 +233,7 @@ def compute_tasks(tasks: list, sizes: list, scheduler: str | None, workers: int 
 def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance: dict | None = None,
                  attrs: dict | None = None, scheduler: str | None = None, workers: int | None = None,
                  chunk_size: int | None = None, resume: bool = True, progress: bool = True,
-                 verbose: bool = False) -> Path:
+                 verbose: bool = False, preflight=None) -> Path:
     """Drape a study's realisations into chunk files; return the output folder (open it
     with ``open_ensemble``).
 
@@ -204,6 +250,11 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
                  deletes the folder's chunk files first
     progress     show progress on stderr: realisations done, rate and ETA (a bar on a
                  terminal, a plain line every 30 s elsewhere); ``verbose`` adds a line per chunk
+    preflight    ``preflight(drapes, first, force)``, called before the output folder is
+                 touched with the number of drapes still to write and the first of them
+                 (realisation, force level): the application layer's checks of memory,
+                 disk and placement (``uqdrape.workflow.preflight``); it raises to stop
+                 the run
 
     Local worker processes are spawned and import the calling script, so a script needs
     the usual ``if __name__ == "__main__":`` guard. Cluster workers need uqdrape installed
@@ -220,16 +271,26 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
             raise ValueError(f"workers={workers} sets local processes; the cluster at {scheduler} has its own workers")
     out = Path(study.output_dir if output_dir is None else output_dir).absolute()
     provenance = study.to_dict() if provenance is None else provenance
-    chunks = plan_chunks(study, chunk_size, None if design_rows is None else len(design_rows))
+    n = study.realizations if design_rows is None else len(design_rows)
+    chunks = plan_chunks(study, chunk_size, n, _kept_chunks(out, provenance, study, chunk_size, n, resume))
     manifest = {"study": provenance, "chunk_size": chunk_size, "chunks": [c.name for c in chunks],
                 "uqdrape_version": __version__}
+    if preflight is not None:
+        done = {p.name for p in (out / CHUNKS).glob("*.nc")} if resume else set()
+        todo = [c for c in chunks if c.name not in done]
+        if todo:
+            preflight(sum(c.stop - c.start for c in todo), todo[0].start, todo[0].force)
     with run_lock(out):
         earlier = (read_manifest(out) or {}).get("wall_time_s", 0.0) if resume else 0.0
         _prepare(out, manifest, resume)
         folder = out / CHUNKS
+        damaged = [c for c in chunks if (folder / c.name).is_file() and not chunk_intact(folder / c.name, c)]
+        for c in damaged:  # a truncated, swapped or foreign file: drape it again
+            (folder / c.name).unlink()
+        if damaged and progress:
+            print(f"{study.name}: {len(damaged)} chunk file(s) damaged or not this run's, draped again: "
+                  + ", ".join(c.name for c in damaged[:5]) + (", ..." if len(damaged) > 5 else ""), file=sys.stderr)
         todo = [c for c in chunks if not (folder / c.name).is_file()]
-        if todo:
-            _preflight(study, todo[0], design_rows)
         try:
             _drape_chunks(study, chunks, todo, folder, provenance, attrs, design_rows, scheduler, workers,
                           progress, verbose)
@@ -242,19 +303,6 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
     return out
 
 
-def _preflight(study: Study, chunk: Chunk, design_rows) -> None:
-    """Drape the first realisation of ``chunk`` here, before any worker starts, and stop
-    if more than the study's failure budget of its nodes cannot be placed: such a run
-    would only write NaNs (the crossover off the mould, a net larger than the mould)."""
-    r = np.arange(chunk.start, chunk.start + 1)
-    rows = None if design_rows is None else design_rows[r]
-    failed, why = placement_failures(_drape(study, r, chunk.force, rows)["status"].values[0])
-    if failed > study.solver.failure_budget:
-        raise ValueError(f"study {study.name!r} ({study.path}): {failed:.0%} of the nodes of realisation {chunk.start} "
-                         f"cannot be placed, more than solver.failure_budget = {study.solver.failure_budget:g} "
-                         f"({why}): use fewer rings, a smaller spacing or move the crossover")
-
-
 def _drape_chunks(study, chunks, todo, folder, provenance, attrs, design_rows, scheduler, workers, progress,
                   verbose) -> None:
     """Drape the chunks ``todo`` of ``chunks`` into ``folder``, with a progress count."""
@@ -262,7 +310,7 @@ def _drape_chunks(study, chunks, todo, folder, provenance, attrs, design_rows, s
         print(f"{study.name}: {len(chunks) - len(todo)} of {len(chunks)} chunks already done in {folder}",
               file=sys.stderr)
     attrs = {"study_name": study.name, "study_seed": study.seed, "study_realizations": study.realizations,
-             "sampling_plan": study.sampling.plan, "study_toml": Path(study.path).read_text(encoding="utf-8"),
+             "sampling_plan": study.sampling.plan, "study_toml": read_text(study.path, "study file"),
              "study_json": json.dumps(provenance), **(attrs or {})}
     run = dask.delayed(_run_chunk, pure=False)
     sizes = [c.stop - c.start for c in chunks]

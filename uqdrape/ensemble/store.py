@@ -15,33 +15,63 @@ from __future__ import annotations
 
 import errno
 import json
-import os
+import re
 from pathlib import Path
 
 import xarray as xr
 
 from ..conventions import cf_decode
+from ..files import write_text_atomic
 from ..schema import FORCE
 
 MANIFEST = "run.json"
 CHUNKS = "chunks"
 
 
+#: A chunk file's name: ``r<first>-<last>.nc``, prefixed ``f<level>-`` in a sweep (and never a path).
+CHUNK_NAME = re.compile(r"^(f\d{3}-)?r\d{7}-\d{7}\.nc$")
+#: Largest run manifest read (bytes): a million chunk names take about 30 MB.
+MAX_MANIFEST_BYTES = 64 * 2**20
+
+
 def read_manifest(output_dir) -> dict | None:
-    """The run manifest of ``output_dir``, or None if there is none."""
+    """The run manifest of ``output_dir``, or None if there is none. A manifest that is not
+    one uqdrape wrote (hand-edited, truncated, another program's) raises OSError naming the
+    file and what is wrong: its chunk names are paths uqdrape will open, so they must be
+    plain chunk file names inside ``chunks/``."""
     path = Path(output_dir) / MANIFEST
     if not path.is_file():
         return None
-    with open(path, encoding="utf-8") as fh:
-        return json.load(fh)
+
+    def corrupt(why):
+        return OSError(errno.EIO, f"not a uqdrape run manifest ({why}); run the study again with --no-resume, "
+                                  "or delete the folder", str(path))
+
+    try:
+        if path.stat().st_size > MAX_MANIFEST_BYTES:
+            raise corrupt(f"larger than {MAX_MANIFEST_BYTES // 2**20} MB")
+        manifest = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError) as err:
+        raise corrupt(f"not JSON text: {type(err).__name__}") from None
+    if not isinstance(manifest, dict):
+        raise corrupt("not a JSON object")
+    study, chunks, size = manifest.get("study"), manifest.get("chunks"), manifest.get("chunk_size")
+    if not (isinstance(study, dict) and all(isinstance(v, dict) for v in study.values())
+            and isinstance(study.get("study"), dict)):
+        raise corrupt('"study" must be the study record, a table of sections')
+    if not (isinstance(chunks, list) and all(isinstance(c, str) and CHUNK_NAME.match(c) for c in chunks)):
+        raise corrupt('"chunks" must be a list of chunk file names such as r0000000-0000063.nc')
+    if isinstance(size, bool) or not isinstance(size, int) or size < 1:
+        raise corrupt('"chunk_size" must be a positive integer')
+    wall = manifest.get("wall_time_s", 0.0)
+    if isinstance(wall, bool) or not isinstance(wall, (int, float)) or not 0 <= wall < 1e9:
+        raise corrupt('"wall_time_s" must be a number of seconds')
+    return manifest
 
 
 def write_manifest(output_dir, manifest: dict) -> None:
-    """Write the manifest atomically (temporary file + rename)."""
-    path = Path(output_dir) / MANIFEST
-    part = path.with_name(path.name + ".part")
-    part.write_text(json.dumps(manifest, indent=1), encoding="utf-8")
-    os.replace(part, path)
+    """Write the manifest atomically (uqdrape.files: temporary file + rename)."""
+    write_text_atomic(Path(output_dir) / MANIFEST, json.dumps(manifest, indent=1))
 
 
 def open_ensemble(output_dir) -> xr.Dataset:
@@ -84,4 +114,11 @@ def open_ensemble(output_dir) -> xr.Dataset:
                          "run its study again with --no-resume")
     ds = cf_decode(files)
     ds.set_close(files.close)  # closing the result closes the chunk files
+    if len(paths) > 1:  # an extended run: the study as its last call ran it (the plan's last chunk)
+        with xr.open_dataset(paths[-1], engine="netcdf4", decode_cf=False) as last:
+            ds.attrs.update({k: v for k, v in last.attrs.items() if k.startswith("study_")})
+    # the run's own description, not its first chunk's ("realisations 0-15 at 126 N")
+    levels = ", ".join(f"{f:g}" for f in ds[FORCE].values)
+    ds.attrs["title"] = (f"uqdrape ensemble: study {ds.attrs.get('study_name', output_dir.name)}, "
+                         f"{ds.sizes.get('realization', 0)} realisations at {levels} N")
     return ds

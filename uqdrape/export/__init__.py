@@ -4,9 +4,13 @@ Plain functions, a result Dataset in and files out (lengths mm, angles degrees):
 
 - :func:`export_vtk` -- the net as quads with its point data, and the mould, as ``.vtu``
 - :func:`export_fe` -- fibre directions, shear (and ensemble spread) per element of an
-  FE surface mesh, as ``.vtu`` cell data and an Abaqus ``*DISTRIBUTION`` table
+  FE surface mesh, as ``.vtu`` cell data and the cards of Abaqus, LS-DYNA or Nastran,
+  both yarn directions per element
 - :func:`export_flat` -- the flat-blank position of every valid node and the blank
   outline, as CSV and DXF
+- :func:`export_cut` -- the cutting pattern: the part's edge in the flat blank, in the
+  fabric's axes, with fibre marker, seed and ply label (and an ensemble's envelope), as
+  DXF and CSV
 
 A result is a ``uqdrape drape`` netCDF file or a ``uqdrape run`` folder
 (:func:`open_result`); an ensemble is exported through its per-node statistics.
@@ -15,12 +19,13 @@ complete (``write_all`` of the ``*_files`` writers of several exports commits th
 together), so a failed export leaves nothing half-written.
 """
 
+from .cutting import cut_files, export_cut
 from .directions import fibre_directions, fibre_frame
 from .fe import export_fe, fe_files
-from .files import write_all
-from .flat import export_flat, flat_files, flat_positions
+from ..files import write_all
+from .flat import export_flat, flat_files
 from .result import Level, levels, open_result
 from .vtk import export_vtk, vtk_files
 
 __all__ = ["open_result", "levels", "Level", "fibre_directions", "fibre_frame", "export_vtk", "export_fe",
-           "export_flat", "flat_positions", "vtk_files", "fe_files", "flat_files", "write_all"]
+           "export_flat", "export_cut", "vtk_files", "fe_files", "flat_files", "cut_files", "write_all"]

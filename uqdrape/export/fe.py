@@ -9,6 +9,9 @@ position, the centroid goes to its closest point on the mesh and is located on t
 nearest net triangle in space (within half the tolerance; farther is off the net). The fibre directions are interpolated, laid on
 the mould's tangent plane and opened to 90 deg - the interpolated shear
 (``fibre_frame``). Elements are never dropped: ``map_status`` says why one has no values.
+Both yarns are then given in each element's own frame (``elements``) and written in the
+cards of each FE solver flavour asked for (``cards``); an ensemble adds the P5/P50/P95
+of each yarn angle over its drapes, each drape mapped as the nominal net is.
 """
 
 from __future__ import annotations
@@ -22,22 +25,19 @@ import meshio
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .. import __version__
 from ..drape.net import net_quads
-from .directions import dot
-from .directions import fibre_directions, fibre_frame
-from .files import write_all
+from .cards import FLAVOURS, WRITERS, Cards
+from .directions import dot, fibre_directions, fibre_frame
+from .elements import ANGLE_QUANTILES, axial_quantiles, corner_nodes, element_frames, with_defaults, yarn_angles
+from ..files import write_all
 from .result import Level, surface_of
 
 SURFACE_CELLS = {"triangle": 3, "triangle6": 3, "triangle7": 3, "quad": 4, "quad8": 4, "quad9": 4}
 VOLUME_CELLS = ("tetra", "hexahedron", "wedge", "pyramid")
 #: map_status codes of an element
 ON_NET, OFF_NET, OFF_MOULD = 0, 1, 2
-MAP_STATUS = "0=on_net, 1=off_net (outside the draped net), 2=off_mould (farther than the tolerance from the mould)"
 #: Net cells tried per element (nearest by plan centroid) when locating it.
 CANDIDATES = 16
-#: Element labels per line of the Abaqus *ELSET of unmapped elements.
-PER_LINE = 16
 
 
 def read_surface_mesh(path) -> tuple[meshio.Mesh, list]:
@@ -94,7 +94,10 @@ def centroids(mesh: meshio.Mesh, blocks) -> np.ndarray:
 
 def onto_mould(surface, c: np.ndarray, iterations: int = 30):
     """Foot points on the mould of the points ``c`` (M, 3) moved along the mould normal:
-    (plan positions (M, 2) mm, signed distance along the normal (M,) mm, inside domain)."""
+    (plan positions (M, 2) mm, signed distance along the normal (M,) mm, inside domain);
+    on a mesh mould, whose walls have no plan position, the closest points (M, 3) instead."""
+    if hasattr(surface, "project"):
+        return surface.project(c)
     xy = c[:, :2].copy()
     for _ in range(iterations):
         n = surface.normal(xy[:, 0], xy[:, 1])
@@ -102,6 +105,12 @@ def onto_mould(surface, c: np.ndarray, iterations: int = 30):
         d = dot(c - np.column_stack([xy, h]), n)
         xy = c[:, :2] - d[:, None] * n[:, :2]
     return xy, d, surface.inside(xy[:, 0], xy[:, 1])
+
+
+def foot_normal(surface, foot) -> np.ndarray:
+    """The mould's unit normal (M, 3) at ``onto_mould``'s foot points."""
+    xy = foot[0]
+    return surface.normal_at(xy) if xy.shape[1] == 3 else surface.normal(xy[:, 0], xy[:, 1])
 
 
 def locate_on(points: np.ndarray, tri: np.ndarray, reach: float):
@@ -142,23 +151,28 @@ def locate(points: np.ndarray, tri_xy: np.ndarray):
     return np.where(found, cand[rows, first], -1), lam[rows, first]
 
 
-def map_level(level: Level, surface, mesh_centroids: np.ndarray, tolerance_mm: float) -> dict:
+def map_level(level: Level, surface, mesh_centroids: np.ndarray, tolerance_mm: float, foot=None) -> dict:
     """Element values of one level: fibre1, fibre2 (M, 3), shear (deg), the ensemble's
-    shear_sd and p_locked, map_status and distance_mm (to the mould along its normal)."""
-    P = level.positions
-    d1, d2, _ = fibre_directions(P, level.shear, surface)
-    valid = np.isfinite(P).all(-1) & np.isfinite(level.shear)
+    shear_sd and p_locked, map_status and distance_mm (to the mould along its normal);
+    ``foot``: the centroids' ``onto_mould`` if already known."""
+    return _interpolate(level.positions, level.shear, surface, foot or onto_mould(surface, mesh_centroids),
+                        tolerance_mm, level.fields)
+
+
+def _interpolate(P: np.ndarray, shear: np.ndarray, surface, foot, tolerance_mm: float, fields=None) -> dict:
+    """The net with node positions ``P`` (N, N, 3) mm and ``shear`` (N, N) deg interpolated
+    at the elements' foot points ``foot`` (see ``map_level``)."""
+    fields = fields or {}
+    d1, d2, _ = fibre_directions(P, shear, surface)
+    valid = np.isfinite(P).all(-1) & np.isfinite(shear)
     kept, quads = net_quads(valid)
     tris = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
     pts = P.reshape(-1, 3)[kept]
-    if hasattr(surface, "project"):  # a mesh mould: onto it and onto the net in space
-        foot, dist, on_mould = surface.project(mesh_centroids)
-        normal = surface.normal_at(foot)
-        tri, lam = (locate_on(foot, pts[tris], 0.5 * tolerance_mm) if len(tris)
-                    else (np.full(len(foot), -1), np.zeros((len(foot), 3))))
+    xy, dist, on_mould = foot
+    if xy.shape[1] == 3:  # a mesh mould's foot points, located on the net in space
+        tri, lam = (locate_on(xy, pts[tris], 0.5 * tolerance_mm) if len(tris)
+                    else (np.full(len(xy), -1), np.zeros((len(xy), 3))))
     else:
-        xy, dist, on_mould = onto_mould(surface, mesh_centroids)
-        normal = surface.normal(xy[:, 0], xy[:, 1])
         tri, lam = locate(xy, pts[tris, :2]) if len(tris) else (np.full(len(xy), -1), np.zeros((len(xy), 3)))
     near = on_mould & (np.abs(dist) <= tolerance_mm)
     hit = near & (tri >= 0)
@@ -172,13 +186,14 @@ def map_level(level: Level, surface, mesh_centroids: np.ndarray, tolerance_mm: f
         out[~hit] = np.nan
         return out
 
-    shear = interp(level.shear)
+    normal = foot_normal(surface, foot)
+    shear_e = interp(shear)
     with np.errstate(invalid="ignore"):
-        e1, e2 = fibre_frame(interp(d1), interp(d2), normal, shear)
-    out = {"fibre1": e1, "fibre2": e2, "shear": shear}
+        e1, e2 = fibre_frame(interp(d1), interp(d2), normal, shear_e)
+    out = {"fibre1": e1, "fibre2": e2, "shear": shear_e}
     for name in ("shear_sd", "p_locked"):
-        if name in level.fields:
-            out[name] = interp(level.fields[name])
+        if name in fields:
+            out[name] = interp(fields[name])
     out.update(map_status=status, distance_mm=dist)
     return out
 
@@ -189,37 +204,40 @@ def _vtu(tmp: Path, mesh: meshio.Mesh, blocks, values: dict) -> None:
     meshio.write(tmp, meshio.Mesh(mesh.points, blocks, cell_data=cell_data), file_format="vtu")
 
 
-def _abaqus(tmp: Path, values: dict, labels: np.ndarray, source: str) -> None:
-    """An Abaqus include: per-element local directions 1 and 2 as a *DISTRIBUTION used by
-    a coordinate *ORIENTATION; unmapped elements keep the default (global x, y) and are
-    listed in *ELSET UQDRAPE_UNMAPPED."""
-    d1, d2, status = values["fibre1"], values["fibre2"], values["map_status"]
-    lines = [f"** fibre orientations of {source}, written by uqdrape {__version__}",
-             "** element labels: those of an Abaqus input mesh, else 1-based positions in the mesh file",
-             "** direction 1 = fibre 1 (+i), direction 2 = fibre 2 (+j), unit vectors in global axes",
-             "*DISTRIBUTION TABLE, NAME=UQDRAPE_FIBRE_TABLE",
-             "COORD3D, COORD3D",
-             "*DISTRIBUTION, NAME=UQDRAPE_FIBRE, LOCATION=ELEMENT, TABLE=UQDRAPE_FIBRE_TABLE",
-             ", 1.0, 0.0, 0.0, 0.0, 1.0, 0.0"]
-    for k in np.flatnonzero(status == ON_NET):
-        lines.append(", ".join([str(labels[k])] + [repr(float(v)) for v in (*d1[k], *d2[k])]))
-    lines += ["*ORIENTATION, NAME=UQDRAPE_FIBRE_ORIENTATION, DEFINITION=COORDINATES, SYSTEM=RECTANGULAR",
-              "UQDRAPE_FIBRE"]
-    unmapped = labels[status != ON_NET]
-    if unmapped.size:
-        lines.append(f"** {unmapped.size} elements not on the draped net ({MAP_STATUS}): default orientation")
-        lines.append("*ELSET, ELSET=UQDRAPE_UNMAPPED")
-        lines += [", ".join(map(str, unmapped[a:a + PER_LINE])) for a in range(0, unmapped.size, PER_LINE)]
-    tmp.write_text("\n".join(lines) + "\n", encoding="ascii")
+def _ensemble_angles(level: Level, surface, foot, tolerance_mm: float, frame, nominal: dict) -> dict:
+    """P5/P50/P95 (``theta1_q05`` ...) of each yarn angle (deg, element frame) over the
+    level's drapes, each drape mapped onto the elements as the nominal net is."""
+    data = level.data
+    placed = data.status.values == 0
+    P = np.stack([np.where(placed, data[c].values, np.nan) for c in ("x", "y", "z")], axis=-1)
+    shear = np.where(placed, data.shear.values, np.nan)
+    normal = foot_normal(surface, foot)
+    samples = {"theta1": [], "theta2": []}
+    for r in range(P.shape[0]):
+        one = _interpolate(P[r], shear[r], surface, foot, tolerance_mm)
+        angles = yarn_angles(one["fibre1"], one["fibre2"], normal, frame)
+        for name, rows in samples.items():
+            rows.append(angles[name])
+    out = {}
+    for name, rows in samples.items():
+        q = axial_quantiles(np.array(rows), nominal[name])
+        out.update({f"{name}_q{round(100 * p):02d}": q[k] for k, p in enumerate(ANGLE_QUANTILES)})
+    return out
 
 
-def fe_files(levels: list[Level], ds, mesh_path, stem, tolerance_mm: float | None = None):
+def fe_files(levels: list[Level], ds, mesh_path, stem, tolerance_mm: float | None = None,
+             flavours=("abaqus",)):
     """Map each level onto the surface mesh at ``mesh_path``: writers (for ``write_all``)
-    of ``STEM[-LEVEL]-fe.vtu``
-    (cell data: fibre1, fibre2, shear, [shear_sd, p_locked], map_status, distance_mm) and
-    ``STEM[-LEVEL]-orientations.inp``. ``tolerance_mm`` (default: the fibre spacing) is how
-    far from the mould an element may lie; a mesh whose median element lies farther
-    (wrong units or placement) is an error. Returns (writers, map_status of each level)."""
+    of ``STEM[-LEVEL]-fe.vtu`` (cell data: fibre1, fibre2, shear, [shear_sd, p_locked],
+    map_status, distance_mm, and the element-frame yarn1, yarn2, theta1, theta2,
+    area_ratio, [theta1_q05 ...]) and of each of ``flavours`` (``cards.FLAVOURS``:
+    ``STEM[-LEVEL]-orientations.inp``, ``-lsdyna.k``, ``-nastran.bdf``). ``tolerance_mm``
+    (default: the fibre spacing) is how far from the mould an element may lie; a mesh
+    whose median element lies farther (wrong units or placement) is an error. Returns
+    (writers, map_status of each level)."""
+    unknown = [f for f in flavours if f not in FLAVOURS]
+    if unknown or not flavours:
+        raise ValueError(f"FE flavour {', '.join(unknown) or '(none)'} is not one of {', '.join(FLAVOURS)}")
     stem = Path(stem)
     surface = surface_of(ds)
     tol = float(ds.attrs["spacing_mm"]) if tolerance_mm is None else float(tolerance_mm)
@@ -228,23 +246,34 @@ def fe_files(levels: list[Level], ds, mesh_path, stem, tolerance_mm: float | Non
     mesh, blocks = read_surface_mesh(mesh_path)
     labels = element_labels(mesh_path, mesh, blocks)
     c = centroids(mesh, blocks)
+    corners = corner_nodes(blocks)
+    frame = element_frames(mesh.points, corners)
+    foot = onto_mould(surface, c)
+    normal = foot_normal(surface, foot)
     writers, statuses = {}, []
     for level in levels:
-        values = map_level(level, surface, c, tol)
+        values = map_level(level, surface, c, tol, foot)
         far = np.median(np.abs(values["distance_mm"]))
         if not far <= tol:
             raise ValueError(f"{mesh_path}: its elements lie {far:.4g} mm (median) from the mould along its "
                              f"normal, more than the tolerance {tol:g} mm: is the mesh in mm and in the mould's "
                              "coordinates?")
+        values.update(yarn_angles(values["fibre1"], values["fibre2"], normal, frame))
+        values["area_ratio"] = np.cos(np.radians(values["shear"]))
+        if level.is_ensemble:
+            values.update(_ensemble_angles(level, surface, foot, tol, frame, values))
         base = f"{stem.name}-{level.label}" if level.label else stem.name
         writers[stem.with_name(f"{base}-fe.vtu")] = partial(_vtu, mesh=mesh, blocks=blocks, values=values)
         source = f"{ds.attrs.get('geometry', 'a drape')}{' at ' + level.label if level.label else ''}"
-        writers[stem.with_name(f"{base}-orientations.inp")] = partial(_abaqus, values=values, labels=labels, source=source)
+        cards = Cards(labels, corners, mesh.points, frame, with_defaults(values, frame, values["map_status"] == ON_NET),
+                      source)
+        for flavour in dict.fromkeys(flavours):
+            writers[stem.with_name(base + FLAVOURS[flavour])] = partial(WRITERS[flavour], cards=cards)
         statuses.append(values["map_status"])
     return writers, statuses
 
 
-def export_fe(levels: list[Level], ds, mesh_path, stem, tolerance_mm: float | None = None):
+def export_fe(levels: list[Level], ds, mesh_path, stem, tolerance_mm: float | None = None, flavours=("abaqus",)):
     """Write the files of :func:`fe_files`; returns (paths, map_status of each level)."""
-    writers, statuses = fe_files(levels, ds, mesh_path, stem, tolerance_mm)
+    writers, statuses = fe_files(levels, ds, mesh_path, stem, tolerance_mm, flavours)
     return write_all(writers), statuses

@@ -1,11 +1,6 @@
 """The flat pattern: where each draped node sits in the flat blank, and the blank outline.
 
-The flat blank of a realisation is its pin-jointed net laid on a plane: the same
-solver run on a plate with the realisation's segment lengths (``seg_i``, ``seg_j``, or
-the nominal spacing), orientation, pre-shear and crossover (skew closes the generator
-paths on the mould only, so it is left out). With equal segments this is the grid
-crossover + s i e1 + s j e2; with random spacing every segment keeps its own length.
-An ensemble's flat pattern is the mean flat position over the realisations that placed
+A realisation's flat blank is ``uqdrape.drape.flat_positions``. An ensemble's flat pattern is the mean flat position over the realisations that placed
 the node on the mould, with the fraction that did (``p_valid``).
 """
 
@@ -16,26 +11,10 @@ from pathlib import Path
 
 import ezdxf
 import numpy as np
-import xarray as xr
 
-from ..drape import drape
-from ..geometry import Plate
-from .files import write_all
+from ..drape import flat_positions
+from ..files import write_all
 from .result import Level
-
-
-def flat_positions(ds: xr.Dataset) -> np.ndarray:
-    """Flat-blank plan positions (R, N, N, 2) mm of the realisations of drape Dataset ``ds``."""
-    n = int(ds.attrs["rings"])
-    spacing = float(ds.attrs["spacing_mm"])
-    crossover = np.stack([ds.crossover_x.values, ds.crossover_y.values], axis=-1).reshape(-1, 2)
-    seg_i = ds.seg_i.values if "seg_i" in ds else None
-    seg_j = ds.seg_j.values if "seg_j" in ds else None
-    longest = max([spacing] + [float(np.max(s)) for s in (seg_i, seg_j) if s is not None])
-    plate = Plate(float(np.abs(crossover).max()) + 4 * n * longest)
-    flat = drape(plate, spacing, n, orientation=ds.orientation.values.ravel(),
-                 pre_shear=ds.pre_shear.values.ravel(), crossover=crossover, seg_i=seg_i, seg_j=seg_j)
-    return np.stack([flat.x.values, flat.y.values], axis=-1)
 
 
 def flat_pattern(level: Level) -> tuple[np.ndarray, np.ndarray]:

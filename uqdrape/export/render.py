@@ -13,6 +13,8 @@ from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
+from ..files import write_atomic
+
 
 def render_vtu(net_vtu, png, field: str, *, mould_vtu=None, label: str | None = None, title: str = "",
                view=(32.0, -60.0)) -> Path:
@@ -54,7 +56,4 @@ def render_vtu(net_vtu, png, field: str, *, mould_vtu=None, label: str | None = 
     ax.set_title(title, fontsize=11)
     bar = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.6, pad=0.08)
     bar.set_label(label or field)
-    png = Path(png)
-    png.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(png, dpi=110)
-    return png
+    return write_atomic(Path(png), lambda tmp: fig.savefig(tmp, dpi=110, format="png"))

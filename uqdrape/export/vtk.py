@@ -17,7 +17,7 @@ import numpy as np
 
 from ..drape.net import net_quads
 from .directions import fibre_deviation, fibre_directions
-from .files import write_all
+from ..files import write_all
 from .result import Level, surface_of
 
 #: Quads per side of the exported mould grid.

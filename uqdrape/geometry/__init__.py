@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import inspect
 
+from ..errors import ParameterError
 from .analytic import Cone, Cylinder, DoubleDome, Hemisphere, NoseCone, Plate, Saddle
 from .base import Surface
 from .mesh import MeshError, MeshSurface, export_stl
@@ -30,14 +31,14 @@ def build(kind: str, **params) -> Surface:
     valid = [p for p in sig.parameters if p != "self"]
     unknown = [p for p in params if p not in valid]
     if unknown:
-        raise ValueError(
-            f"unknown parameter {unknown[0]!r} for geometry {kind!r}; valid: {', '.join(valid)}"
+        raise ParameterError(
+            unknown[0], f"unknown parameter {unknown[0]!r} for geometry {kind!r}; valid: {', '.join(valid)}"
         )
     missing = [
         p for p in valid if sig.parameters[p].default is inspect.Parameter.empty and p not in params
     ]
     if missing:
-        raise ValueError(f"geometry {kind!r} needs parameter {missing[0]!r}")
+        raise ParameterError(missing[0], f"geometry {kind!r} needs parameter {missing[0]!r}")
     return cls(**params)
 
 

@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 
+from ..errors import ParameterError
 from . import compiled
 from .base import Surface
 
@@ -31,9 +32,9 @@ def _length(name: str, value) -> float:
     try:
         v = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a positive length in mm, got {value!r}") from None
+        raise ParameterError(name, f"{name} must be a positive length in mm, got {value!r}") from None
     if not (math.isfinite(v) and 0 < v <= MAX_LENGTH_MM):
-        raise ValueError(f"{name} must be a positive length in mm up to {MAX_LENGTH_MM:g} (a 100 m tool), "
+        raise ParameterError(name, f"{name} must be a positive length in mm up to {MAX_LENGTH_MM:g} (a 100 m tool), "
                          f"got {value!r}")
     return v
 
@@ -43,9 +44,9 @@ def _angle(name: str, value, lo: float, hi: float) -> float:
     try:
         v = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be an angle in degrees in ({lo}, {hi}), got {value!r}") from None
+        raise ParameterError(name, f"{name} must be an angle in degrees in ({lo}, {hi}), got {value!r}") from None
     if not (lo < v < hi):
-        raise ValueError(f"{name} must be an angle in degrees in ({lo}, {hi}), got {value!r}")
+        raise ParameterError(name, f"{name} must be an angle in degrees in ({lo}, {hi}), got {value!r}")
     return v
 
 
@@ -53,8 +54,8 @@ def _flange(value, rim: float, default_factor: float = 2.0) -> float:
     """Flange half-width (mm): given, or ``default_factor`` times the rim radius; >= rim."""
     w = default_factor * rim if value is None else _length("flange_half_width", value)
     if w < rim:
-        raise ValueError(
-            f"flange_half_width must be >= the mould's rim radius {rim:g} mm, got {value!r}"
+        raise ParameterError(
+            "flange_half_width", f"flange_half_width must be >= the mould's rim radius {rim:g} mm, got {value!r}"
         )
     return w
 
@@ -116,7 +117,7 @@ class Cylinder(Surface):
         self.radius = _length("radius", radius)
         self.length = _length("length", length)
         if axis not in ("x", "y"):
-            raise ValueError(f"axis must be 'x' or 'y', got {axis!r}")
+            raise ParameterError("axis", f"axis must be 'x' or 'y', got {axis!r}")
         self.axis = axis
         self.size = self.radius
         self.kernel = (compiled.CYLINDER,
@@ -180,13 +181,8 @@ class NoseCone(_SquareDomain):
 
     name = "nose_cone"
 
-    def __init__(
-        self,
-        base_radius: float = 225.0,
-        half_angle_deg: float = 35.0,
-        tip_radius: float = 50.0,
-        flange_half_width: float | None = None,
-    ):
+    def __init__(self, base_radius: float = 225.0, half_angle_deg: float = 35.0, tip_radius: float = 50.0,
+                 flange_half_width: float | None = None):
         self.base_radius = _length("base_radius", base_radius)
         self.half_angle_deg = _angle("half_angle_deg", half_angle_deg, 0.0, 90.0)
         self.tip_radius = _length("tip_radius", tip_radius)
@@ -194,8 +190,8 @@ class NoseCone(_SquareDomain):
         self._cot = 1.0 / math.tan(a)
         self.blend_radius = self.tip_radius * math.cos(a)  # r_t, plan radius of the blend
         if self.blend_radius >= self.base_radius:
-            raise ValueError(
-                f"tip_radius must satisfy tip_radius * cos(half_angle) < base_radius "
+            raise ParameterError(
+                "tip_radius", f"tip_radius must satisfy tip_radius * cos(half_angle) < base_radius "
                 f"({self.base_radius:g} mm), got tip_radius={tip_radius!r}"
             )
         z_blend = (self.base_radius - self.blend_radius) * self._cot
@@ -223,24 +219,18 @@ class DoubleDome(_SquareDomain):
 
     name = "double_dome"
 
-    def __init__(
-        self,
-        dome_radius: float = 80.0,
-        base_radius: float = 70.0,
-        centre_distance: float = 120.0,
-        blend: float = 20.0,
-        flange_half_width: float = 200.0,
-    ):
+    def __init__(self, dome_radius: float = 80.0, base_radius: float = 70.0, centre_distance: float = 120.0,
+                 blend: float = 20.0, flange_half_width: float = 200.0):
         self.dome_radius = _length("dome_radius", dome_radius)
         self.base_radius = _length("base_radius", base_radius)
         if self.base_radius >= self.dome_radius:
-            raise ValueError(
-                f"base_radius must be < dome_radius ({self.dome_radius:g} mm), got {base_radius!r}"
+            raise ParameterError(
+                "base_radius", f"base_radius must be < dome_radius ({self.dome_radius:g} mm), got {base_radius!r}"
             )
         self.centre_distance = _length("centre_distance", centre_distance)
         if self.centre_distance >= 2 * self.base_radius:
-            raise ValueError(
-                f"centre_distance must be < 2 * base_radius ({2 * self.base_radius:g} mm) "
+            raise ParameterError(
+                "centre_distance", f"centre_distance must be < 2 * base_radius ({2 * self.base_radius:g} mm) "
                 f"so the domes overlap, got {centre_distance!r}"
             )
         self.blend = _length("blend", blend)
@@ -249,8 +239,8 @@ class DoubleDome(_SquareDomain):
         reach = 0.5 * self.centre_distance + self.base_radius
         self.flange_half_width = _length("flange_half_width", flange_half_width)
         if self.flange_half_width < reach:
-            raise ValueError(
-                f"flange_half_width must be >= {reach:g} mm (the domes' plan extent), "
+            raise ParameterError(
+                "flange_half_width", f"flange_half_width must be >= {reach:g} mm (the domes' plan extent), "
                 f"got {flange_half_width!r}"
             )
         self._half = self.flange_half_width

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import ParameterError
 from . import compiled
 from . import meshquery as mq
 from .analytic import MAX_LENGTH_MM
@@ -38,8 +39,12 @@ ON_TOLERANCE = 1e-7
 _TRIMESH_FORMATS = {".stl", ".obj", ".ply", ".off", ".glb", ".gltf"}
 
 
-class MeshError(ValueError):
-    """A mesh file that cannot be a mould; the message is one line naming the file."""
+class MeshError(ParameterError):
+    """A mesh file that cannot be a mould; the message is one line naming the file, and the
+    argument at fault is the mould's ``path``."""
+
+    def __init__(self, message: str):
+        super().__init__("path", message)
 
 
 def _binary_stl(path: Path):
@@ -279,7 +284,7 @@ class MeshSurface(Surface):
         self.path = Path(path)
         name = str(self.path)
         if units not in UNITS:
-            raise ValueError(f"units must be one of {', '.join(UNITS)}, got {units!r}")
+            raise ParameterError("units", f"units must be one of {', '.join(UNITS)}, got {units!r}")
         self.units = units
         if isinstance(press_direction, str):  # "x,y,z", as a command-line --param gives it
             press_direction = press_direction.split(",")
@@ -288,14 +293,14 @@ class MeshSurface(Surface):
         except (TypeError, ValueError):
             d = np.full(3, np.nan)
         if not (np.isfinite(d).all() and np.linalg.norm(d) > 0):
-            raise ValueError(f"press_direction must be a non-zero 3-vector, got {press_direction!r}")
+            raise ParameterError("press_direction", f"press_direction must be a non-zero 3-vector, got {press_direction!r}")
         self.press_direction = [float(c) for c in d]
         try:
             blend = float(edge_blend_mm)
         except (TypeError, ValueError):
             blend = math.nan
         if not (math.isfinite(blend) and 0 <= blend <= MAX_LENGTH_MM):
-            raise ValueError(f"edge_blend_mm must be a length >= 0 in mm, got {edge_blend_mm!r}")
+            raise ParameterError("edge_blend_mm", f"edge_blend_mm must be a length >= 0 in mm, got {edge_blend_mm!r}")
         self.edge_blend_mm = blend
         vertices, faces = _read(self.path)
         vertices = vertices * UNITS[units] @ _rotation_to_z(d / np.linalg.norm(d)).T

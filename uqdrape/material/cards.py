@@ -20,6 +20,10 @@ A TOML card (angles in degrees, N_s in N/m, bending stiffness in N·m²):
     [architecture]                     # cards derived from a fabric architecture only:
     ...                                # inputs, calibration, model version (see
                                        # uqdrape.material.architecture.derive_card)
+    [scatter.positive]                 # cards fitted to shear tests only (see
+    ...                                # uqdrape.material.sheartest.card): the
+    [sheartest]                        # specimens' sd per angle, the fit's record
+    ...
 
 Instead of the inline tables, `[shear] csv = "curves.csv"` names a CSV file (relative to the
 card) in the CSV format below. A bare CSV can also be loaded on its own; the material is then
@@ -34,13 +38,11 @@ from __future__ import annotations
 
 import csv
 import io
-import json
-import math
-import tomllib
 from importlib import resources
 from pathlib import Path
 
-from .model import Material
+from ..files import Document, Table, parse_toml, read_text, toml_text
+from .model import Material, MaterialError
 
 _CARD_KEYS = {
     "name": str,
@@ -53,17 +55,23 @@ _CARD_KEYS = {
     "stitch_direction_deg": float,
     "shear": dict,
     "architecture": dict,
+    "scatter": dict,
+    "sheartest": dict,
 }
+#: Tables a card keeps for its readers, not for `Material`: [scatter] (the specimens' sd
+#: per angle) and [sheartest] (how the curves were fitted: `uqdrape.material.sheartest`).
+_RECORD_KEYS = ("shear", "scatter", "sheartest")
 _CSV_COLUMNS = ("angle_deg", "ns_positive", "ns_negative")
 
 
-def _cards_dir():
+def cards_dir():
+    """The folder of the shipped cards (package data)."""
     return resources.files("uqdrape.material").joinpath("cards")
 
 
 def available_materials() -> list[str]:
     """Names of the material cards shipped with uqdrape (sorted)."""
-    return sorted(p.name[: -len(".toml")] for p in _cards_dir().iterdir() if p.name.endswith(".toml"))
+    return sorted(p.name[: -len(".toml")] for p in cards_dir().iterdir() if p.name.endswith(".toml"))
 
 
 def load_material(name_or_path) -> Material:
@@ -71,9 +79,8 @@ def load_material(name_or_path) -> Material:
     text = str(name_or_path)
     shipped = available_materials()
     if text in shipped:
-        cards = _cards_dir()
-        return _material_from_toml(cards.joinpath(text + ".toml").read_text(encoding="utf-8"),
-                                   f"material card {text!r}", text, cards)
+        path = Path(str(cards_dir().joinpath(text + ".toml")))
+        return _material_from_toml(Document(path, "material card"), path.stem)
     path = Path(name_or_path)
     suffix = path.suffix.lower()
     if suffix not in (".toml", ".csv"):
@@ -84,89 +91,92 @@ def load_material(name_or_path) -> Material:
     if not path.is_file():
         raise ValueError(f"{path}: material file not found")
     if suffix == ".csv":
-        curves = _read_csv(path.read_text(encoding="utf-8"), str(path))
+        curves = _read_csv(read_text(path, "material CSV"), str(path))
         return _build(str(path), {"name": path.stem, **curves})
-    return _material_from_toml(path.read_text(encoding="utf-8"), str(path), path.stem, path.parent)
+    return _material_from_toml(Document(path, "material card"), path.stem)
 
 
 def card_material(text: str, label: str) -> Material:
     """A `Material` from the TOML text of a self-contained card (no [shear] csv); ``label``
     names it in errors and its stem is the default name."""
-    return _material_from_toml(text, label, Path(label).stem, None)
+    source = Document(None, "material card", label=label)
+    return _material_from_toml(source, Path(label).stem, parse_toml(text, label))
 
 
-def _material_from_toml(text, label, stem, base_dir):
-    """Parse a TOML card; `base_dir` (Path or importlib Traversable) resolves a `[shear] csv`."""
-    try:
-        card = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{label}: not valid TOML ({exc})") from None
-    unknown = sorted(set(card) - set(_CARD_KEYS))
-    if unknown:
-        raise ValueError(f"{label}: unknown key(s) {', '.join(unknown)}; valid keys are {', '.join(_CARD_KEYS)}")
+def _material_from_toml(source: Document, stem: str, card: dict | None = None) -> Material:
+    """The card of ``source`` (``card``: its document, if already parsed) as a Material."""
+    card = source.read() if card is None else card
+    top = Table(source, "", card, tuple(_CARD_KEYS))
     props = {}
-    for key, value in card.items():
-        kind = _CARD_KEYS[key]
-        if kind is float:
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise ValueError(f"{label}: {key} must be a number, got {value!r}")
-            props[key] = float(value)
-        elif not isinstance(value, kind):
-            raise ValueError(f"{label}: {key} must be a {'table' if kind is dict else 'string'}, got {value!r}")
-        elif key != "shear":
-            props[key] = value  # "architecture": a derived card's record, kept as read
-    props.setdefault("name", stem)
-    if "shear" not in card:
-        raise ValueError(f"{label}: missing the [shear] table (inline [shear.positive] points or csv = \"file.csv\")")
-    props.update(_shear_curves(card["shear"], label, base_dir))
-    return _build(label, props)
-
-
-def _shear_curves(shear, label, base_dir):
-    """The curve arguments of `Material` from a card's [shear] table."""
-    keys = set(shear)
-    if keys == {"csv"}:
-        rel = shear["csv"]
-        if not isinstance(rel, str):
-            raise ValueError(f"{label}: shear.csv must be a file name, got {rel!r}")
-        source = base_dir.joinpath(rel)
-        if not source.is_file():
-            raise ValueError(f"{label}: shear.csv file {rel!r} not found next to the card")
-        return _read_csv(source.read_text(encoding="utf-8"), f"{label} -> {rel}")
-    if "csv" in keys or not keys <= {"positive", "negative"} or "positive" not in keys:
-        raise ValueError(
-            f"{label}: [shear] must hold either csv = \"file.csv\" or a [shear.positive] table "
-            f"(and optionally [shear.negative]), got keys {', '.join(sorted(keys)) or '(none)'}"
-        )
-    curves = {}
-    for branch in ("positive", "negative"):
-        if branch not in shear:
+    for key, kind in _CARD_KEYS.items():
+        if not top.has(key) or key in _RECORD_KEYS:
             continue
-        table = shear[branch]
-        if not isinstance(table, dict) or set(table) != {"angle_deg", "ns"}:
-            got = ", ".join(sorted(table)) if isinstance(table, dict) else repr(table)
-            raise ValueError(f"{label}: shear.{branch} must have exactly the keys angle_deg and ns, got {got}")
-        for key in ("angle_deg", "ns"):
-            values = table[key]
-            if not isinstance(values, list) or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in values):
-                raise ValueError(f"{label}: shear.{branch}.{key} must be a list of numbers, got {values!r}")
-        suffix = "pos" if branch == "positive" else "neg"
-        curves[f"angles_deg_{suffix}"] = table["angle_deg"]
-        curves[f"ns_{suffix}"] = table["ns"]
+        if kind is float:
+            props[key] = top.number(key)
+        elif kind is str:
+            props[key] = top.string(key)
+        else:
+            props[key] = top.table(key).data  # "architecture": a derived card's record, kept as read
+    props.setdefault("name", stem)
+    if not top.has("shear"):
+        source.missing("shear", 'a card needs a [shear] table: [shear.positive] points or csv = "file.csv"')
+    shear = top.table("shear", ("csv", "positive", "negative"))
+    props.update(_shear_curves(shear, source))
+    if top.has("scatter"):
+        _check_scatter(top.table("scatter", tuple(b for b in ("positive", "negative") if shear.has(b))), shear)
+    return _build(source, props, top)
+
+
+def _check_scatter(scatter: Table, shear: Table) -> None:
+    """A [scatter.<branch>] table (cards fitted to shear tests): the specimens' sd of N_s
+    (N/m, >= 0) at the angles of [shear.<branch>], from ``specimens`` >= 2 tests."""
+    for branch in scatter.data:
+        table = scatter.table(branch, ("angle_deg", "ns_sd", "specimens"))
+        angles = table.numbers("angle_deg", hint="angle_deg must be a list of numbers (deg)")
+        if list(angles) != [float(a) for a in shear.data.get(branch, {}).get("angle_deg", [])]:
+            table.invalid("angle_deg", f"angle_deg must be the angles of [shear.{branch}]")
+        sd = table.numbers("ns_sd", length=len(angles), hint=f"ns_sd must be {len(angles)} numbers >= 0 (N/m), "
+                                                             "one per angle")
+        if min(sd) < 0.0:
+            table.invalid("ns_sd", "ns_sd must be >= 0 (N/m)")
+        table.number("specimens", integer=True, ge=2)
+
+
+def _shear_curves(shear: Table, source: Document) -> dict:
+    """The curve arguments of `Material` from a card's [shear] table."""
+    if shear.has("csv"):
+        if len(shear.data) > 1:
+            shear.invalid("csv", 'give either csv = "file.csv" or [shear.positive] points, not both')
+        path = source.relative_file("shear.csv", shear.data["csv"])
+        return _read_csv(read_text(path, "shear CSV"), f"{source.label} -> {shear.data['csv']}")
+    if not shear.has("positive"):
+        source.missing("shear.positive", 'the [shear] table needs [shear.positive] points, or csv = "file.csv"')
+    curves = {}
+    for branch, suffix in (("positive", "pos"), ("negative", "neg")):
+        if shear.has(branch):
+            points = shear.table(branch, ("angle_deg", "ns"))
+            curves[f"angles_deg_{suffix}"] = points.numbers("angle_deg", hint="angle_deg must be a list of numbers (deg)")
+            curves[f"ns_{suffix}"] = points.numbers("ns", hint="ns must be a list of numbers (N/m)")
     return curves
 
 
 def _read_csv(text, label):
-    """Curve arguments of `Material` from CSV text (header angle_deg,ns_positive[,ns_negative])."""
+    """Curve arguments of `Material` from CSV text (header angle_deg,ns_positive[,ns_negative]).
+    A file whose first line is not that header is not echoed (it may be any file named by
+    mistake, or by someone else's card); past the header a bad cell is quoted (40 characters
+    at most)."""
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
-    rows = list(csv.reader(io.StringIO("\n".join(lines))))
+    try:
+        rows = list(csv.reader(io.StringIO("\n".join(lines))))
+    except csv.Error as err:
+        raise ValueError(f"{label}: not a curve CSV ({err})") from None
     if not rows:
         raise ValueError(f"{label}: empty CSV; expected a header {','.join(_CSV_COLUMNS)}")
     header = [h.strip() for h in rows[0]]
     if header not in (list(_CSV_COLUMNS[:2]), list(_CSV_COLUMNS)):
         raise ValueError(
-            f"{label}: CSV header must be angle_deg,ns_positive or angle_deg,ns_positive,ns_negative, "
-            f"got {','.join(header)}"
+            f"{label}: not a curve CSV: its first line that is not a # comment must be the header "
+            "angle_deg,ns_positive or angle_deg,ns_positive,ns_negative"
         )
     columns = {name: [] for name in header}
     for lineno, row in enumerate(rows[1:], start=2):
@@ -176,19 +186,28 @@ def _read_csv(text, label):
             try:
                 columns[name].append(float(cell))
             except ValueError:
-                raise ValueError(f"{label}: data row {lineno}, column {name}: {cell.strip()!r} is not a number") from None
+                raise ValueError(f"{label}: data row {lineno}, column {name}: {cell.strip()[:40]!r} is not a number") from None
     curves = {"angles_deg_pos": columns["angle_deg"], "ns_pos": columns["ns_positive"]}
     if "ns_negative" in columns:
         curves.update(angles_deg_neg=columns["angle_deg"], ns_neg=columns["ns_negative"])
     return curves
 
 
-def _build(label, props):
-    """`Material(**props)` with any validation error prefixed by the file it came from."""
+def _build(source, props, top: Table | None = None) -> Material:
+    """`Material(**props)`. A refused property is blamed on ``source``: the label of a CSV
+    file, or the Document of a TOML card (``top`` its top level) naming the key at fault
+    (``shear.csv`` for curves read from a CSV)."""
     try:
         return Material.from_curves(**props)
-    except ValueError as exc:
-        raise ValueError(f"{label}: {exc}") from None
+    except MaterialError as err:
+        if isinstance(source, str):
+            raise ValueError(f"{source}: {err}") from None
+        if err.key.startswith("shear."):
+            shear = top.table("shear")
+            shear.invalid("csv" if shear.has("csv") else err.key.partition(".")[2], str(err))
+        if top.has(err.key):
+            top.invalid(err.key, str(err))
+        source.fail(str(err), err.key)
 
 
 def material_document(material: Material) -> dict:
@@ -212,34 +231,6 @@ def material_document(material: Material) -> dict:
     return doc
 
 
-def _toml_value(value) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, str):
-        return json.dumps(value, ensure_ascii=False)
-    if isinstance(value, (int, float)):
-        if isinstance(value, float) and not math.isfinite(value):
-            raise ValueError(f"cannot write the non-finite number {value!r} to a card")
-        return repr(value)
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    raise TypeError(f"cannot write {value!r} to TOML")
-
-
 def card_text(doc: dict, header: str = "") -> str:
-    """TOML text of a card document (plain keys first, then each table in order)."""
-    lines = [f"# {line}" for line in header.splitlines()]
-
-    def emit(table: dict, prefix: str):
-        for key, value in table.items():
-            if not isinstance(value, dict):
-                lines.append(f"{key} = {_toml_value(value)}")
-        for key, value in table.items():
-            if isinstance(value, dict):
-                name = f"{prefix}{key}"
-                if any(not isinstance(v, dict) for v in value.values()) or not value:
-                    lines.extend(["", f"[{name}]"])
-                emit(value, name + ".")
-
-    emit(doc, "")
-    return "\n".join(lines) + "\n"
+    """TOML text of a card document (``uqdrape.files.toml_text``: plain keys first, then each table)."""
+    return toml_text(doc, header)

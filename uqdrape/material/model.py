@@ -29,6 +29,20 @@ LOCK_STIFFNESS_PER_RAD = 1.0e3
 DEFAULT_BENDING_STIFFNESS = 1.0e-6
 
 
+#: Largest normalised shear force a curve may give (N/m): a thousand times the 1000 N/m at
+#: which uqdrape's cards lock; beyond it a card is a unit mistake, and its energy integral
+#: and interpolants overflow.
+MAX_NS = 1e6
+
+
+class MaterialError(ValueError):
+    """A bad material property; ``key`` names it as a card does (``shear.positive`` for a curve)."""
+
+    def __init__(self, key: str, message: str):
+        super().__init__(message)
+        self.key = key
+
+
 class _Branch:
     """One shear branch (positive or negative) on the magnitude axis x = |γ| >= 0 (rad).
 
@@ -102,35 +116,36 @@ def _cell_energy_many(mat, gamma, s1, s2, gamma0, out):
         out[m] = cell_energy(mat, gamma[m], s1[m], s2[m], gamma0[m])
 
 
-def _as_curve(label, angles_deg, ns):
+def _as_curve(branch, angles_deg, ns):
     """Validate one branch's (angle [deg], N_s [N/m]) points; return float arrays."""
+    label = f"{branch} shear curve"
+
+    def bad(text):
+        raise MaterialError(f"shear.{branch}", f"{label}: {text}")
+
     try:
         a = np.asarray(angles_deg, dtype=float)
         n = np.asarray(ns, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"{label}: angles and N_s must be numbers ({exc})") from None
+        bad(f"angles and N_s must be numbers ({exc})")
     if a.ndim != 1 or n.ndim != 1 or a.size != n.size:
-        raise ValueError(
-            f"{label}: angles and N_s must be 1-D and of equal length, got shapes {a.shape} and {n.shape}"
-        )
+        bad(f"angles and N_s must be 1-D and of equal length, got shapes {a.shape} and {n.shape}")
     if a.size < 2:
-        raise ValueError(f"{label}: need at least 2 points, got {a.size}")
+        bad(f"need at least 2 points, got {a.size}")
     if not (np.all(np.isfinite(a)) and np.all(np.isfinite(n))):
-        raise ValueError(f"{label}: angles and N_s must be finite numbers")
+        bad("angles and N_s must be finite numbers")
     if a[0] != 0.0:
-        raise ValueError(f"{label}: the first angle must be 0 deg (W is integrated from 0), got {a[0]:g}")
+        bad(f"the first angle must be 0 deg (W is integrated from 0), got {a[0]:g}")
     steps = np.diff(a)
     if np.any(steps <= 0.0):
         k = int(np.argmax(steps <= 0.0))
-        raise ValueError(
-            f"{label}: angles must be strictly increasing, got {a[k]:g} then {a[k + 1]:g} deg"
-        )
+        bad(f"angles must be strictly increasing, got {a[k]:g} then {a[k + 1]:g} deg")
     if np.any(n < 0.0):
         k = int(np.argmax(n < 0.0))
-        raise ValueError(
-            f"{label}: N_s must be >= 0 (give the magnitude for the negative branch), "
-            f"got {n[k]:g} N/m at {a[k]:g} deg"
-        )
+        bad(f"N_s must be >= 0 (give the magnitude for the negative branch), got {n[k]:g} N/m at {a[k]:g} deg")
+    if np.any(n > MAX_NS):
+        k = int(np.argmax(n > MAX_NS))
+        bad(f"N_s must be at most {MAX_NS:g} N/m (a fabric locks near 1000 N/m), got {n[k]:g} N/m at {a[k]:g} deg")
     return a, n
 
 
@@ -196,7 +211,7 @@ class Material:
         architecture=None,
     ):
         if not isinstance(name, str) or not name:
-            raise ValueError(f"name must be a non-empty string, got {name!r}")
+            raise MaterialError("name", f"name must be a non-empty string, got {name!r}")
         self.name = name
         self.description = str(description)
         self.note = str(note)
@@ -205,17 +220,18 @@ class Material:
 
         phi0_deg = float(phi0_deg)
         if not 0.0 < phi0_deg < 90.0:
-            raise ValueError(f"phi0_deg must be in (0, 90) deg, got {phi0_deg:g}")
+            raise MaterialError("phi0_deg", f"phi0_deg must be in (0, 90) deg, got {phi0_deg:g}")
         self.phi0_deg = phi0_deg
         self.phi0_rad = np.deg2rad(phi0_deg)
 
         if (angles_deg_neg is None) != (ns_neg is None):
-            raise ValueError("angles_deg_neg and ns_neg must be given together (or both omitted for a symmetric fabric)")
-        a_pos, n_pos = _as_curve("positive shear curve", angles_deg_pos, ns_pos)
+            raise MaterialError("shear.negative", "angles_deg_neg and ns_neg must be given together (or both omitted "
+                                "for a symmetric fabric)")
+        a_pos, n_pos = _as_curve("positive", angles_deg_pos, ns_pos)
         if angles_deg_neg is None:
             a_neg, n_neg = a_pos, n_pos
         else:
-            a_neg, n_neg = _as_curve("negative shear curve", angles_deg_neg, ns_neg)
+            a_neg, n_neg = _as_curve("negative", angles_deg_neg, ns_neg)
         self.symmetric = bool(
             a_pos.shape == a_neg.shape and np.array_equal(a_pos, a_neg) and np.array_equal(n_pos, n_neg)
         )
@@ -234,28 +250,26 @@ class Material:
             ("locking_angle_neg_deg", lock_neg, a_neg[-1], 180.0 - 2.0 * phi0_deg),
         ):
             if not 0.0 < lock <= data_end:
-                raise ValueError(
-                    f"{label} must be in (0, {data_end:g}] deg (the end of that branch's curve), got {lock:g}"
-                )
+                raise MaterialError(
+                    label, f"{label} must be in (0, {data_end:g}] deg (the end of that branch's curve), got {lock:g}")
             if lock >= geometric:
-                raise ValueError(
-                    f"{label} must be below {geometric:g} deg, where the tows of a phi0 = {phi0_deg:g} deg "
-                    f"fabric become parallel, got {lock:g}"
-                )
+                raise MaterialError(label, f"{label} must be below {geometric:g} deg, where the tows of a "
+                                           f"phi0 = {phi0_deg:g} deg fabric become parallel, got {lock:g}")
         self.locking_angle_deg = lock_pos
         self.locking_angle_neg_deg = lock_neg
 
         bending_stiffness = float(bending_stiffness)
         if not (np.isfinite(bending_stiffness) and bending_stiffness >= 0.0):
-            raise ValueError(f"bending_stiffness must be a finite number >= 0 N·m², got {bending_stiffness:g}")
+            raise MaterialError("bending_stiffness",
+                                f"bending_stiffness must be a finite number >= 0 N·m², got {bending_stiffness:g}")
         self.bending_stiffness = bending_stiffness
 
         if stitch_direction_deg is not None:
             stitch_direction_deg = float(stitch_direction_deg)
             off = (stitch_direction_deg - phi0_deg + 90.0) % 180.0 - 90.0
             if abs(off) > 1e-9:
-                raise ValueError(
-                    f"stitch_direction_deg must bisect +fibre1 and +fibre2, i.e. equal phi0_deg = {phi0_deg:g} "
+                raise MaterialError(
+                    "stitch_direction_deg", f"stitch_direction_deg must bisect +fibre1 and +fibre2, i.e. equal phi0_deg = {phi0_deg:g} "
                     f"(mod 180), got {stitch_direction_deg:g}; for a stitch along the other bisector swap the "
                     "positive and negative curves"
                 )

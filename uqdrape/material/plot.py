@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..files import write_atomic
+
 
 def _figure(width_in, height_in):
     """A matplotlib Figure on the Agg canvas. matplotlib is imported here, not with the
@@ -16,6 +18,12 @@ def _figure(width_in, height_in):
     fig = Figure(figsize=(width_in, height_in), layout="constrained")
     FigureCanvasAgg(fig)
     return fig
+
+
+def _save(fig, path) -> Path:
+    """Write ``fig`` to ``path`` atomically, in the format its suffix names (PNG without one)."""
+    path = Path(path)
+    return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=120, format=path.suffix[1:] or "png"))
 
 
 def plot_material(material, path):
@@ -46,8 +54,7 @@ def plot_material(material, path):
     ax_f.legend(loc="upper left", title="dashed: locking")
     fig.suptitle(f"{material.name}: φ0 = {material.phi0_deg:g}°, locking +{material.locking_angle_deg:g}° / "
                  f"−{material.locking_angle_neg_deg:g}°")
-    fig.savefig(path, dpi=120)
-    return path
+    return _save(fig, path)
 
 
 def plot_architecture(arch, path, terms=None, gamma0_deg=None):
@@ -89,5 +96,54 @@ def plot_architecture(arch, path, terms=None, gamma0_deg=None):
         ax.legend(loc="upper left", fontsize=8)
     fig.suptitle(f"{arch.name}: stitch {arch.stitch_length_mm:g} mm, gauge {arch.gauge:g}, lapping "
                  f"{tuple(arch.lapping)}, pre-strain {100 * arch.prestrain:.3g} %, β = {arch.beta:.4g}")
-    fig.savefig(path, dpi=120)
-    return path
+    return _save(fig, path)
+
+
+def plot_sheartest(result, path):
+    """Write a PNG of a card fitted from shear tests (thesis Figs 3.22-3.27 style), one row
+    per branch: the raw specimens (crosshead force (N) against displacement (mm); rows
+    not fitted, the friction jump and past the valid end, in grey); each
+    specimen's rows normalised to N_s (N/m) with its fit; the card's mean and its ±1 sd
+    band (bias extension: also the thesis's iterative route, Eq 3.34-3.35, on the same
+    fits). ``result`` is a `uqdrape.material.sheartest.CardFit`. Returns the path."""
+    path = Path(path)
+    shear, scatter = result.doc["shear"], result.doc.get("scatter", {})
+    branches = list(shear)
+    fig = _figure(13.0, 3.9 * len(branches))
+    axes = np.atleast_2d(fig.subplots(len(branches), 3))
+    colours = [f"C{i}" for i in range(10)]
+    for row, branch in zip(axes, branches):
+        ax_raw, ax_pts, ax_card = row
+        fits = [f for f in result.fits if f.specimen.branch == branch]
+        for i, f in enumerate(fits):
+            colour, data = colours[i % 10], f.specimen.data
+            ax_raw.plot(data.displacement_mm[~f.used], data.force_n[~f.used], ".", ms=1.5, color="0.75")
+            ax_raw.plot(data.displacement_mm[f.used], data.force_n[f.used], ".", ms=1.5, color=colour,
+                        label=data.path.name)
+            theta, ns = f.points()
+            ax_pts.plot(np.rad2deg(theta), ns, ".", ms=1.5, color=colour, alpha=0.4)
+            grid = np.linspace(0.0, f.end, 200)
+            ax_pts.plot(np.rad2deg(grid), f.shear_force(grid), color=colour, lw=1.2,
+                        label=f"{data.path.name}: fit to {np.rad2deg(f.end):.1f}° ({f.end_rule})")
+        angles, mean = np.asarray(shear[branch]["angle_deg"]), np.asarray(shear[branch]["ns"])
+        ax_card.plot(angles, mean, color="k", lw=1.5, label=f"card: mean of {len(fits)}")
+        if branch in scatter:
+            sd = np.asarray(scatter[branch]["ns_sd"])
+            ax_card.fill_between(angles, mean - sd, mean + sd, color="0.6", alpha=0.4, label="±1 sd of the specimens")
+        if result.doc["sheartest"]["test"] == "bias_extension":
+            theta = np.deg2rad(angles)
+            thesis = np.mean([f.specimen.rig.thesis_iterative(f.force, theta) for f in fits], axis=0)
+            ax_card.plot(angles, thesis, "--", color="tab:red", lw=1.0, label="thesis route (Eq 3.34-3.35)")
+        ax_raw.set(xlabel="crosshead displacement (mm)", ylabel="crosshead force (N)",
+                   title=f"{branch} shear: raw specimens (grey: not fitted)")
+        ax_pts.set(xlabel="shear angle θ (deg)", ylabel="normalised shear force $N_s$ (N/m)",
+                   title="normalised rows and monotone fits")
+        ax_card.set(xlabel="shear angle θ (deg)", ylabel="normalised shear force $N_s$ (N/m)",
+                    title="card")
+        for ax in row:
+            ax.grid(alpha=0.3)
+            ax.legend(loc="upper left", fontsize=7, markerscale=4)
+    record = result.doc["sheartest"]
+    fig.suptitle(f"{result.doc['name']}: {record['test'].replace('_', ' ')} tests, friction {record['friction']}, "
+                 f"φ0 = {result.doc['phi0_deg']:g}°")
+    return _save(fig, path)

@@ -18,8 +18,9 @@ import xarray as xr
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from ..files import write_text_atomic
 from .figures import panels, save, styled
-from .html import provenance, provenance_line
+from .page import figures_html, page, provenance, provenance_line
 
 _LABELS = {"p_locked": "P(any node locked)", "q95_max_abs_shear": "95 % quantile of max |shear| (deg)",
            "abs_mean_asymmetry": "|mean asymmetry| (deg)", "q95_max_draw_in": "95 % quantile of max draw-in (mm)"}
@@ -239,16 +240,11 @@ def write_design_report(ds: xr.Dataset, out_dir, *, surface) -> Path:
         if key in summary:
             summary[key] = json.loads(summary[key])
     summary = json.loads(json.dumps(summary, default=lambda v: np.asarray(v).tolist()))
-    (out / "summary.json").write_text(json.dumps(summary, indent=1), encoding="utf-8")
-    figs = "".join(f'<figure><img src="{p.name}" alt="{p.stem}"><figcaption>{html.escape(cap)}</figcaption></figure>'
-                   for p, cap in figures)
-    page = (f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(ds.attrs['study_name'])}</title>"
-            "<style>body{font-family:system-ui,sans-serif;max-width:1100px;margin:1.5em auto;padding:0 1em}"
-            "td,th{border:1px solid #ccc;padding:.3em .6em;text-align:left}table{border-collapse:collapse}"
-            "figure img{max-width:100%;border:1px solid #ddd}</style></head><body>"
-            f"<h1>{html.escape(ds.attrs['study_name'])}: blank-holder design</h1>"
-            f"<p>{html.escape(provenance_line(prov))}</p>"
-            f"<p><b>{html.escape(ds.attrs['summary'])}</b></p>{_table(ds)}{figs}</body></html>")
+    write_text_atomic(out / "summary.json", json.dumps(summary, indent=1))
+    body = (f"<h1>{html.escape(ds.attrs['study_name'])}: blank-holder design</h1>\n"
+            f"<p class=\"note\">{html.escape(provenance_line(prov))}</p>\n"
+            f"<p><b>{html.escape(ds.attrs['summary'])}</b></p>\n{_table(ds)}\n<h2>Figures</h2>\n{figures_html(figures)}")
+    page_html = page(f"{ds.attrs['study_name']}: blank-holder design", body)
     index = out / "index.html"
-    index.write_text(page, encoding="utf-8")
+    write_text_atomic(index, page_html)
     return index

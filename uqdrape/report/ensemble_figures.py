@@ -100,7 +100,8 @@ def _map(ds: xr.Dataset, values: xr.DataArray, path, *, norm, cmap, cbar_label: 
          mark=None) -> Path:
     """Draw ``values`` (dims blankholder_force, i, j) on the mean node positions, one panel per level.
 
-    ``mark(force) -> (i, j, text) | None`` annotates one node per panel.
+    ``mark(force) -> (i, j, text) | str | None`` annotates one node per panel, or writes a
+    note across it (a panel with nothing to point at says so rather than stay blank).
     """
     pos = mean_positions(ds)
     groups = levels(pos)
@@ -112,7 +113,11 @@ def _map(ds: xr.Dataset, values: xr.DataArray, path, *, norm, cmap, cbar_label: 
         ax.tripcolor(tri, v.flat[used], shading="gouraud", norm=norm, cmap=cmap)
         xlabel, ylabel = map_labels(ds)
         ax.set(xlabel=xlabel, ylabel=ylabel, aspect="equal", title=force_title(force))
-        if mark is not None and (m := mark(force)) is not None:
+        m = None if mark is None else mark(force)
+        if isinstance(m, str):
+            ax.text(0.5, 0.5, m, transform=ax.transAxes, ha="center", va="center", fontsize=11,
+                    bbox=dict(boxstyle="round", fc="white", alpha=0.9))
+        elif m is not None:
             i, j, text = m
             px, py = float(xy["x"].sel(i=i, j=j)), float(xy["y"].sel(i=i, j=j))
             ax.plot(px, py, marker="o", markersize=9, markerfacecolor="none", markeredgecolor="black", mew=1.5)
@@ -126,19 +131,24 @@ def _map(ds: xr.Dataset, values: xr.DataArray, path, *, norm, cmap, cbar_label: 
     return save(fig, path)
 
 
-def _node_mark(da: xr.DataArray, fmt):
-    """A ``mark`` callback: ``fmt(site)`` at the largest entry of ``da`` in each level (none
-    where that entry is 0).
+def _node_mark(da: xr.DataArray, fmt, zero: str | None = None):
+    """A ``mark`` callback: ``fmt(site)`` at the largest entry of ``da`` in each level; where
+    that entry is 0 (e.g. no risk at this level) the note ``zero``, or nothing.
 
     ``site`` is {dim: value} of that entry, the level included.
     """
     def mark(force):
         sub = da.sel({FORCE: force})
         site = argmax_site(sub)
-        if site is None or float(sub.sel(site)) == 0.0:  # nothing to point at (e.g. no risk at this level)
-            return None
+        if site is None or float(sub.sel(site)) == 0.0:
+            return zero
         return site["i"], site["j"], fmt({**site, FORCE: force})
     return mark
+
+
+#: Probability maps: white at 0 (no risk reads as blank paper, not as a pale colour), then reds.
+RISK_CMAP = mpl.colors.ListedColormap(
+    np.vstack([[1.0, 1.0, 1.0, 1.0], mpl.colormaps["Reds"](np.linspace(0.08, 1.0, 255))]), name="risk")
 
 
 @report_figure
@@ -193,10 +203,11 @@ def plot_wrinkle_map(ds: xr.Dataset, path, *, threshold_deg: float | None = None
         return (f"max P = {float(s['probability']):.2f} "
                 f"[{float(s['probability_lower']):.2f}, {float(s['probability_upper']):.2f}]")
 
-    return _map(ds, p, path, norm=mpl.colors.Normalize(0.0, 1.0), cmap=mpl.colormaps["Reds"],
+    return _map(ds, p, path, norm=mpl.colors.Normalize(0.0, 1.0), cmap=RISK_CMAP,
                 cbar_label=f"{risk} (-)",
                 title=f"wrinkle risk {risk}, N = {ds.sizes[REALIZATION]}",
-                mark=_node_mark(p, text))
+                mark=_node_mark(p, text, zero=f"no node at risk:\n{risk} = 0\nat every node "
+                                               f"in {ds.sizes[REALIZATION]} drapes"))
 
 
 @report_figure

@@ -28,6 +28,7 @@ from uqdrape.drape.lines import max_shear_lines
 from uqdrape.schema import FORCE, QUADRANTS, REALIZATION, by_force, site_dims
 
 from ..experimental import as_experimental
+from ..files import write_atomic
 
 #: Line style per max-shear quadrant: i*j > 0 (positive-shear) quadrants red, the others blue.
 QUADRANT_STYLE = {
@@ -98,7 +99,7 @@ def save(fig: Figure, path) -> Path:
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=DPI)
     with Image.open(buffer) as image:
-        image.convert("RGB").save(path)
+        write_atomic(path, lambda tmp: image.convert("RGB").save(tmp, format="png"))
     return path
 
 
@@ -137,7 +138,7 @@ def describe(ds: xr.Dataset) -> str:
     """Short description of a drape Dataset for figure titles: the mould's kind (its
     parameters are on the page), the material card and the drape mode, e.g. "nose cone,
     ebxhd936_like, energy drape"."""
-    geometry = str(ds.attrs.get("geometry", "")).split("(")[0].replace("_", " ")
+    geometry = str(ds.attrs.get("mould", "")).split("(")[0].replace("_", " ")
     mode = ds.attrs.get("mode")
     parts = [geometry, ds.attrs.get("material"), f"{mode} drape" if mode else None]
     return ", ".join(str(p) for p in parts if p not in (None, "", "none"))

@@ -10,7 +10,6 @@ file once and the ensemble's other attributes. ``summary.json`` holds the same n
 
 from __future__ import annotations
 
-import datetime
 import html
 import json
 import math
@@ -18,15 +17,21 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import xarray as xr
-from PIL import Image
 
-from uqdrape import __version__
-from uqdrape.conventions import git_version
 from uqdrape.schema import FORCE, REALIZATION, by_force
-from uqdrape.stats import dominant_factors, headline_numbers, node_statistics, study_kind, wrinkle_risk
+from uqdrape.stats import (
+    dominant_factors,
+    headline_numbers,
+    node_statistics,
+    study_kind,
+    wrinkle_risk,
+)
 from uqdrape.stats.headline import DESIGN, DETERMINISTIC, RANDOM, SWEPT
 
 from ..experimental import read_experimental
+from ..conventions import cf_encode
+from ..files import write_atomic, write_text_atomic
+from .page import figures_html, page, provenance, provenance_line
 from .plan import PLAN, SENSITIVITY_PLAN, Context, render
 from .sensitivity_figures import INDICES
 
@@ -34,26 +39,14 @@ from .sensitivity_figures import INDICES
 THESIS_HISTOGRAM_NODE = 6
 #: Attributes shown elsewhere on the page (the study file) or too long for the table.
 _HIDDEN_ATTRS = ("study_toml", "study_json")
+#: The per-node statistics file a report writes beside its page.
+STATISTICS_FILE = "statistics.nc"
 _KIND_TEXT = {
     RANDOM: "a random sample: every ensemble statistic applies",
     DETERMINISTIC: "one drape per blank-holder level: no spread statistics",
     SWEPT: "a deterministic sweep over one factor: results against the factor, no distribution fits",
     DESIGN: "the rows of a sensitivity design: indices first; no confidence intervals or convergence",
 }
-_CSS = """
-body { font-family: system-ui, sans-serif; max-width: 1500px; margin: 1.5em auto; padding: 0 1em; color: #222; }
-h1 { font-size: 1.6em; margin-bottom: 0.2em; } h2 { font-size: 1.25em; margin-top: 1.6em; border-bottom: 1px solid #ccc; }
-table { border-collapse: collapse; margin: 0.5em 0; } td, th { border: 1px solid #ccc; padding: 0.3em 0.7em; }
-th { background: #f2f2f2; text-align: left; white-space: nowrap; }
-td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
-.figures { display: grid; grid-template-columns: repeat(2, minmax(0, 1fr)); gap: 1.2em; align-items: start; }
-.wide { grid-column: 1 / -1; }
-figure { margin: 0; } figure img { width: 100%; height: auto; border: 1px solid #ddd; }
-figure.wide img { width: auto; max-width: 100%; }
-figcaption { font-size: 0.95em; color: #444; margin-top: 0.3em; }
-pre { background: #f7f7f7; border: 1px solid #ddd; padding: 0.8em; white-space: pre-wrap; font-size: 0.9em; }
-.note { color: #555; font-size: 0.95em; }
-"""
 
 
 def default_histogram_nodes(ds: xr.Dataset, node_stats: xr.Dataset) -> list[tuple[int, int]]:
@@ -66,21 +59,6 @@ def default_histogram_nodes(ds: xr.Dataset, node_stats: xr.Dataset) -> list[tupl
         if int(count.sel(i=k, j=k)) > 0 and int(count.sel(i=-k, j=k)) > 0:
             return [(k, k), (-k, k)]
     return [(0, 0)]
-
-
-def provenance(wall_time_s: float | None = None) -> dict:
-    """Date (UTC), uqdrape version, git commit of the code (``uqdrape.conventions.git_version``,
-    the ``source`` of every netCDF file; None outside a git checkout) and the run's wall
-    time (s, None if not recorded)."""
-    return {"date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-            "uqdrape_version": __version__, "git_commit": git_version() or None, "wall_time_s": wall_time_s}
-
-
-def provenance_line(prov: Mapping) -> str:
-    """The provenance as the sentence heading every report page."""
-    wall = "not recorded" if prov["wall_time_s"] is None else f"{prov['wall_time_s']:.1f} s"
-    return (f"Report of {prov['date']}, uqdrape {prov['uqdrape_version']}, git commit\n"
-            f"{prov['git_commit'] or 'n/a (not a git checkout)'}; wall time of the run: {wall}.")
 
 
 def _fmt(value, digits: int = 3) -> str:
@@ -120,6 +98,10 @@ def _rows(numbers: Mapping, extra: Mapping, dominant: list | None) -> list[tuple
         if wr is None or wr["value"] is None:
             rows.append(("max wrinkle risk", "n/a", "no locking angle (a geodesic drape without a material)"
                          if wr is None else "no valid node"))
+        elif wr["value"] == 0:  # no node to name: any would be arbitrary
+            rows.append((f"max wrinkle risk {wr['measure']}", f"0 [0, {wr['upper']:.3f}]",
+                         f"no node at risk in {numbers['realizations']} drapes; the upper limit is the "
+                         f"{wr['interval']}'s for 0 of {numbers['realizations']}"))
         else:
             rows.append((f"max wrinkle risk {wr['measure']}", f"{wr['value']:.3f} [{wr['lower']:.3f}, {wr['upper']:.3f}]",
                          f"{_where(wr)}; {wr['interval']}"))
@@ -154,7 +136,8 @@ LOAD_BYTES = 2**30
 def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None = None,
                  study_text: str | None = None, histogram_nodes: Sequence[Sequence[int]] | None = None,
                  experimental_csv=None, summary: Mapping | None = None, sensitivity: xr.Dataset | None = None,
-                 sensitivity_maps: xr.Dataset | None = None, wall_time_s: float | None = None) -> Path:
+                 sensitivity_maps: xr.Dataset | None = None, wall_time_s: float | None = None,
+                 replicates: int | None = None) -> Path:
     """Write the figures of ensemble ``ds``'s report plan, ``summary.json`` and ``index.html``
     into ``out_dir``; returns the index.html path.
 
@@ -186,7 +169,7 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None
     out.mkdir(parents=True, exist_ok=True)
 
     kind = study_kind(ds)
-    node_stats = node_statistics(ds)
+    node_stats = node_statistics(ds, replicates=replicates)
     exceedance = wrinkle_risk(ds) if kind == RANDOM else None
     nodes = default_histogram_nodes(ds, node_stats) if histogram_nodes is None else histogram_nodes
     c = Context(ds, kind, out, node_stats, exceedance, nodes, points, sensitivity, sensitivity_maps)
@@ -203,13 +186,34 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None
                                  for k in ("method", "base_samples", "n_evaluations", "conf_level")}
         record["sensitivity"]["largest_ST"] = dominant
     summary_path = out / "summary.json"
-    summary_path.write_text(json.dumps(record, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    write_text_atomic(summary_path, json.dumps(record, indent=2, allow_nan=False) + "\n")
+    write_statistics(ds, node_stats, exceedance, out / STATISTICS_FILE, title)
 
     section = "" if sensitivity is None else _sensitivity_section(sensitivity, sens_items)
     page = _page(record, ds, _rows(numbers, extra, dominant), items, study_text, summary_path.name, section)
     index = out / "index.html"
-    index.write_text(page, encoding="utf-8")
+    write_text_atomic(index, page)
     return index
+
+
+def write_statistics(ds: xr.Dataset, node_stats: xr.Dataset, exceedance: xr.Dataset | None, path, title: str):
+    """The per-node statistics of ensemble ``ds`` as a CF netCDF file: the shear's mean, sd,
+    skewness, quantiles and their confidence limits (deg), the count of valid drapes and,
+    for a random sample, the wrinkle risk with its limits, on the mean node positions x,
+    y, z (mm; the ``coordinates`` of every node variable), per blank-holder level."""
+    stats = node_stats.assign({name: ds[name].mean(REALIZATION).assign_attrs(ds[name].attrs)
+                               for name in ("x", "y", "z")})
+    for name in ("mean", "sd", "mean_lower", "mean_upper", "quantile_value", "quantile_lower", "quantile_upper"):
+        stats[name].attrs.setdefault("units", "degree")
+    if exceedance is not None:
+        risk = exceedance[["probability", "probability_lower", "probability_upper"]]
+        stats = stats.assign({f"wrinkle_{k}": v.assign_attrs(units="1", long_name=f"{exceedance.attrs['risk']}"
+                                                                                   f" ({k.replace('_', ' ')})")
+                              for k, v in risk.data_vars.items()})
+    stats = stats.compute()
+    stats.attrs = {k: v for k, v in ds.attrs.items() if k not in _HIDDEN_ATTRS}
+    encoded, encoding = cf_encode(stats, title=f"uqdrape per-node statistics: {title}", history="uqdrape report")
+    return write_atomic(path, lambda tmp: encoded.to_netcdf(tmp, engine="netcdf4", encoding=encoding))
 
 
 def _json_attr(value):
@@ -221,25 +225,6 @@ def _json_attr(value):
     if isinstance(value, (str, int, float, bool)) or value is None:
         return value
     return str(value)
-
-
-def _figures_html(items) -> str:
-    """The figures two to a row (a figure of more than 900 px, i.e. of two panels or more
-    side by side, spans the row at its own size), and the sentences standing in for
-    figures left out, each across the row."""
-    esc = html.escape
-    out = []
-    for item in items:
-        if isinstance(item, str):
-            out.append(f"<p class=\"note wide\">{esc(item)}</p>")
-            continue
-        path, caption = item
-        with Image.open(path) as im:
-            wide = " class=\"wide\"" if im.width > 900 else ""
-        out.append(f"<figure{wide}><a href=\"{esc(path.name)}\">"
-                   f"<img src=\"{esc(path.name)}\" alt=\"{esc(caption)}\"></a><figcaption>{esc(caption)}</figcaption>"
-                   "</figure>")
-    return "<div class=\"figures\">\n" + "\n".join(out) + "\n</div>"
 
 
 def _sensitivity_section(indices: xr.Dataset, items) -> str:
@@ -265,7 +250,7 @@ def _sensitivity_section(indices: xr.Dataset, items) -> str:
 blank-holder level (the same rows at every level); a random field is one group of its Karhunen&ndash;Lo&egrave;ve
 variables. Table: {esc(" / ".join(v for v, _, _ in pairs))} ± the half-width of the
 {100 * indices.attrs['conf_level']:g} % bootstrap confidence interval.</p>
-{_figures_html(items)}
+{figures_html(items)}
 <table>
 <tr><th>quantity</th><th>factor</th>{head}</tr>
 {chr(10).join(body)}
@@ -282,16 +267,7 @@ def _page(record, ds, rows, items, study_text, summary_name, sensitivity_html=""
     study = (f"<h2>Study file</h2>\n<pre>{esc(study_text)}</pre>" if study_text
              else "<p class=\"note\">No study file was given.</p>")
     description = f"<p>{esc(record['description'])}</p>" if record["description"] else ""
-    return f"""<!DOCTYPE html>
-<html lang="en">
-<head>
-<meta charset="utf-8">
-<meta name="viewport" content="width=device-width, initial-scale=1">
-<title>{esc(record['title'])}</title>
-<style>{_CSS}</style>
-</head>
-<body>
-<h1>{esc(record['title'])}</h1>
+    return page(record["title"], f"""<h1>{esc(record['title'])}</h1>
 {description}
 <p class="note">{esc(provenance_line(record["provenance"]))}
 Angles in degrees, lengths in mm, forces in N. Numbers also in <a href="{esc(summary_name)}">{esc(summary_name)}</a>.</p>
@@ -302,12 +278,9 @@ Angles in degrees, lengths in mm, forces in N. Numbers also in <a href="{esc(sum
 </table>
 {sensitivity_html}
 <h2>Figures</h2>
-{_figures_html(items)}
+{figures_html(items)}
 {study}
 <h2>Ensemble attributes</h2>
 <table>
 {attrs}
-</table>
-</body>
-</html>
-"""
+</table>""")

@@ -25,16 +25,7 @@ from uqdrape.schema import FORCE
 from uqdrape.stats import KINDS, line_statistics, varying_factors
 from uqdrape.stats.headline import DESIGN, DETERMINISTIC, RANDOM, SWEPT
 
-from .ensemble_figures import (
-    plot_convergence,
-    plot_histograms,
-    plot_line_statistics,
-    plot_mean_map,
-    plot_scalar_vs_factor,
-    plot_sd_map,
-    plot_sweep,
-    plot_wrinkle_map,
-)
+from . import ensemble_figures
 from .figures import plot_lines, plot_net
 from .sensitivity_figures import INDICES, plot_sensitivity_bars, plot_sensitivity_map, plot_sensitivity_vs_force
 
@@ -83,14 +74,14 @@ def _lines(c: Context):
 
 def _vs_factor(c: Context):
     factor = varying_factors(c.ds)[0]
-    return [(plot_scalar_vs_factor(c.ds, c.out / f"vs_{factor}.png", factor),
+    return [(ensemble_figures.plot_scalar_vs_factor(c.ds, c.out / f"vs_{factor}.png", factor),
              f"Blank-holder energy per quadrant and in total, and the max-shear line means, of each drape against "
              f"{factor} (thesis Fig 5.6 for the skew).")]
 
 
 def _sweep(c: Context):
     spread = " (mean ± 1 sd over the realisations)" if c.ds.sizes["realization"] > 1 else ""
-    return [(plot_sweep(c.ds, c.out / "sweep.png"),
+    return [(ensemble_figures.plot_sweep(c.ds, c.out / "sweep.png"),
              f"Mean shear of the + and − quadrant max-shear lines and their asymmetry against blank-holder "
              f"force{spread}.")]
 
@@ -99,11 +90,11 @@ def _mean(c: Context):
     text = ("Node shear on the node positions." if c.kind == DETERMINISTIC else
             "Mean node shear on the mean node positions" + (" over the design's evaluations." if c.kind == DESIGN
                                                             else "."))
-    return [(plot_mean_map(c.ds, c.out / "mean_shear.png", node_stats=c.node_stats), text)]
+    return [(ensemble_figures.plot_mean_map(c.ds, c.out / "mean_shear.png", node_stats=c.node_stats), text)]
 
 
 def _sd(c: Context):
-    return [(plot_sd_map(c.ds, c.out / "sd_shear.png", node_stats=c.node_stats),
+    return [(ensemble_figures.plot_sd_map(c.ds, c.out / "sd_shear.png", node_stats=c.node_stats),
              "Standard deviation of node shear on the mean node positions"
              + (" over the design's evaluations (descriptive: the design is not a random sample)."
                 if c.kind == DESIGN else "."))]
@@ -124,20 +115,20 @@ def _no_risk(c: Context) -> str:
 
 def _wrinkle(c: Context):
     ex = c.exceedance
-    return [(plot_wrinkle_map(c.ds, c.out / "wrinkle_risk.png", exceedance=ex),
+    return [(ensemble_figures.plot_wrinkle_map(c.ds, c.out / "wrinkle_risk.png", exceedance=ex),
              f"Wrinkle risk {ex.attrs['risk']} per node (a cell locks past its own branch's locking angle); the "
              f"node of highest risk is marked with its {ex.attrs['confidence']:.0%} {ex.attrs['interval']}.")]
 
 
 def _line_statistics(c: Context):
-    return [(plot_line_statistics(c.ds, c.out / "line_statistics.png", line_stats=line_statistics(c.ds),
+    return [(ensemble_figures.plot_line_statistics(c.ds, c.out / "line_statistics.png", line_stats=line_statistics(c.ds),
                                   experimental=c.experimental),
              "Shear against distance from the crossover along the max-shear lines: mean ± 1 sd per node and the "
              "band holding the central 95 % of realisations (thesis Figs 5.18/5.19).")]
 
 
 def _histograms(c: Context):
-    return [(plot_histograms(c.ds, c.out / "histograms.png", c.histogram_nodes),
+    return [(ensemble_figures.plot_histograms(c.ds, c.out / "histograms.png", c.histogram_nodes),
              "Histograms of node shear with the fitted Normal (thesis Fig 5.20), each level on its own bins.")]
 
 
@@ -151,7 +142,7 @@ def _no_spread(c: Context) -> str:
 
 
 def _convergence(c: Context):
-    return [(plot_convergence(c.ds, c.out / "convergence.png", node_stats=c.node_stats),
+    return [(ensemble_figures.plot_convergence(c.ds, c.out / "convergence.png", node_stats=c.node_stats),
              "Convergence of the mean shear with N at the most variable node.")]
 
 

@@ -3,21 +3,16 @@ Sobol'/Morris indices as xarray Datasets, and indices versus blank-holder force.
 
 Flow (as SALib's): ``make_problem`` -> ``sample`` -> evaluate -> ``analyze``;
 ``qoi_indices`` and ``map_indices`` analyse the outputs of a design per blank-holder force level. The
-study-level flow (a study's design, its drapes, the files) is ``uqdrape.workflow``.
+study's own problem and design are ``study``; running it (its drapes, the files) is
+``uqdrape.workflow``.
 """
 
 from .analysis import CONSTANT_RTOL, VARIABLES, analyze, analyze_map, indices_vs_levels
-from .design import (
-    METHODS,
-    MORRIS_MIN_TRAJECTORIES,
-    MORRIS_NUM_LEVELS,
-    MORRIS_TAIL_QUANTILE,
-    SOBOL_MIN_BASE_SAMPLES,
-    check_base_samples,
-    sample,
-)
+from ..stochastic.sampling import METHODS, MORRIS_MIN_TRAJECTORIES, SOBOL_MIN_BASE_SAMPLES, check_base_samples
+from .design import MORRIS_NUM_LEVELS, MORRIS_TAIL_QUANTILE, sample
 from .problem import check_problem, field_group, make_problem
 from .indices import ROUNDOFF, Design, map_indices, qoi_indices
+from .study import MORRIS_SCREENING_TRAJECTORIES, design_base_samples, study_design, study_problem
 
 __all__ = [
     "CONSTANT_RTOL", "METHODS", "MORRIS_MIN_TRAJECTORIES", "MORRIS_NUM_LEVELS",
@@ -25,4 +20,5 @@ __all__ = [
     "analyze_map", "check_base_samples", "check_problem", "field_group", "indices_vs_levels",
     "make_problem", "sample",
     "ROUNDOFF", "Design", "map_indices", "qoi_indices",
+    "MORRIS_SCREENING_TRAJECTORIES", "design_base_samples", "study_design", "study_problem",
 ]

@@ -4,7 +4,10 @@ Sobol' indices of all output columns (scalar QoIs, net nodes) are computed at on
 SALib's estimators (``first_order``, ``total_order``) on 2-D arrays, with the steps of
 ``SALib.analyze.sobol.analyze`` (per-column standardisation, the same bootstrap rows for
 every column): equal to a call of that function per column to round-off, without a
-Python call per node. Morris indices call SALib once per column. The
+Python call per node. Morris indices of all columns are computed at once too
+(:func:`_morris_columns`: the elementary effects from SALib's trajectory layout, the
+bootstrap of mu_star through each variable's resample counts), equal to a call of
+``SALib.analyze.morris.analyze`` per column to round-off. The
 ``factor`` dimension holds SALib's labels: group names when the problem has groups (a
 random field is one label), otherwise variable names.
 
@@ -25,7 +28,6 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 from scipy.stats import norm
-from SALib.analyze import morris as morris_analyze
 from SALib.analyze import sobol as sobol_analyze
 from SALib.util import compute_groups_matrix
 
@@ -54,7 +56,7 @@ def _long_names(conf_level: float) -> dict[str, str]:
     }
 
 
-def _sobol_columns(problem, Y, conf_level, seed, num_resamples):
+def _sobol_columns(problem, Y, conf_level, seed, num_resamples, progress=None):
     """Sobol' S1, S1_conf, ST, ST_conf of every column of Y (n_evaluations, n_columns) of a
     Saltelli design without second order: {variable: (n_labels, n_columns)}.
 
@@ -62,7 +64,7 @@ def _sobol_columns(problem, Y, conf_level, seed, num_resamples):
     rows split from the design, bootstrap rows drawn once from ``seed`` (SALib draws the
     same ones for every column), half-widths Z * sd of the bootstrap estimates (0 where
     the resampled outputs do not vary). Columns go in cache-sized blocks (about 2 MB of
-    resamples each).
+    resamples each). ``progress(n)`` is called as n more columns are finished.
     """
     D = len(set(problem.get("groups") or problem["names"]))
     step = D + 2
@@ -87,21 +89,100 @@ def _sobol_columns(problem, Y, conf_level, seed, num_resamples):
                     varies, Z * sobol_analyze.first_order(Ar, AB[r], Br).std(axis=0, ddof=1), 0.0)
                 out["ST_conf"][j, cols] = np.where(
                     varies, Z * sobol_analyze.total_order(Ar, AB[r], Br).std(axis=0, ddof=1), 0.0)
+            if progress is not None:
+                progress(A.shape[1])
     return out
 
 
-def _morris_column(problem, X, y, conf_level, seed, num_resamples):
-    """SALib's Morris result for one output column: {variable: array (n_labels,)}."""
-    result = morris_analyze.analyze(dict(problem), X, y, num_resamples=num_resamples, conf_level=conf_level,
-                                    num_levels=MORRIS_NUM_LEVELS, seed=seed)
-    return {name: np.asarray(result[name], dtype=float) for name in VARIABLES["morris"]}
+def _morris_steps(X, n_groups):
+    """Where each variable moves in a Morris design X (T (G + 1), n_vars): the step
+    (T, n_vars; 0..G-1, or -1 if it does not move) and the direction (+1, -1 or 0). A
+    variable moving more than once in a trajectory is not a Morris design: ValueError."""
+    T = X.shape[0] // (n_groups + 1)
+    sign = np.sign(np.diff(X.reshape(T, n_groups + 1, X.shape[1]), axis=1))  # (T, G, n_vars)
+    if np.any(np.abs(sign).sum(axis=1) > 1):
+        raise ValueError("X is not a Morris trajectory design: a variable moves more than once in a trajectory")
+    moves = sign != 0
+    return np.where(moves.any(axis=1), moves.argmax(axis=1), -1), sign.sum(axis=1)
 
 
-def _indices(problem, X, Y, method, conf_level, seed, num_resamples, atol=0.0):
+def _resample_covariance(n_vars, T, num_resamples, seed):
+    """Covariance (n_vars, T, T) over SALib's bootstrap resamples of how often each
+    trajectory is drawn: SALib draws ``integers(T, size=(num_resamples, T))`` per variable
+    in order from one generator seeded with ``seed``, the same draws for every column."""
+    rng = np.random.default_rng(seed)
+    index = np.stack([rng.integers(T, size=(num_resamples, T)) for _ in range(n_vars)])
+    flat = (np.arange(n_vars * num_resamples)[:, None] * T + index.reshape(-1, T)).ravel()
+    counts = np.bincount(flat, minlength=n_vars * num_resamples * T).reshape(n_vars, num_resamples, T)
+    centred = counts - counts.mean(axis=1, keepdims=True)
+    return np.einsum("jrs,jrt->jst", centred, centred) / (num_resamples - 1)
+
+
+def _morris_columns(problem, X, Y, conf_level, seed, num_resamples, progress=None):
+    """Morris mu, mu_star, mu_star_conf, sigma of every column of Y (n_evaluations,
+    n_columns): {variable: (n_labels, n_columns)}, as ``SALib.analyze.morris.analyze`` per column.
+
+    Elementary effect of variable j in trajectory t: its direction times the output
+    difference over the step where it moves, divided by SALib's delta. mu and mu_star
+    are per-variable means over t, then group means (SALib's); sigma is defined for
+    single-variable groups only. mu_star_conf: the bootstrap mean of |EE| over a resample
+    with counts w is w . |EE| / T, so its variance over the resamples is
+    |EE|^T Cov(w) |EE| / T^2 (Cov per variable, shared by all columns; |EE| centred over
+    t first, which leaves it unchanged since w sums to T, so that round-off is relative
+    to the spread of |EE| and not to its mean); the group's
+    value is the mean of its variables' Z sd, as SALib's. ``progress(n)`` is called with
+    the number of columns finished.
+    """
+    groups, _ = compute_groups_matrix(problem.get("groups") or problem["names"])  # (n_vars, G)
+    n_vars, G = groups.shape
+    T = X.shape[0] // (G + 1)
+    delta = MORRIS_NUM_LEVELS / (2.0 * (MORRIS_NUM_LEVELS - 1))  # SALib's _compute_delta
+    step, direction = _morris_steps(X, G)
+    cov = _resample_covariance(n_vars, T, num_resamples, seed)
+    Z = norm.ppf(0.5 + conf_level / 2)
+    size = groups.sum(axis=0)
+    single = np.flatnonzero(size[groups.argmax(axis=1)] == 1)  # variables that are a group alone
+    # mu and mu_star as matrix products: row j picks (with its direction) the step where j moves
+    pick = np.zeros((n_vars, T, G + 1))
+    moves = step >= 0
+    t, j = np.nonzero(moves)
+    pick[j, t, step[t, j]] = direction[t, j]
+    pick = pick.reshape(n_vars, -1) / T
+    # the variables moving at the same steps share |EE|: one pattern per group, typically
+    patterns, pattern_of = np.unique(step.T, axis=0, return_inverse=True)
+    block = 256  # variables per bootstrap product
+    width = max(1, 8_000_000 // (block * T))
+    out = {name: np.full((G, Y.shape[1]), np.nan) for name in VARIABLES["morris"]}
+    for c in range(0, Y.shape[1], width):
+        cols = slice(c, c + width)
+        D = np.diff(Y[:, cols].reshape(T, G + 1, -1), axis=1) / delta    # (T, G, columns)
+        taken = np.concatenate([D, np.zeros_like(D[:, :1])], axis=1)    # step -1 -> an effect of 0
+        flat = taken.reshape(T * (G + 1), -1)
+        out["mu"][:, cols] = groups.T @ (pick @ flat) / size[:, None]
+        out["mu_star"][:, cols] = groups.T @ (np.abs(pick) @ np.abs(flat)) / size[:, None]
+        conf = np.empty((n_vars, flat.shape[1]))
+        for p, pattern in enumerate(patterns):
+            A = np.abs(taken[np.arange(T), pattern])                     # (T, columns)
+            A -= A.mean(axis=0)  # w . 1 = T in every resample: no change, less round-off
+            members = np.flatnonzero(pattern_of == p)
+            for part in np.array_split(members, -(-members.size // block)):
+                var = np.einsum("jst,sc,tc->jc", cov[part], A, A, optimize=True) / T**2
+                conf[part] = Z * np.sqrt(np.maximum(var, 0.0))
+        out["mu_star_conf"][:, cols] = groups.T @ conf / size[:, None]
+        ee = taken[np.arange(T)[:, None], step[:, single]] * direction[:, single, None]
+        out["sigma"][groups[single].argmax(axis=1), cols] = ee.std(axis=0, ddof=1)
+        if progress is not None:
+            progress(flat.shape[1])
+    return out
+
+
+def _indices(problem, X, Y, method, conf_level, seed, num_resamples, atol=0.0, progress=None):
     """Indices of every column of Y (n_evaluations, n_columns).
 
     Returns ({variable: (n_labels, n_columns)}, constant (n_columns,) bool, attrs).
     Columns with any NaN/inf get NaN indices (the estimators need every evaluation).
+    ``progress(n)``: called as n more columns are analysed (the constant and non-finite
+    ones first, at once).
     """
     labels = check_problem(problem)
     method = check_method(method)
@@ -137,13 +218,16 @@ def _indices(problem, X, Y, method, conf_level, seed, num_resamples, atol=0.0):
         group_sizes = compute_groups_matrix(problem.get("groups") or problem["names"])[0].sum(axis=0)
         out["sigma"][group_sizes > 1, :] = np.nan
     varying = np.flatnonzero(finite & ~constant)
+    if progress is not None:
+        progress(n_cols - varying.size)
     if method == "sobol" and varying.size:
-        for name, values in _sobol_columns(problem, Y[:, varying], conf_level, seed, num_resamples).items():
+        for name, values in _sobol_columns(problem, Y[:, varying], conf_level, seed, num_resamples,
+                                           progress).items():
             out[name][:, varying] = values
-    for col in varying if method == "morris" else ():
-        for name, values in _morris_column(problem, X, np.ascontiguousarray(Y[:, col]), conf_level, seed,
-                                           num_resamples).items():
-            out[name][:, col] = values
+    if method == "morris" and varying.size:
+        for name, values in _morris_columns(problem, X, Y[:, varying], conf_level, seed, num_resamples,
+                                            progress).items():
+            out[name][:, varying] = values
 
     attrs = {
         "method": method,
@@ -210,13 +294,14 @@ def analyze(problem: Mapping, X, Y, *, method: str = "sobol",
 
 def analyze_map(problem: Mapping, X, Y: xr.DataArray, *, method: str = "sobol",
                 sample_dim: str = "realization", conf_level: float = 0.95,
-                seed: int, num_resamples: int = 100, atol: float = 0.0) -> xr.Dataset:
+                seed: int, num_resamples: int = 100, atol: float = 0.0, progress=None) -> xr.Dataset:
     """Index maps of a field output, e.g. node shear (realization, i, j).
 
     Every position along Y's other dims is analysed separately; the result has dims
     (factor, *other dims) with Y's coordinates, the variables of ``analyze``, and
     NaN indices where any evaluation of that position is NaN/inf (e.g. a node outside the
-    mould in some realisations). Y's name and units are kept as attributes.
+    mould in some realisations). Y's name and units are kept as attributes. ``progress(n)``
+    is called as positions are finished, n of them at a time.
     """
     if not isinstance(Y, xr.DataArray) or sample_dim not in Y.dims:
         raise ValueError(f"Y must be an xarray DataArray with dimension sample_dim={sample_dim!r}")
@@ -224,7 +309,8 @@ def analyze_map(problem: Mapping, X, Y: xr.DataArray, *, method: str = "sobol",
     dims = Y.dims[1:]
     shape = Y.shape[1:]
     values = np.asarray(Y.values, dtype=float).reshape(Y.shape[0], -1)
-    labels, out, constant, attrs = _indices(problem, X, values, method, conf_level, seed, num_resamples, atol)
+    labels, out, constant, attrs = _indices(problem, X, values, method, conf_level, seed, num_resamples, atol,
+                                            progress)
     coords = {name: coord for name, coord in Y.coords.items() if sample_dim not in coord.dims}
     ds = _dataset(labels, out, constant, attrs, dims, shape, coords)
     ds.attrs["output"] = str(Y.name)

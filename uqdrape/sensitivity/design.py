@@ -13,17 +13,9 @@ from SALib.sample import morris as morris_sample
 from SALib.sample import sobol as sobol_sample
 from SALib.util import scale_samples
 
+from ..stochastic.sampling import check_base_samples, check_method
 from .problem import check_problem
 
-METHODS = ("sobol", "morris")
-
-# Sobol': scipy's Sobol' sequence is balanced only for powers of 2 (it warns otherwise),
-# and below 64 base samples the bootstrap intervals of S1/ST are typically wider than
-# +-0.2, too wide to rank factors.
-SOBOL_MIN_BASE_SAMPLES = 64
-# Morris: fewer than 10 trajectories leave mu_star's bootstrap interval meaningless
-# (Campolongo et al. 2007 use 10-20).
-MORRIS_MIN_TRAJECTORIES = 10
 MORRIS_NUM_LEVELS = 4
 # Morris puts points on the 0 and 1 quantiles, i.e. at +-inf for norm/lognorm. For
 # those (and only those) distributions the levels are moved affinely into
@@ -37,39 +29,6 @@ def check_seed(seed) -> int:
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed={seed!r} must be a non-negative integer")
     return int(seed)
-
-
-def check_method(method) -> str:
-    if method not in METHODS:
-        raise ValueError(f"method={method!r} is not supported; valid: {', '.join(METHODS)}")
-    return method
-
-
-def check_base_samples(method: str, base_samples) -> int:
-    """``base_samples`` as an int if it is a usable design size for ``method`` (Sobol': a
-    power of 2 >= SOBOL_MIN_BASE_SAMPLES; Morris: >= MORRIS_MIN_TRAJECTORIES trajectories),
-    else ValueError giving the minimum."""
-    method = check_method(method)
-    if isinstance(base_samples, bool) or not isinstance(base_samples, (int, np.integer)):
-        raise ValueError(f"base_samples={base_samples!r} must be an integer")
-    n = int(base_samples)
-    if method == "sobol":
-        if n < SOBOL_MIN_BASE_SAMPLES:
-            raise ValueError(
-                f"base_samples={n} is too small for Sobol': the minimum is "
-                f"{SOBOL_MIN_BASE_SAMPLES} (and it must be a power of 2)"
-            )
-        if n & (n - 1):
-            lower = 1 << (n.bit_length() - 1)
-            raise ValueError(
-                f"base_samples={n} must be a power of 2 for Sobol' (e.g. {lower} or {2 * lower})"
-            )
-    elif n < MORRIS_MIN_TRAJECTORIES:
-        raise ValueError(
-            f"base_samples={n} is too small for Morris: the minimum is "
-            f"{MORRIS_MIN_TRAJECTORIES} trajectories"
-        )
-    return n
 
 
 def sample(problem: Mapping, method: str = "sobol", *, base_samples: int, seed: int):

@@ -89,13 +89,14 @@ def qoi_indices(design: Design, qois: xr.Dataset, *, seed: int, conf_level: floa
 
 
 def map_indices(design: Design, field: xr.DataArray, *, seed: int, conf_level: float = 0.95,
-                num_resamples: int = 100) -> xr.Dataset:
+                num_resamples: int = 100, progress=None) -> xr.Dataset:
     """Index maps of a per-node output, e.g. node shear (dims blankholder_force,
     realization, i, j): dims (factor, i, j, blankholder_force); NaN where a node is
-    invalid in some evaluation (see ``analyze_map``)."""
+    invalid in some evaluation (see ``analyze_map``). ``progress(n)``: called as n more
+    node columns of a level are analysed."""
     def analyse(level):
         return analyze_map(design.problem, design.X, level, method=design.method, conf_level=conf_level,
-                           seed=seed, num_resamples=num_resamples, atol=ROUNDOFF)
+                           seed=seed, num_resamples=num_resamples, atol=ROUNDOFF, progress=progress)
 
     ds = _per_level(design, field, analyse)
     ds.attrs.update(design.meta)

@@ -3,7 +3,8 @@
 Per-node mean, sd, skewness, quantiles and their confidence limits; exceedance
 probability (wrinkle risk) with binomial intervals; summaries along the max/min-shear
 lines; node histograms with a fitted Normal; convergence with N; the scalar quantities
-of interest of each drape that sensitivity studies rank. Every function
+of interest of each drape (the registry ``qoi``: what sensitivity studies rank and
+designs' objectives are statistics of). Every function
 reduces along ``realization`` (dask-friendly) and returns an in-memory xarray Dataset
 with CF ``units`` / ``long_name`` attributes.
 """
@@ -13,12 +14,13 @@ from .exceedance import clopper_pearson_interval, exceedance_probability, wilson
 from .headline import KINDS, dominant_factors, headline_numbers, study_kind, varying_factors, wrinkle_risk
 from .histogram import node_histogram
 from .lines import line_means, line_scalars, line_statistics
-from .qoi import QOI_ATTRS, QOIS, realization_qois
-from .summary import inner_outer_sd, mean_statistics, node_statistics, ring_sd
+from .qoi import QOI_ATTRS, QOIS, SENSITIVITY_QOIS, check_qois, realization_qois
+from .summary import inner_outer_sd, mean_statistics, node_statistics, quantile_statistics, ring_sd
 
 __all__ = [
     "node_statistics",
     "mean_statistics",
+    "quantile_statistics",
     "exceedance_probability",
     "wilson_interval",
     "clopper_pearson_interval",
@@ -30,6 +32,8 @@ __all__ = [
     "samples_needed",
     "QOIS",
     "QOI_ATTRS",
+    "SENSITIVITY_QOIS",
+    "check_qois",
     "realization_qois",
     "ring_sd",
     "inner_outer_sd",

@@ -1,7 +1,9 @@
-"""Scalar quantities of interest of each drape, the outputs a sensitivity study ranks.
+"""The registry of per-drape quantities of interest: one number per realisation (and per
+blank-holder level of a sweep), used by sensitivity studies (the outputs they rank),
+blank-holder designs (what their objectives are statistics of) and reports.
 
-Names are :data:`QOIS`, the choices of a study's ``[sensitivity] qoi``. Each is one
-number per realisation (and per blank-holder level of a sweep):
+Names and units are ``uqdrape.schema.QOI_ATTRS`` (a study file names them); each is
+computed here, once:
 
 - ``max_abs_shear``        largest |node shear| over the valid nodes (degree)
 - ``mean_shear_positive``  signed shear averaged along the max-shear lines of the i*j > 0
@@ -10,55 +12,59 @@ number per realisation (and per blank-holder level of a sweep):
 - ``asymmetry``            their sum: 0 for a mirrored pattern (degree)
 - ``blankholder_energy``   blank-holder friction work U_BH of the finished net (J)
 - ``locked_fraction``      share of the valid cells (finite cell shear) that are locked (-)
+- ``any_locked``           1 if any node of the net is locked, else 0 (-)
+- ``max_draw_in``          largest radial draw-in of the held edge (mm; ``uqdrape.drape.draw_in``)
 
-k_max is the largest line node valid in every realisation of the Dataset given, so all
-realisations average the same nodes (stored as the attribute ``k_max``).
+k_max is the largest line node valid in every realisation of the Dataset given (or the
+``k_max`` passed), so all realisations average the same nodes (stored as the attribute
+``k_max``).
 """
 
 from __future__ import annotations
 
 import xarray as xr
 
+from ..drape import draw_in
+from ..schema import QOI_ATTRS, SENSITIVITY_QOIS
 from .lines import line_scalars
 
-#: (units, long_name) of each quantity of interest.
-QOI_ATTRS = {
-    "max_abs_shear": ("degree", "largest absolute node shear"),
-    "mean_shear_positive": ("degree", "mean shear along the max-shear lines of the i*j > 0 quadrants"),
-    "mean_shear_negative": ("degree", "mean shear along the max-shear lines of the i*j < 0 quadrants"),
-    "asymmetry": ("degree", "mean_shear_positive + mean_shear_negative (0 when mirrored)"),
-    "blankholder_energy": ("J", "blank-holder friction energy"),
-    "locked_fraction": ("1", "fraction of the valid cells that are locked"),
-}
 QOIS = tuple(QOI_ATTRS)
 
 #: The QoIs that are max-shear line means -> their variable of ``line_scalars``.
 _LINE_QOIS = {"mean_shear_positive": "plus_mean_shear", "mean_shear_negative": "minus_mean_shear",
               "asymmetry": "asymmetry"}
+#: The other QoIs: name -> the quantity of a drape Dataset.
+_NODE_QOIS = {
+    "max_abs_shear": lambda ds: abs(ds["shear"]).max(["i", "j"]),
+    "blankholder_energy": lambda ds: ds["energy_blankholder"],
+    "locked_fraction": lambda ds: ds["cell_locked"].where(ds["cell_shear"].notnull()).mean(["cell_i", "cell_j"]),
+    "any_locked": lambda ds: (ds["locked"] > 0).any(["i", "j"]).astype(float),
+    "max_draw_in": lambda ds: draw_in(ds).max(["i", "j"]),
+}
+assert set(_LINE_QOIS) | set(_NODE_QOIS) == set(QOIS), "every named QoI is computed here"
 
 
-def realization_qois(ds: xr.Dataset, qoi=QOIS) -> xr.Dataset:
-    """The quantities ``qoi`` (names from ``QOIS``) of every drape in ``ds`` (a drape or
-    ensemble Dataset, dims [blankholder_force,] realization, i, j, ...): one variable per
-    QoI with the Dataset's dims but the node ones, CF units and long_name; loaded."""
+def check_qois(qoi) -> tuple[str, ...]:
+    """``qoi`` as a tuple if it is a non-empty sequence of distinct QoI names, else ValueError."""
     qoi = tuple(qoi)
     unknown = [q for q in qoi if q not in QOIS]
     if not qoi or unknown or len(set(qoi)) != len(qoi):
         raise ValueError(f"qoi={list(qoi)} must be distinct names from {', '.join(QOIS)}")
+    return qoi
+
+
+def realization_qois(ds: xr.Dataset, qoi=SENSITIVITY_QOIS, k_max: int | None = None) -> xr.Dataset:
+    """The quantities ``qoi`` (names from ``QOIS``) of every drape in ``ds`` (a drape or
+    ensemble Dataset, dims [blankholder_force,] realization, i, j, ...): one variable per
+    QoI with the Dataset's dims but the node ones, CF units and long_name; loaded.
+    ``k_max``: the last max-shear line node the line QoIs average (default: the largest
+    valid in every realisation of ``ds``)."""
+    qoi = check_qois(qoi)
+    lines = line_scalars(ds, k_max) if set(_LINE_QOIS) & set(qoi) else None
     out = {}
-    lines = line_scalars(ds) if set(_LINE_QOIS) & set(qoi) else None
     for name in qoi:
-        if name in _LINE_QOIS:
-            value = lines[_LINE_QOIS[name]]
-        elif name == "max_abs_shear":
-            value = abs(ds["shear"]).max(["i", "j"])
-        elif name == "blankholder_energy":
-            value = ds["energy_blankholder"]
-        else:
-            locked = ds["cell_locked"].where(ds["cell_shear"].notnull())
-            value = locked.mean(["cell_i", "cell_j"])
-        units, long_name = QOI_ATTRS[name]
-        out[name] = value.drop_attrs().assign_attrs(units=units, long_name=long_name)
+        value = lines[_LINE_QOIS[name]] if name in _LINE_QOIS else _NODE_QOIS[name](ds)
+        out[name] = value.drop_attrs().assign_attrs(QOI_ATTRS[name])
     result = xr.Dataset(out).compute()
     if lines is not None:
         result.attrs["k_max"] = lines.attrs["k_max"]

@@ -16,6 +16,10 @@ from scipy import stats
 from ._common import REALIZATION, check_confidence, get_variable, t_quantile
 
 MEAN_INTERVAL = "Student t: mean +- t_{(1+c)/2, n-1} * sd / sqrt(n) over the n valid realisations"
+#: The interval of the mean of a randomised QMC sample: its points are not independent,
+#: its K randomisations are.
+REPLICATE_INTERVAL = ("Student t over randomisations: mean of the K randomisations' means +- "
+                      "t_{(1+c)/2, K-1} * sd(means) / sqrt(K)")
 QUANTILE_INTERVAL = (
     "distribution-free order statistics: [X_(l), X_(u)] with l = binom.ppf((1-c)/2, n, p), "
     "u = binom.ppf((1+c)/2, n, p) + 1 (1-based ranks, coverage >= c); NaN when n is too small"
@@ -159,6 +163,7 @@ def node_statistics(
     var: str = "shear",
     quantiles: Sequence[float] = (0.05, 0.5, 0.95),
     confidence: float = 0.95,
+    replicates: int | None = None,
 ) -> xr.Dataset:
     """Per-node (or per-cell, for a cell variable) ensemble statistics of ``ds[var]``.
 
@@ -168,12 +173,32 @@ def node_statistics(
     ``quantile_value, quantile_lower, quantile_upper``; units those of ``var``. The mean
     interval is Student t; quantile limits are distribution-free order statistics (see
     each variable's ``method`` attr). Computed in one dask pass; returns in-memory data.
+    ``replicates`` K: the realisations are K equal consecutive randomisations of one
+    randomised-QMC point set (``[sampling] plan = "rqmc"``): the mean's interval is then
+    Student t over the K randomisations' means (REPLICATE_INTERVAL), as the points within
+    one are not independent; sd and quantiles stay those of all realisations.
     """
     c = check_confidence(confidence)
     da = get_variable(ds, var)
     out = xr.merge([moment_statistics(da, c), quantile_statistics(da, quantiles, c)], combine_attrs="override")
+    if replicates is not None:
+        out.update(_replicate_limits(da, int(replicates), c))
     out.attrs = {**ds.attrs, "variable": var, "confidence": c}
     return out.compute()
+
+
+def _replicate_limits(da: xr.DataArray, replicates: int, confidence: float) -> dict:
+    """The mean's limits from the spread of ``replicates`` consecutive groups' means."""
+    n = da.sizes[REALIZATION]
+    if replicates < 2 or n % replicates:
+        raise ValueError(f"replicates={replicates} must be >= 2 and divide the {n} realisations")
+    group = xr.DataArray(np.arange(n) // (n // replicates), dims=REALIZATION, name="randomization")
+    means = da.groupby(group).mean(REALIZATION)  # a randomisation's mean over its valid points
+    k = means.notnull().sum("randomization")
+    half = t_quantile(confidence, k - 1) * means.std("randomization", ddof=1) / np.sqrt(k.where(k > 0))
+    centre = means.mean("randomization")
+    return _limits("mean", centre - half, centre + half, da.attrs.get("units"), "the mean", confidence,
+                   REPLICATE_INTERVAL)
 
 
 def ring_sd(ds: xr.Dataset, var: str = "shear") -> xr.DataArray:

@@ -7,11 +7,12 @@ arrays, scalar process factors, sampling plans and per-realisation seeding.
 from .factors import DISTRIBUTIONS, Factor, constant, lognormal, make_factor, normal, truncnormal, uniform
 from .fields import CORRELATIONS, GaussianField, KLField
 from .inputs import PrestrainInput, SpacingInput, ZeroAngleInput
-from .sampling import PLANS, realization_normals, realization_rng, sample_uniforms, uniforms_to_normals
+from .sampling import (METHODS, PLANS, check_base_samples, check_method, realization_normals, realization_rng,
+                       sample_uniforms, uniforms_to_normals)
 
 __all__ = [
     "CORRELATIONS", "GaussianField", "KLField",
     "PrestrainInput", "SpacingInput", "ZeroAngleInput",
     "DISTRIBUTIONS", "Factor", "constant", "lognormal", "make_factor", "normal", "truncnormal", "uniform",
-    "PLANS", "realization_normals", "realization_rng", "sample_uniforms", "uniforms_to_normals",
+    "METHODS", "PLANS", "check_base_samples", "check_method", "realization_normals", "realization_rng", "sample_uniforms", "uniforms_to_normals",
 ]

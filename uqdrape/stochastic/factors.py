@@ -25,6 +25,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.stats
 
+from ..errors import ParameterError
+
 _EPS = 1e-12
 
 
@@ -34,21 +36,21 @@ def _finite(name: str, value) -> float:
     except (TypeError, ValueError):
         number = math.nan
     if not math.isfinite(number):
-        raise ValueError(f"{name} must be a finite number, got {value!r}")
+        raise ParameterError(name, f"{name} must be a finite number, got {value!r}")
     return number
 
 
 def _positive(name: str, value) -> float:
     value = _finite(name, value)
     if value <= 0:
-        raise ValueError(f"{name} must be > 0, got {value!r}")
+        raise ParameterError(name, f"{name} must be > 0, got {value!r}")
     return value
 
 
 def _ordered(lower, upper) -> tuple[float, float]:
     lower, upper = _finite("lower", lower), _finite("upper", upper)
     if lower >= upper:
-        raise ValueError(f"lower must be < upper, got lower={lower!r}, upper={upper!r}")
+        raise ParameterError(("lower", "upper"), f"lower must be < upper, got lower={lower!r}, upper={upper!r}")
     return lower, upper
 
 

@@ -24,6 +24,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
+from ..errors import ParameterError
+
 CORRELATIONS = ("iid", "exponential", "squared_exponential")
 
 # Relative gap below which two KL eigenvalues count as equal (kept or dropped together).
@@ -37,20 +39,26 @@ def _pair(value, name: str) -> tuple[float, float]:
     except (TypeError, ValueError):
         arr = np.array([np.nan])
     if arr.shape not in ((1,), (2,)) or not np.all(np.isfinite(arr)) or np.any(arr <= 0):
-        raise ValueError(f"{name} must be a positive number or a pair of positive numbers (mm), got {value!r}")
+        raise ParameterError(name, f"{name} must be a positive number or a pair of positive numbers (mm), "
+                                   f"got {value!r}")
     return (float(arr[0]), float(arr[-1]))
+
+
+def correlation_function(lag_mm, correlation: str, length_mm: float | None) -> np.ndarray:
+    """The 1-D correlation c(Δ) of family ``correlation`` at lags ``lag_mm`` (any shape, mm)
+    for the correlation length ``length_mm`` (mm; ignored for "iid"). The lattice fields
+    here and the calibration's scattered points (``uqdrape.calibration``) both use it."""
+    lag = np.abs(np.asarray(lag_mm, dtype=float))
+    if correlation == "iid":
+        return (lag == 0).astype(float)
+    if correlation == "exponential":
+        return np.exp(-lag / length_mm)
+    return np.exp(-((lag / length_mm) ** 2))
 
 
 def _correlation_matrix(n: int, step_mm: float, correlation: str, length_mm: float | None):
     """1-D correlation matrix of n lattice points ``step_mm`` apart."""
-    lag = step_mm * np.arange(n)
-    if correlation == "iid":
-        row = (lag == 0).astype(float)
-    elif correlation == "exponential":
-        row = np.exp(-lag / length_mm)
-    else:
-        row = np.exp(-((lag / length_mm) ** 2))
-    return scipy.linalg.toeplitz(row)
+    return scipy.linalg.toeplitz(correlation_function(step_mm * np.arange(n), correlation, length_mm))
 
 
 def _eigenpairs(matrix):
@@ -72,14 +80,15 @@ class GaussianField:
         if len(shape) != 2 or min(shape) < 1:
             raise ValueError(f"shape must be two positive integers (na, nb), got {shape!r}")
         if correlation not in CORRELATIONS:
-            raise ValueError(f"correlation must be one of {CORRELATIONS}, got {correlation!r}")
+            raise ParameterError("correlation", f"correlation must be one of {CORRELATIONS}, got {correlation!r}")
         self.shape = shape
         self.spacing_mm = _pair(spacing_mm, "spacing_mm")
         self.correlation = correlation
         if correlation == "iid":
             self.length_mm = None
         elif length_mm is None:
-            raise ValueError(f"length_mm (correlation length, mm) is required for correlation={correlation!r}")
+            raise ParameterError("length_mm", "length_mm (correlation length, mm) is required for "
+                                              f"correlation={correlation!r}")
         else:
             self.length_mm = _pair(length_mm, "length_mm")
         lengths = self.length_mm or (None, None)
@@ -140,7 +149,7 @@ class KLField:
             keep = int(n_modes)
         else:
             if retained is None or not 0.0 < retained <= 1.0:
-                raise ValueError(f"retained must be a variance fraction in (0, 1], got {retained!r}")
+                raise ParameterError("retained", f"retained must be a variance fraction in (0, 1], got {retained!r}")
             keep = int(np.searchsorted(share, retained - 1e-12)) + 1
             last = lam[order[keep - 1]]
             keep += int(np.count_nonzero(lam[order[keep:]] >= last * (1.0 - _TIE_RTOL)))

@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 
+from ..errors import ParameterError
 from .fields import GaussianField
 
 
@@ -82,7 +83,7 @@ class SpacingInput(_FieldInput):
         n = positive_int("rings", rings)
         self.spacing_mm = _spacing(spacing_mm)
         if not isinstance(cv, (int, float, np.number)) or not 0.0 <= cv < 1.0:
-            raise ValueError(f"cv (spacing coefficient of variation) must be in [0, 1), got {cv!r}")
+            raise ParameterError("cv", f"cv (spacing coefficient of variation) must be in [0, 1), got {cv!r}")
         self.cv = float(cv)
         super().__init__([(2 * n, 2 * n + 1), (2 * n + 1, 2 * n)], self.spacing_mm, correlation, length_mm)
 
@@ -113,7 +114,8 @@ class ZeroAngleInput(_FieldInput):
         n = positive_int("rings", rings)
         ok = all(isinstance(v, (int, float, np.number)) and math.isfinite(v) for v in (mean_deg, sd_deg))
         if not ok or not abs(mean_deg) < 90.0 or sd_deg < 0:
-            raise ValueError(
+            raise ParameterError(
+                ("mean_deg", "sd_deg"),
                 f"zero angle needs |mean_deg| < 90 and sd_deg >= 0 (degrees), got mean_deg={mean_deg!r}, sd_deg={sd_deg!r}"
             )
         self.mean_deg, self.sd_deg = float(mean_deg), float(sd_deg)
@@ -146,7 +148,8 @@ class PrestrainInput(_FieldInput):
         n = positive_int("rings", rings)
         ok = all(isinstance(v, (int, float, np.number)) and math.isfinite(v) for v in (mean, sd))
         if not ok or sd < 0:
-            raise ValueError(f"stitch pre-strain needs finite mean and sd >= 0 (fractions), got mean={mean!r}, sd={sd!r}")
+            raise ParameterError(("mean", "sd"), "stitch pre-strain needs finite mean and sd >= 0 (fractions), "
+                                                 f"got mean={mean!r}, sd={sd!r}")
         self.mean, self.sd = float(mean), float(sd)
         self.to_gamma0 = to_gamma0
         super().__init__([(2 * n, 2 * n)], _spacing(spacing_mm), correlation, length_mm)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,8 +20,21 @@ from .. import material as _material
 from .. import stochastic as _stochastic
 from ..schema import SOLVER_INPUTS
 
-#: Scalar factors of [uncertainty.<factor>] -> the study-file setting each one overrides.
-FACTOR_SETTINGS = {name: inp.setting for name, inp in SOLVER_INPUTS.items()}
+#: Where a study file fixes each scalar solver input (``uqdrape.schema.SOLVER_INPUTS``,
+#: the solver's names): (section, key, index of the element of a list key or None).
+SETTING_KEYS = {
+    "blankholder_force": ("process", "blankholder_force_N", None),
+    "friction": ("process", "friction", None),
+    "orientation": ("fabric", "orientation_deg", None),
+    "crossover_x": ("fabric", "crossover", 0),
+    "crossover_y": ("fabric", "crossover", 1),
+    "pre_shear": ("fabric", "pre_shear_deg", None),
+    "skew": ("fabric", "skew_deg", None),
+}
+assert set(SETTING_KEYS) == set(SOLVER_INPUTS), "every solver input has its study-file setting"
+#: Scalar factors of [uncertainty.<factor>] -> the dotted study-file setting each one overrides.
+FACTOR_SETTINGS = {name: f"{section}.{key}" + ("" if index is None else f"[{index}]")
+                   for name, (section, key, index) in SETTING_KEYS.items()}
 #: Random fields of [uncertainty.<field>] and the study-file keys of their own parameters.
 FIELD_KEYS = {"spacing": ("cv",), "zero_angle": ("mean_deg", "sd_deg"), "stitch_prestrain": ("mean", "sd")}
 FIELDS = tuple(FIELD_KEYS)
@@ -41,9 +55,18 @@ DESIGN_OBJECTIVES = {"p_locked": ("any_locked", "probability"),
                      "q95_max_draw_in": ("max_draw_in", "quantile95")}
 #: What a design minimises of its objective: the upper confidence limit or the estimate.
 DESIGN_STATISTICS = ("upper", "estimate")
+#: Statistics a [study] target can be about -> the QoIs (``uqdrape.schema.QOI_ATTRS``) they
+#: apply to (None: any): the mean (Student-t interval; across randomisations under rqmc)
+#: and the probability of a 0/1 quantity (Wilson score interval).
+TARGET_STATISTICS = {"mean": None, "probability": ("any_locked",)}
 #: Study-file parameter names of each factor distribution; "bounds" = [lower, upper].
 DIST_KEYS = {"normal": ("mean", "sd"), "truncnormal": ("mean", "sd", "bounds"),
              "uniform": ("bounds",), "lognormal": ("mean", "sd")}
+#: The card-scatter factor: a realisation's score z on its card's specimen scatter,
+#: N_s = mean + z sd at every angle (``uqdrape.material.scatter``); it varies the
+#: fabric's material, as the other factors vary the setting they name.
+CARD = "card"
+FACTOR_SETTINGS[CARD] = "fabric.material"
 
 
 @dataclass(frozen=True)
@@ -142,7 +165,11 @@ class Uncertainty:
 
 @dataclass(frozen=True)
 class Sampling:
+    """The plan (``uqdrape.stochastic.sampling.STUDY_PLANS``); ``randomizations`` K of an
+    rqmc plan (its realisations are K scramblings of one Sobol' net), else None."""
+
     plan: str
+    randomizations: int | None = None
 
 
 @dataclass(frozen=True)
@@ -183,6 +210,17 @@ class Design:
 
 
 @dataclass(frozen=True)
+class Target:
+    """Run until the ``confidence`` interval of ``statistic`` (TARGET_STATISTICS) of the QoI
+    ``qoi`` has a half-width of at most ``half_width`` (the QoI's unit) at every force level."""
+
+    qoi: str
+    statistic: str
+    half_width: float
+    confidence: float = 0.95
+
+
+@dataclass(frozen=True)
 class Report:
     histogram_nodes: tuple[tuple[int, int], ...]
     experimental_csv: Path | None
@@ -211,6 +249,9 @@ class Study:
     design: Design | None = None
     #: chunks store floats as float32 with zlib (``uqdrape.conventions.cf_encode``)
     float32: bool = False
+    #: [study] target: run in rounds until it is met or ``max_realizations`` are drawn
+    target: Target | None = None
+    max_realizations: int | None = None
 
     @property
     def force_levels(self) -> tuple[float, ...]:
@@ -226,14 +267,14 @@ class Study:
         blank-holder force is ``force`` for one level of a sweep, else the only level."""
         if name == "blankholder_force":
             return self.force_levels[0] if force is None else float(force)
-        inp = SOLVER_INPUTS[name]
-        value = getattr(getattr(self, inp.section), inp.key)
-        return value if inp.index is None else value[inp.index]
+        section, key, index = SETTING_KEYS[name]
+        value = getattr(getattr(self, section), key)
+        return value if index is None else value[index]
 
     def to_dict(self) -> dict:
         """The study with defaults filled, in the file's own layout, as plain JSON types
         (``json.dumps`` it for a netCDF attribute or a provenance record)."""
-        doc = {"study": {f.name: getattr(self, f.name) for f in _HEADER}}
+        doc = {"study": {f.name: _plain(getattr(self, f.name)) for f in _HEADER if getattr(self, f.name) is not None}}
         doc["geometry"] = {"kind": self.geometry.kind, **self.geometry.params}
         for section in _PLAIN:
             doc[section] = {f.name: _plain(getattr(getattr(self, section), f.name))
@@ -260,11 +301,14 @@ class Study:
 _PLAIN = ("fabric", "process", "solver", "sampling", "sensitivity", "report")
 #: The [study] header: Study fields between ``path`` and ``geometry``.
 _HEADER = tuple(f for f in dataclasses.fields(Study) if f.name in ("name", "seed", "realizations", "chunk_size",
-                                                                    "description"))
+                                                                    "description", "target", "max_realizations"))
 
 
 def _plain(value):
-    """A spec value as JSON types: tuples -> lists, paths -> strings, None entries dropped."""
+    """A spec value as JSON types: tuples -> lists, paths -> strings, dataclasses -> dicts,
+    None entries dropped."""
+    if dataclasses.is_dataclass(value):
+        return _plain(dataclasses.asdict(value))
     if isinstance(value, dict):
         return {k: _plain(v) for k, v in value.items() if v is not None}
     if isinstance(value, (tuple, list)):
@@ -272,6 +316,25 @@ def _plain(value):
     if isinstance(value, Path):
         return str(value)
     return value
+
+
+def identity(doc: dict) -> dict:
+    """What must match for stored drapes to be reused (a resumed run's chunks, a design's
+    records): the study record ``doc`` (:meth:`Study.to_dict`) without what does not
+    change a drape: the chunk size, the number of realisations (realisation r is the same
+    in a larger run, so a run extends; ``uqdrape.ensemble.run`` refuses plans where it is
+    not), an rqmc plan's number of randomisations (its points per randomisation stay), the
+    target that chose the size, the output folder and the [design] section (its
+    candidates are keyed by their own settings)."""
+    doc = json.loads(json.dumps(doc))
+    sampling = doc.get("sampling", {})
+    if "randomizations" in sampling:  # rqmc: K randomisations of M points; M is what a drape depends on
+        sampling["points"] = doc["study"]["realizations"] // sampling.pop("randomizations")
+    for key in ("chunk_size", "realizations", "target", "max_realizations"):
+        doc["study"].pop(key, None)
+    for section in ("output", "design"):
+        doc.pop(section, None)
+    return doc
 
 
 def from_dict(doc: dict, path) -> Study:
@@ -299,8 +362,11 @@ def from_dict(doc: dict, path) -> Study:
                 entry["lower"], entry["upper"] = entry.pop("bounds")
             factors[name] = _stochastic.make_factor(dist, **entry)
     geometry = dict(doc["geometry"])
+    head = dict(doc["study"])
+    if "target" in head:
+        head["target"] = Target(**head["target"])
     return Study(
-        path=Path(path), **doc["study"],
+        path=Path(path), **head,
         geometry=Geometry(geometry.pop("kind"), geometry),
         fabric=section(Fabric, doc["fabric"]),
         process=section(Process, process),

@@ -5,7 +5,11 @@
 
 Sections and keys (units: mm, N, degrees)::
 
-    [study]        name, seed, realizations, chunk_size = 64, description = ""
+    [study]        name, seed, realizations, chunk_size = 64, description = "",
+                   target = {qoi, statistic ("mean" | "probability"), half_width, confidence = 0.95}
+                   and max_realizations (both or neither): run in rounds from ``realizations``
+                   until the statistic's interval half-width is at most half_width at every
+                   force level, or max_realizations are drawn (uqdrape.workflow.target)
     [geometry]     kind + that kind's shape parameters (see uqdrape.geometry.KINDS)
     [fabric]       material, spacing_mm, orientation_deg = 0, pre_shear_deg = 0, skew_deg = 0, crossover = [0, 0]
     [process]      blankholder_force_N (a number, or a list: a sweep), friction = 0.2, sectors,
@@ -20,8 +24,12 @@ Sections and keys (units: mm, N, degrees)::
                    material card's [architecture] (uqdrape.material.architecture.material_zero_force_table);
                    needs a card derived from an architecture; not together with zero_angle
     [uncertainty.<factor>]    dist + parameters, factor in FACTOR_SETTINGS
-    [sampling]     plan = "monte_carlo"
-    [sensitivity]  method = "none", base_samples, qoi = all of QOIS
+    [uncertainty.card]        dist + parameters of a score z (e.g. normal, mean 0, sd 1): each
+                   realisation's card is N_s = mean + z sd of the card's specimens (its [scatter]
+                   table, ``uqdrape materials fit``); energy mode only (uqdrape.material.scatter)
+    [sampling]     plan = "monte_carlo" (or latin_hypercube, sobol, rqmc), randomizations (rqmc only, >= 2:
+                   realizations = randomizations x a power of two; uqdrape.stochastic.sampling)
+    [sensitivity]  method = "none", base_samples, qoi = SENSITIVITY_QOIS (any of uqdrape.schema.QOI_ATTRS)
     [design]       variables ("force" | "sectors"), sectors (>= 2, for "sectors"), force_bounds_N = [lo, hi]
                    (the total force, or each sector's), friction_bounds = [lo, hi], budget_N (total force),
                    objective (DESIGN_OBJECTIVES), statistic = "upper" | "estimate", target, confidence = 0.95,
@@ -39,7 +47,12 @@ uqdrape.stochastic). A factor overrides its fixed setting in the ensemble; the f
 value stays the nominal one.
 
 Paths in the file (a mesh mould's ``path``, a material card, ``experimental_csv``) are relative to
-the study file; ``output.directory`` is relative to the current working directory.
+the study file and must stay in its folder or below (absolute paths and '..' are refused:
+a study read as data reads nothing its folder does not hold). ``output.directory`` is
+relative to the current working directory, as ``results/<study name>`` is meant to be, and
+a relative one must stay inside it ('..' climbing out is refused); an absolute directory is
+taken as written and shown by ``uqdrape validate``; ``--out DIR`` on the command line
+replaces it and may be anywhere.
 
 Errors. Every problem raises :class:`StudyError` naming the file, the dotted key, the
 bad value and what is valid, in one line, e.g. ``studies/x.toml:
@@ -58,229 +71,127 @@ error too, because it usually means another key was forgotten.
 """
 from __future__ import annotations
 
+import dataclasses
 import inspect
-import os
-import shutil
-import json
 import math
 import re
-import tomllib
 from pathlib import Path
 
 import numpy as np
+from scipy.stats import qmc
 
 from .. import geometry as _geometry
 from .. import material as _material
 from .. import stochastic as _stochastic
-from ..drape import BLANKHOLDER_MODELS, MODES, drape, placement_failures
 from ..experimental import read_experimental
-from ..schema import SOLVER_INPUTS
-from ..stats import QOIS
-from .spec import (DESIGN_OBJECTIVES, DESIGN_STATISTICS, DESIGN_VARIABLES, DIST_KEYS, FACTOR_SETTINGS, FIELD_KEYS,
-                   FIELDS, SECTIONS, SENSITIVITY_METHODS, Design, Fabric, Geometry, Process, RandomField, Report,
-                   Sampling, Sensitivity, Solver, Study, Uncertainty, prestrain_map)
+from ..files import REQUIRED, Document, FileFormatError, Table, fmt, inside, is_int, is_number
+from ..stochastic.sampling import EXTENDABLE_PLANS, RQMC, STUDY_PLANS, rqmc_points
+from ..schema import BLANKHOLDER_MODELS, MAX_RINGS, MODES, QOI_ATTRS, SENSITIVITY_QOIS, SOLVER_INPUTS
+from ..material.scatter import card_scatter
+from .spec import (CARD, DESIGN_OBJECTIVES, DESIGN_STATISTICS, DESIGN_VARIABLES, DIST_KEYS, FACTOR_SETTINGS, FIELD_KEYS,
+                   FIELDS, SECTIONS, SENSITIVITY_METHODS, TARGET_STATISTICS, Design, Fabric, Geometry, Process,
+                   RandomField, Report, Sampling, Sensitivity, Solver, Study, Target, Uncertainty, prestrain_map)
 
 
-class StudyError(ValueError):
-    """A problem in a study file; the message names the file, the key, the value and what is valid."""
+class StudyError(FileFormatError):
+    """A problem in a study file; the message names the file, the key, the value and what
+    is valid, ``path`` is the file and ``key`` the dotted key (None for the file as a whole)."""
+
+
+def study_error(path, key: str, value, why: str) -> StudyError:
+    """The error for ``key = value`` of study file ``path``: ``<file>: <key> = <value> is invalid: <why>``."""
+    return StudyError(f"{path}: {key} = {fmt(value)} is invalid: {why}", path, key)
 
 
 # factor distributions offered in a study file (a constant is the fixed setting itself)
 _DISTS = tuple(d for d in _stochastic.DISTRIBUTIONS if d != "constant")
 _NAME_RE = re.compile(r"^[A-Za-z0-9_-]+$")
-_REQUIRED = object()
+#: How far a random input's values reach, in standard deviations: a few million draws of a
+#: standard normal (a large ensemble's cells) stay within 7 with all but 1e-5 probability.
+REACH_SD = 7.0
 
 
-# ----------------------------------------------------------------------------- messages
-
-
-def _fmt(value) -> str:
-    """A value as it would be written in TOML (shortened if long)."""
-    if isinstance(value, bool):
-        text = "true" if value else "false"
-    elif isinstance(value, str):
-        text = json.dumps(value)
-    elif isinstance(value, dict):
-        text = "{ " + ", ".join(f"{k} = {_fmt(v)}" for k, v in value.items()) + " }"
-    elif isinstance(value, (list, tuple)):
-        text = "[" + ", ".join(_fmt(v) for v in value) + "]"
-    else:
-        text = repr(value)
-    return text if len(text) <= 80 else text[:77] + "..."
-
-
-def _is_number(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
-def _is_int(value) -> bool:
-    return isinstance(value, int) and not isinstance(value, bool)
-
-
-class _Source:
-    """The study file being read: its label for messages and its folder for relative paths."""
+class _Source(Document):
+    """The study file being read (``uqdrape.files.Document``), which also says which study
+    key another module's ParameterError is about."""
 
     def __init__(self, path: Path):
-        self.path = path
-        self.label = str(path)
-        self.folder = path.resolve().parent
+        super().__init__(path, "study file", error=StudyError)
 
-    def fail(self, text: str):
-        raise StudyError(f"{self.label}: {text}")
-
-    def invalid(self, key: str, value, why: str):
-        self.fail(f"{key} = {_fmt(value)} is invalid: {why}")
-
-    def missing(self, key: str, why: str):
-        self.fail(f"{key} is missing: {why}")
-
-    def relative_file(self, key: str, value) -> Path:
-        """An existing file named relative to the study file."""
-        if not isinstance(value, str) or not value:
-            self.invalid(key, value, "must be a file name (relative to the study file)")
-        path = self.folder / value
-        if not path.is_file():
-            self.invalid(key, value, f"file not found: {path}")
-        return path
-
-    def wrap(self, err: Exception, section: str, given: dict, required: dict | None = None):
+    def wrap(self, err: ValueError, section: str, given: dict, required: dict | None = None):
         """Re-raise another module's ValueError with file and key context.
 
-        ``given`` maps a name as the other module spells it to (dotted study key, value)
-        for keys present in the file; ``required`` maps names of absent required keys to
-        their dotted keys. The names in the message decide which study key is blamed: a
-        missing required key first, else every present key it names, else ``[section]``.
+        ``given`` maps an argument name as the other module spells it to (dotted study key,
+        value) for keys present in the file; ``required`` maps names of absent required keys
+        to their dotted keys. The error's own ``names`` (``uqdrape.errors.ParameterError``)
+        decide which key is blamed: a missing required key first, else every present key
+        it names, else ``[section]``.
         """
-        msg = str(err)
-
-        def named(name):
-            return re.search(rf"(?<![\w.]){re.escape(name)}(?!\w)", msg) is not None
-
-        for name, key in (required or {}).items():
-            if named(name):
-                self.missing(key, msg)
+        msg, names = str(err), getattr(err, "names", ())
+        for name in names:
+            if name in (required or {}):
+                self.missing(required[name], msg)
         blamed = {}
-        for name, (key, value) in given.items():
-            if named(name):
-                blamed.setdefault(key, value)
+        for name in names:
+            if name in given:
+                blamed.setdefault(*given[name])
         if blamed:
-            lhs = ", ".join(f"{k} = {_fmt(v)}" for k, v in blamed.items())
-            self.fail(f"{lhs} is invalid: {msg}")
-        self.fail(f"[{section}] is invalid: {msg}")
-
-
-class _Table:
-    """One TOML table of the study: rejects unknown keys, reads typed values."""
-
-    def __init__(self, src: _Source, name: str, data, keys=None):
-        self.src, self.name = src, name
-        if not isinstance(data, dict):
-            src.invalid(name, data, f"{name} must be a table [{name}]")
-        self.data = data
-        if keys is not None:
-            self.only(keys)
-
-    def only(self, keys):
-        """Reject keys not in ``keys`` (called later when the valid keys depend on a value)."""
-        for key in self.data:
-            if key not in keys:
-                self.src.fail(f"unknown key {self.dotted(key)}; valid keys in [{self.name}]: {', '.join(keys)}")
-
-    def dotted(self, key: str) -> str:
-        return f"{self.name}.{key}"
-
-    def has(self, key: str) -> bool:
-        return key in self.data
-
-    def invalid(self, key: str, why: str):
-        self.src.invalid(self.dotted(key), self.data[key], why)
-
-    def raw(self, key: str, default, hint: str):
-        if key in self.data:
-            return self.data[key]
-        if default is _REQUIRED:
-            self.src.missing(self.dotted(key), hint)
-        return default
-
-    def number(self, key, default=_REQUIRED, *, integer=False, ge=None, gt=None, lt=None):
-        """A finite number (an int where ``integer``) with optional bounds."""
-        kind = "an integer" if integer else "a number"
-        low = f"{ge} <= " if ge is not None else f"{gt} < " if gt is not None else ""
-        if lt is not None:
-            hint = f"{key} must be {kind} with {low}{key} < {lt}"
-        elif low:
-            hint = f"{key} must be {kind} {'>=' if ge is not None else '>'} {ge if ge is not None else gt}"
-        else:
-            hint = f"{key} must be a finite number" if not integer else f"{key} must be an integer"
-        value = self.raw(key, default, hint)
-        if key not in self.data:
-            return value
-        if not (_is_int(value) if integer else _is_number(value)) or not math.isfinite(value):
-            self.invalid(key, hint)
-        if (ge is not None and value < ge) or (gt is not None and value <= gt) or (lt is not None and value >= lt):
-            self.invalid(key, hint)
-        return value if integer else float(value)
-
-    def string(self, key, default=_REQUIRED, *, choices=None, hint=None, valid=lambda value: True):
-        """A string, one of ``choices`` if given, for which ``valid(value)`` holds if given."""
-        hint = hint or (f"{key} must be one of {', '.join(map(json.dumps, choices))}" if choices
-                        else f"{key} must be a string")
-        value = self.raw(key, default, hint)
-        if not isinstance(value, str) or (choices is not None and value not in choices) or not valid(value):
-            self.invalid(key, hint)
-        return value
-
-    def numbers(self, key, default=_REQUIRED, *, length=None, hint):
-        """A list of finite numbers (of exactly ``length`` if given, else non-empty)."""
-        value = self.raw(key, default, hint)
-        if key not in self.data:
-            return value
-        ok = isinstance(value, list) and len(value) > 0 and (length is None or len(value) == length)
-        if not ok or not all(_is_number(v) and math.isfinite(v) for v in value):
-            self.invalid(key, hint)
-        return tuple(float(v) for v in value)
+            lhs = ", ".join(f"{k} = {fmt(v)}" for k, v in blamed.items())
+            self.fail(f"{lhs} is invalid: {msg}", next(iter(blamed)))
+        self.fail(f"[{section}] is invalid: {msg}", section)
 
 
 # ----------------------------------------------------------------------------- sections
 
 
-def _read_toml(path: Path, src: _Source) -> dict:
-    """The study document. UTF-8 (a byte-order mark is allowed) or UTF-16 with its mark;
-    anything else is refused naming the first byte that is not text."""
-    try:
-        data = path.read_bytes()
-    except OSError as err:
-        src.fail(f"cannot read the study file: {err.strerror or err}")
-    try:
-        if data.startswith((b"\xff\xfe", b"\xfe\xff")):
-            text = data.decode("utf-16")
-        else:
-            text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as err:
-        src.fail(f"not UTF-8 text: byte 0x{data[err.start]:02x} at offset {err.start} ({err.reason}); "
-                 "save the study file as UTF-8")
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        src.fail(f"not valid TOML: {err}")
-
-
 def _study(src: _Source, doc: dict) -> dict:
-    t = _Table(src, "study", doc.get("study", {}), ("name", "seed", "realizations", "chunk_size", "description"))
+    t = Table(src, "study", doc.get("study", {}), ("name", "seed", "realizations", "chunk_size", "description",
+                                                    "target", "max_realizations"))
     name = t.string("name", hint="name must be a non-empty string of letters, digits, '-' and '_'",
                     valid=_NAME_RE.match)
-    return {
+    head = {
         "name": name,
         "seed": t.number("seed", integer=True, ge=0, lt=2**63),
         "realizations": t.number("realizations", integer=True, ge=1),
         "chunk_size": t.number("chunk_size", 64, integer=True, ge=1),
         "description": t.string("description", ""),
     }
+    if t.has("target") != t.has("max_realizations"):
+        given, absent = ("target", "max_realizations") if t.has("target") else ("max_realizations", "target")
+        t.invalid(given, f"a run to a target needs both study.target and study.max_realizations (its budget): "
+                         f"add {absent} or remove {given}")
+    if t.has("target"):
+        head["target"] = _target(t.table("target", ("qoi", "statistic", "half_width", "confidence")))
+        head["max_realizations"] = t.number("max_realizations", integer=True, ge=head["realizations"])
+    return head
+
+
+def _target(t: Table) -> Target:
+    qoi = t.string("qoi", choices=tuple(QOI_ATTRS))
+    statistic = t.string("statistic", choices=tuple(TARGET_STATISTICS))
+    applies = TARGET_STATISTICS[statistic]
+    if applies is not None and qoi not in applies:
+        t.invalid("statistic", f"statistic {statistic!r} is of a 0/1 quantity: qoi must be one of {', '.join(applies)}")
+    return Target(qoi, statistic, t.number("half_width", gt=0), t.number("confidence", 0.95, gt=0, lt=1))
+
+
+def _target_rules(src: _Source, head: dict, sampling: Sampling, sensitivity: Sensitivity, design) -> None:
+    """A target run extends its own Monte Carlo (or randomised QMC) sample: refuse it
+    with a plan that does not extend, a sensitivity design or a [design]."""
+    if "target" not in head:
+        return
+    if sampling.plan not in EXTENDABLE_PLANS:
+        src.invalid("sampling.plan", sampling.plan, f"a [study] target run adds realisations in rounds: the plan "
+                                                    f"must be one of {', '.join(EXTENDABLE_PLANS)}")
+    if sensitivity.method != "none" or design is not None:
+        src.invalid("study.target", dataclasses.asdict(head["target"]),
+                    'a [study] target is for a sample of the study (sensitivity method = "none", no [design]): '
+                    'remove it')
 
 
 def _geometry_section(src: _Source, doc: dict):
     """The mould spec and the built mould (needed for the crossover checks)."""
-    t = _Table(src, "geometry", doc["geometry"])
+    t = Table(src, "geometry", doc["geometry"])
     kind = t.string("kind", choices=tuple(_geometry.KINDS))  # first: it decides the valid keys
     sig = inspect.signature(_geometry.KINDS[kind].__init__)
     shape_keys = [p for p in sig.parameters if p != "self"]
@@ -298,7 +209,7 @@ def _geometry_section(src: _Source, doc: dict):
 
 
 def _fabric(src: _Source, doc: dict, mould) -> Fabric:
-    t = _Table(src, "fabric", doc.get("fabric", {}),
+    t = Table(src, "fabric", doc.get("fabric", {}),
                ("material", "spacing_mm", "orientation_deg", "pre_shear_deg", "skew_deg", "crossover"))
     shipped = _material.available_materials()
     hint = (f"material must be a shipped card ({', '.join(shipped)}) "
@@ -329,12 +240,12 @@ def _fabric(src: _Source, doc: dict, mould) -> Fabric:
 
 
 def _process(src: _Source, doc: dict) -> Process:
-    t = _Table(src, "process", doc.get("process", {}), ("blankholder_force_N", "friction", "sectors",
+    t = Table(src, "process", doc.get("process", {}), ("blankholder_force_N", "friction", "sectors",
                                                                     "blankholder_model"))
     hint = ("blankholder_force_N must be a number >= 0 (N), "
             "or a non-empty list of distinct numbers >= 0 (a sweep)")
-    force = t.raw("blankholder_force_N", _REQUIRED, hint)
-    if _is_number(force):
+    force = t.raw("blankholder_force_N", REQUIRED, hint)
+    if is_number(force):
         levels = (float(force),)
     else:
         levels = t.numbers("blankholder_force_N", hint=hint)
@@ -357,7 +268,7 @@ def _process(src: _Source, doc: dict) -> Process:
 
 
 def _solver(src: _Source, doc: dict) -> Solver:
-    t = _Table(src, "solver", doc.get("solver", {}), ("mode", "rings", "tolerance_deg", "max_iterations",
+    t = Table(src, "solver", doc.get("solver", {}), ("mode", "rings", "tolerance_deg", "max_iterations",
                                                         "failure_budget"))
     solver = Solver(
         mode=t.string("mode", "energy", choices=MODES),
@@ -366,18 +277,17 @@ def _solver(src: _Source, doc: dict) -> Solver:
         max_iterations=t.number("max_iterations", 30, integer=True, ge=1),
         failure_budget=t.number("failure_budget", 0.5, ge=0),
     )
+    if solver.rings > MAX_RINGS:
+        t.invalid("rings", f"rings must be an integer in [1, {MAX_RINGS}]: (2 rings + 1)^2 nodes, "
+                           f"{(2 * MAX_RINGS + 1) ** 2:,} at most")
     if solver.failure_budget > 1:
         t.invalid("failure_budget", "failure_budget is a fraction of the nodes, in [0, 1]")
-    nodes = (2 * solver.rings + 1) ** 2
-    if nodes * WORKING_BYTES_PER_NODE > _memory() / 2:
-        t.invalid("rings", f"one drape of {nodes:,} nodes needs about {nodes * WORKING_BYTES_PER_NODE / 2**30:.3g} "
-                  f"GiB, more than half of this machine's {_memory() / 2**30:.3g} GiB")
     return solver
 
 
 def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, material: str) -> RandomField:
     section = f"uncertainty.{name}"
-    t = _Table(src, section, data, (*FIELD_KEYS[name], "correlation", "length_mm", "kl_retained"))
+    t = Table(src, section, data, (*FIELD_KEYS[name], "correlation", "length_mm", "kl_retained"))
     if name == "spacing":
         params = {"cv": t.number("cv")}  # its range is checked by SpacingInput
     elif name == "zero_angle":
@@ -393,9 +303,9 @@ def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, materia
                                        f"{table.gamma0_deg[0]:g} deg at every pre-strain up to "
                                        f"{table.max_prestrain:g} (its stitch friction holds the fabric), "
                                        "so this field would change nothing")
-        top = params["mean"] + 7.0 * params["sd"]
+        top = params["mean"] + REACH_SD * params["sd"]
         if top > table.max_prestrain:
-            src.invalid(section, data, f"mean + 7 sd = {top:g} passes the largest mapped pre-strain "
+            src.invalid(section, data, f"mean + {REACH_SD:g} sd = {top:g} passes the largest mapped pre-strain "
                                        f"{table.max_prestrain:g}; use a smaller mean or sd")
     correlation = t.string("correlation", "iid", choices=_stochastic.CORRELATIONS)
     length = None
@@ -405,6 +315,7 @@ def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, materia
                       '"exponential" or "squared_exponential", or remove length_mm')
         length = t.numbers("length_mm", length=2, hint="length_mm must be two numbers [L1, L2] in mm, > 0")
     retained = t.number("kl_retained", 0.95)
+    _reach(src, name, t, params)
     spec = RandomField(name, params, correlation, length, retained,
                        material if name == "stitch_prestrain" else None)
     given = {k: (t.dotted(k), v) for k, v in t.data.items()}
@@ -417,9 +328,23 @@ def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, materia
     return spec
 
 
+def _reach(src: _Source, name: str, t: Table, params: dict) -> None:
+    """Refuse a spacing or zero-angle field whose values, out to REACH_SD standard
+    deviations, leave the physical range: a segment length must stay > 0, a cell's
+    zero-energy angle inside (-90, 90) degrees. (The runtime check would otherwise stop a
+    run at the first realisation that goes there.)"""
+    if name == "spacing" and 0 <= params["cv"] < 1 and params["cv"] * REACH_SD >= 1:
+        t.invalid("cv", f"a segment s (1 + cv z) must stay > 0 out to z = -{REACH_SD:g} (the field's reach): "
+                        f"cv must be < {1 / REACH_SD:.3g}")
+    if name == "zero_angle" and abs(params["mean_deg"]) + REACH_SD * abs(params["sd_deg"]) >= 90:
+        t.invalid("sd_deg" if t.has("sd_deg") else "mean_deg",
+                  f"|mean_deg| + {REACH_SD:g} sd_deg = {abs(params['mean_deg']) + REACH_SD * abs(params['sd_deg']):g} "
+                  "degrees: a cell's zero-energy angle must stay inside (-90, 90) degrees out to the field's reach")
+
+
 def _factor(src: _Source, name: str, data):
     section = f"uncertainty.{name}"
-    t = _Table(src, section, data)
+    t = Table(src, section, data)
     dist = t.string("dist", choices=_DISTS)  # first: it decides the valid keys
     keys = DIST_KEYS[dist]
     t.only(("dist", *keys))
@@ -441,7 +366,7 @@ def _factor(src: _Source, name: str, data):
 
 def _uncertainty(src: _Source, doc: dict, fabric: Fabric, process: Process, solver: Solver, mould) -> Uncertainty:
     names = (*FIELDS, *FACTOR_SETTINGS)
-    t = _Table(src, "uncertainty", doc.get("uncertainty", {}), names)
+    t = Table(src, "uncertainty", doc.get("uncertainty", {}), names)
     fields, factors = {}, {}
     for name in names:  # schema order, not file order: deterministic messages
         if not t.has(name):
@@ -458,7 +383,11 @@ def _uncertainty(src: _Source, doc: dict, fabric: Fabric, process: Process, solv
         src.invalid("process.blankholder_force_N", list(process.blankholder_force_N),
                     "a sweep cannot be combined with [uncertainty.blankholder_force]; "
                     "give one nominal force or remove the factor")
+    if CARD in factors:
+        _card(src, t.data[CARD], fabric, solver)
     for name, factor in factors.items():
+        if name == CARD:
+            continue
         inp = SOLVER_INPUTS[name]
         lo, hi = _extent(factor)
         if not (inp.admits(lo) and inp.admits(hi)):
@@ -475,6 +404,17 @@ def _uncertainty(src: _Source, doc: dict, fabric: Fabric, process: Process, solv
                         f"crossovers up to x in [{xs[0]:g}, {xs[1]:g}], y in [{ys[0]:g}, {ys[1]:g}] mm "
                         f"leave the mould's domain ({_describe(mould)})")
     return Uncertainty(fields, factors)
+
+
+def _card(src: _Source, data, fabric: Fabric, solver: Solver) -> None:
+    """[uncertainty.card] needs an energy drape (a geodesic one reads no card) and a card
+    that records its specimens' scatter."""
+    if solver.mode != "energy":
+        src.invalid("uncertainty.card", data, 'the card scatter acts on the shear energy: it needs [solver] mode = '
+                                              '"energy"')
+    if not card_scatter(fabric.material):
+        src.invalid("uncertainty.card", data, f"the card {fabric.material} has no [scatter] table (the specimens' sd "
+                                              "of N_s): fit it from several specimens with `uqdrape materials fit`")
 
 
 def _extent(factor) -> tuple[float, float]:
@@ -494,18 +434,37 @@ def _describe(mould) -> str:
     return f"{mould.name}, plan x in [{bounds[0]:g}, {bounds[1]:g}], y in [{bounds[2]:g}, {bounds[3]:g}] mm"
 
 
-def _sampling(src: _Source, doc: dict, realizations: int, seed: int) -> Sampling:
-    t = _Table(src, "sampling", doc.get("sampling", {}), ("plan",))
-    plan = t.string("plan", "monte_carlo", choices=_stochastic.PLANS)
+def _sampling(src: _Source, doc: dict, realizations: int, seed: int, uncertainty: Uncertainty,
+              solver: Solver, fabric: Fabric) -> Sampling:
+    t = Table(src, "sampling", doc.get("sampling", {}), ("plan", "randomizations"))
+    plan = t.string("plan", "monte_carlo", choices=STUDY_PLANS)
+    given = {"plan": ("sampling.plan", plan), "n": ("study.realizations", realizations)}
+    if plan != RQMC:
+        if t.has("randomizations"):
+            t.invalid("randomizations", f'randomizations is only used by plan = "{RQMC}": set it, or remove '
+                                        "randomizations")
+        try:
+            _stochastic.sample_uniforms(plan, realizations, 0, seed)  # checks the plan, draws nothing
+        except ValueError as err:
+            src.wrap(err, "sampling", given)
+        return Sampling(plan)
+    k = t.number("randomizations", integer=True)
+    given["randomizations"] = ("sampling.randomizations", k)
+    d = len(uncertainty.factors) + sum(f.build_input(solver.rings, fabric.spacing_mm).kl(f.kl_retained).n_variables
+                                       for f in uncertainty.fields.values())
     try:
-        _stochastic.sample_uniforms(plan, realizations, 0, seed)  # checks the plan, draws nothing
+        rqmc_points(realizations, k)
     except ValueError as err:
-        src.wrap(err, "sampling", {"plan": ("sampling.plan", plan), "n": ("study.realizations", realizations)})
-    return Sampling(plan)
+        src.wrap(err, "sampling", given)
+    if d > qmc.Sobol.MAXDIM:
+        src.invalid("sampling.plan", plan, f"an rqmc plan of {d} variables (factors and KL modes) needs more "
+                                           f"Sobol' dimensions than scipy's {qmc.Sobol.MAXDIM}: use a correlated "
+                                           "field or a lower kl_retained")
+    return Sampling(plan, k)
 
 
 def _sensitivity(src: _Source, doc: dict, uncertainty: Uncertainty) -> Sensitivity:
-    t = _Table(src, "sensitivity", doc.get("sensitivity", {}), ("method", "base_samples", "qoi"))
+    t = Table(src, "sensitivity", doc.get("sensitivity", {}), ("method", "base_samples", "qoi"))
     method = t.string("method", "none", choices=SENSITIVITY_METHODS)
     base = None
     if method == "none":
@@ -513,13 +472,9 @@ def _sensitivity(src: _Source, doc: dict, uncertainty: Uncertainty) -> Sensitivi
             t.invalid("base_samples", 'base_samples is only used by a sensitivity method: set method = '
                       '"sobol" or "morris", or remove base_samples')
     else:
-        # imported here: SALib is slow to import and only needed for a sensitivity study.
-        # check_base_samples holds the design's minimum and power-of-two rules.
-        from ..sensitivity import check_base_samples
-
         base = t.number("base_samples", integer=True, ge=1)
         try:
-            check_base_samples(method, base)
+            _stochastic.check_base_samples(method, base)
         except ValueError as err:
             src.wrap(err, "sensitivity", {"base_samples": ("sensitivity.base_samples", base)})
         if len(uncertainty.varying) < 2:
@@ -527,14 +482,15 @@ def _sensitivity(src: _Source, doc: dict, uncertainty: Uncertainty) -> Sensitivi
             src.invalid("sensitivity.method", method,
                         f"a sensitivity analysis needs at least two [uncertainty.*] inputs (found: {found}); "
                         "indices of a single input are 1 by construction")
-    hint = f"qoi must be a non-empty list of distinct names from {', '.join(QOIS)}"
-    qoi = t.raw("qoi", list(QOIS), hint)
-    if not isinstance(qoi, list) or not qoi or len(set(map(repr, qoi))) != len(qoi) or any(q not in QOIS for q in qoi):
+    hint = f"qoi must be a non-empty list of distinct names from {', '.join(QOI_ATTRS)}"
+    qoi = t.raw("qoi", list(SENSITIVITY_QOIS), hint)
+    if (not isinstance(qoi, list) or not qoi or len(set(map(repr, qoi))) != len(qoi)
+            or any(q not in QOI_ATTRS for q in qoi)):
         t.invalid("qoi", hint)
     return Sensitivity(method, base, tuple(qoi))
 
 
-def _bounds(t: _Table, key: str, unit: str):
+def _bounds(t: Table, key: str, unit: str):
     """Two numbers [lo, hi] with 0 <= lo < hi."""
     hint = f"{key} must be two numbers [lo, hi] with 0 <= lo < hi{unit}"
     lo, hi = t.numbers(key, length=2, hint=hint)
@@ -558,7 +514,7 @@ def _design(src: _Source, doc: dict, process: Process, uncertainty: Uncertainty,
     """The [design] section (None without one) and the rules tying it to the study."""
     if "design" not in doc:
         return None
-    t = _Table(src, "design", doc["design"], ("variables", "sectors", "force_bounds_N", "friction_bounds",
+    t = Table(src, "design", doc["design"], ("variables", "sectors", "force_bounds_N", "friction_bounds",
                                               "budget_N", "objective", "statistic", "target", "confidence",
                                               "max_evaluations", "tolerance_N", "validation_realizations",
                                               "max_draw_in_mm"))
@@ -605,11 +561,11 @@ def _design(src: _Source, doc: dict, process: Process, uncertainty: Uncertainty,
 
 
 def _report(src: _Source, doc: dict, rings: int) -> Report:
-    t = _Table(src, "report", doc.get("report", {}), ("histogram_nodes", "experimental_csv"))
+    t = Table(src, "report", doc.get("report", {}), ("histogram_nodes", "experimental_csv"))
     hint = f"histogram_nodes must be a list of [i, j] integer pairs with |i|, |j| <= rings = {rings}"
     nodes = t.raw("histogram_nodes", [], hint)
     ok = isinstance(nodes, list) and all(
-        isinstance(n, list) and len(n) == 2 and all(_is_int(v) and abs(v) <= rings for v in n) for n in nodes)
+        isinstance(n, list) and len(n) == 2 and all(is_int(v) and abs(v) <= rings for v in n) for n in nodes)
     if not ok:
         t.invalid("histogram_nodes", hint)
     csv = None
@@ -623,68 +579,16 @@ def _report(src: _Source, doc: dict, rings: int) -> Report:
 
 
 def _output(src: _Source, doc: dict, name: str) -> tuple[Path, bool]:
-    t = _Table(src, "output", doc.get("output", {}), ("directory", "float32"))
-    directory = t.string("directory", f"results/{name}", hint="directory must be a non-empty path", valid=bool)
+    t = Table(src, "output", doc.get("output", {}), ("directory", "float32"))
+    directory = t.string("directory", f"results/{name}", hint="directory must be a non-empty path without NUL",
+                         valid=lambda d: bool(d) and "\0" not in d)
+    if not Path(directory).is_absolute() and not inside(directory):
+        t.invalid("directory", "a relative directory is taken from the current folder and must stay in it "
+                               "('..' climbing out is refused); write the absolute path")
     float32 = t.raw("float32", False, "float32 must be true or false")
     if not isinstance(float32, bool):
         t.invalid("float32", "float32 must be true or false")
-    existing = _nearest_existing(Path(directory))
-    if not existing.is_dir():
-        src.invalid("output.directory", directory, f"{existing} is a file, not a folder")
-    if not os.access(existing, os.W_OK | os.X_OK):
-        src.invalid("output.directory", directory, f"{existing} is not writable")
     return Path(directory), float32
-
-
-#: Bytes a node costs in a chunk file (x, y, z, shear, locked, status and the cells' values)
-#: and, about, in the solver's working arrays of an energy drape (candidate rings per step).
-STORED_BYTES_PER_NODE = 64
-WORKING_BYTES_PER_NODE = 600
-
-
-def _nominal_placement(src: _Source, mould, fabric: Fabric, solver: Solver) -> None:
-    """Refuse a study whose nominal net (a geodesic drape at the fixed settings) loses more
-    than ``failure_budget`` of its nodes: every realisation would be mostly NaN."""
-    ds = drape(mould, fabric.spacing_mm, solver.rings, orientation=fabric.orientation_deg,
-               pre_shear=fabric.pre_shear_deg, skew=fabric.skew_deg, crossover=fabric.crossover)
-    failed, why = placement_failures(ds["status"].values[0])
-    if failed > solver.failure_budget:
-        src.invalid("solver.rings", solver.rings, f"{failed:.0%} of the nominal net's nodes cannot be placed "
-                    f"(geodesic drape at the fixed settings), more than solver.failure_budget = "
-                    f"{solver.failure_budget:g} ({why}): use fewer rings, a smaller spacing or move the crossover")
-
-
-def _nearest_existing(path: Path) -> Path:
-    """``path`` (absolute) or its nearest ancestor that exists: where the output folder will be made."""
-    path = path.absolute()
-    while not path.exists():
-        path = path.parent
-    return path
-
-
-def _memory() -> int:
-    """This machine's physical memory (bytes)."""
-    return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-
-
-def _resources(src: _Source, realizations: int, chunk_size: int, rings: int, levels: int, output_dir: Path):
-    """Refuse a study whose chunk would not fit in memory or whose ensemble would not fit on
-    the disk of its output folder (estimates, stated in the message; one drape's own size
-    is checked with [solver] rings)."""
-    nodes = (2 * rings + 1) ** 2
-    batch = min(chunk_size, realizations)
-    need = batch * nodes * WORKING_BYTES_PER_NODE
-    if need > _memory() / 2:
-        src.invalid("study.chunk_size", chunk_size,
-                    f"a chunk of {batch} drapes of {nodes:,} nodes needs about {need / 2**30:.3g} GiB, more than "
-                    f"half of this machine's {_memory() / 2**30:.3g} GiB; use a smaller chunk_size")
-    existing = _nearest_existing(output_dir)
-    disk = realizations * levels * nodes * STORED_BYTES_PER_NODE
-    free = shutil.disk_usage(existing).free
-    if disk > free:
-        src.invalid("study.realizations", realizations,
-                    f"{realizations * levels:,} drapes of {nodes:,} nodes take about {disk / 2**30:.3g} GiB, "
-                    f"more than the {free / 2**30:.3g} GiB free under {existing}")
 
 
 # ----------------------------------------------------------------------------- public API
@@ -694,7 +598,7 @@ def load_study(path) -> Study:
     """Read and validate a study file; raises StudyError (first problem found)."""
     path = Path(path)
     src = _Source(path)
-    doc = _read_toml(path, src)
+    doc = src.read()
     for key, value in doc.items():
         if key not in SECTIONS:
             what = f"section [{key}]" if isinstance(value, dict) else f"top-level key {key} (outside any section)"
@@ -708,26 +612,12 @@ def load_study(path) -> Study:
     process = _process(src, doc)
     solver = _solver(src, doc)
     uncertainty = _uncertainty(src, doc, fabric, process, solver, mould)
-    sampling = _sampling(src, doc, head["realizations"], head["seed"])
+    sampling = _sampling(src, doc, head["realizations"], head["seed"], uncertainty, solver, fabric)
     sensitivity = _sensitivity(src, doc, uncertainty)
     design = _design(src, doc, process, uncertainty, sensitivity, head["realizations"])
+    _target_rules(src, head, sampling, sensitivity, design)
     report = _report(src, doc, solver.rings)
     output_dir, float32 = _output(src, doc, head["name"])  # checked last, as the sections are ordered
-    _resources(src, head["realizations"], head["chunk_size"], solver.rings, len(process.blankholder_force_N),
-               output_dir)
-    _nominal_placement(src, mould, fabric, solver)
-    return Study(
-        path=path,
-        **head,
-        geometry=geometry,
-        fabric=fabric,
-        process=process,
-        solver=solver,
-        uncertainty=uncertainty,
-        sampling=sampling,
-        sensitivity=sensitivity,
-        report=report,
-        output_dir=output_dir,
-        design=design,
-        float32=float32,
-    )
+    return Study(path=path, **head, geometry=geometry, fabric=fabric, process=process, solver=solver,
+                 uncertainty=uncertainty, sampling=sampling, sensitivity=sensitivity, report=report,
+                 output_dir=output_dir, design=design, float32=float32)

@@ -1,0 +1,49 @@
+"""uqdrape.calibration: from fibre-angle measurements to a study's variability model.
+
+A CSV of local fibre angles measured on a flat sample (:mod:`.points`) is mapped to the
+model's zero-energy shear angle γ0 along the fibre axes (:mod:`.mapping`, where the
+mapping is decided), a Gaussian field is fitted to it by restricted maximum likelihood
+for each correlation family of ``uqdrape.stochastic.fields`` (:mod:`.likelihood`), the
+family chosen by AIC or BIC and every parameter given a profile-likelihood interval
+(:mod:`.fit`), and the result written as the study block ``[uncertainty.zero_angle]``
+(:mod:`.block`) with a figure (:mod:`.figure`). :mod:`.synthetic` draws measurement sets
+from known fields to check a fit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .block import block_text, study_block
+from .fit import CRITERIA, Estimate, FieldFit, fit_field
+from .likelihood import FAMILIES
+from .mapping import fibre_coordinates, zero_angle_deg
+from .points import AnglePoints, PointsError, read_points
+from .synthetic import synthetic_set
+
+__all__ = ["CRITERIA", "FAMILIES", "AnglePoints", "Estimate", "FieldFit", "PointsCalibration", "PointsError",
+           "block_text", "calibrate_points", "fit_field", "read_points", "study_block", "synthetic_set"]
+
+
+@dataclass
+class PointsCalibration:
+    """A calibration from measured points: the points, their γ0 (deg) and fibre
+    coordinates a, b (mm), the nominal fibre-1 angle (deg from x) and the field fit."""
+
+    points: AnglePoints
+    gamma0_deg: np.ndarray
+    a_mm: np.ndarray
+    b_mm: np.ndarray
+    fibre1_deg: float
+    fit: FieldFit
+
+
+def calibrate_points(points: AnglePoints, *, fibre1_deg: float = 45.0, family: str = "auto",
+                     criterion: str = "aic", level: float = 0.9) -> PointsCalibration:
+    """Fit the γ0 field of measured ``points`` (see the package docstring)."""
+    gamma0 = zero_angle_deg(points, fibre1_deg)
+    a, b = fibre_coordinates(points.x_mm, points.y_mm, fibre1_deg)
+    fit = fit_field(a, b, gamma0, points.sd_deg, family=family, criterion=criterion, level=level)
+    return PointsCalibration(points, gamma0, a, b, fibre1_deg, fit)

@@ -1,0 +1,71 @@
+"""The calibration as a study block: ``[uncertainty.zero_angle]`` a study uses as is.
+
+The fit is recorded in comment lines above the table, not in a table of its own: a
+study file refuses tables it does not know (``uqdrape.study.validate``), and comments
+go wherever the block is pasted. They name the source file, the mapping, every family's
+criterion, each estimate with its interval and the measurement error left out of the
+field. The table holds only what a study reads: ``mean_deg``, ``sd_deg``,
+``correlation`` and, for a correlated family, ``length_mm = [L1, L2]`` (mm along fibre 1
+and fibre 2), each rounded to 4 significant digits.
+"""
+
+from __future__ import annotations
+
+from datetime import date
+from pathlib import Path
+
+from .. import __version__
+from ..files import toml_text
+
+#: Significant digits of the values written to the block.
+DIGITS = 4
+
+
+def _round(value: float) -> float:
+    return float(f"{value:.{DIGITS}g}")
+
+
+def _interval(estimate) -> str:
+    lower = ("<= " if estimate.lower_open else "") + f"{estimate.lower:.4g}"
+    upper = (">= " if estimate.upper_open else "") + f"{estimate.upper:.4g}"
+    return f"[{lower}, {upper}]"
+
+
+def study_block(calibration) -> dict:
+    """The ``{"uncertainty": {"zero_angle": ...}}`` table of a :class:`PointsCalibration`."""
+    fit = calibration.fit
+    est = fit.estimates
+    table = {"mean_deg": _round(est["mean_deg"].value), "sd_deg": _round(est["sd_deg"].value),
+             "correlation": fit.family}
+    if fit.family != "iid":
+        table["length_mm"] = [_round(est["length_1_mm"].value), _round(est["length_2_mm"].value)]
+    return {"uncertainty": {"zero_angle": table}}
+
+
+def block_text(calibration, command: str = "uqdrape calibrate") -> str:
+    """The study block as TOML text, the fit in its leading comments."""
+    fit = calibration.fit
+    points = calibration.points
+    sets = {k: int((points.fibre_set == k).sum()) for k in (1, 2)}
+    crit = fit.criterion.upper()
+    lines = [
+        f"[uncertainty.zero_angle] calibrated by `{command}` (uqdrape {__version__}, {date.today().isoformat()})",
+        f"from {Path(points.source).name}: {len(points)} points (fibre set 1: {sets[1]}, set 2: {sets[2]}), fibre 1 "
+        f"nominally at {calibration.fibre1_deg:g} deg from x",
+        "gamma0 = the measured fibre's deviation from nominal, that set rotating against the other "
+        "(uqdrape.calibration.mapping); the mean offset reads as the stitch's rest shear",
+        f"family by {crit} of the restricted likelihood (least is kept):",
+        *[f"  {name:20s} {crit} {getattr(f, fit.criterion):10.2f}  log-likelihood {f.loglik:10.2f}"
+          f"{'  <- kept' if name == fit.family else ''}" for name, f in fit.fits.items()],
+        f"estimates and {100 * fit.level:g} % profile-likelihood intervals (uqdrape.calibration.fit):",
+    ]
+    for name, estimate in fit.estimates.items():
+        if name == "nugget_deg":
+            lines.append(f"  {name:12s} {estimate.value:8.4g}  (measurement error beyond the file's sd_deg; "
+                         "not part of the study's field)")
+        else:
+            lines.append(f"  {name:12s} {estimate.value:8.4g}  {_interval(estimate)}")
+    if points.sd_deg.any():
+        lines.append(f"per-point measurement sd from the file: {points.sd_deg.min():.3g} to "
+                     f"{points.sd_deg.max():.3g} deg (left out of sd_deg)")
+    return toml_text(study_block(calibration), "\n".join(lines))

@@ -1,0 +1,159 @@
+"""The calibration figure: the measured points, the fitted field, a predictive check, the
+distribution, the profile likelihoods and the families' criteria, in one PNG."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import scipy.stats
+
+from ..files import write_atomic
+from .fit import profile_curve
+from .mapping import fibre_coordinates
+
+#: Cells per side of the fitted-field map.
+_MAP_CELLS = 60
+
+
+def _figure(width_in, height_in):
+    """A matplotlib Figure on the Agg canvas (matplotlib imported only when drawing)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width_in, height_in), layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def plot_calibration(calibration, path) -> Path:
+    """Write the figure of a :class:`~uqdrape.calibration.PointsCalibration` to ``path`` (PNG)."""
+    fit = calibration.fit
+    points = calibration.points
+    level = fit.level
+    fig = _figure(17.0, 8.0)
+    axes = fig.subplots(2, 4)
+    fig.suptitle(f"Fibre-angle calibration of {Path(points.source).name}: {len(points)} points, {fit.family} field "
+                 f"(by {fit.criterion.upper()}), {100 * level:g} % intervals")
+    lim = _colour_limits(calibration)
+    _points(axes[0, 0], calibration, lim)
+    _field(fig, axes[0, 1], calibration, lim)
+    _loo(axes[0, 2], calibration)
+    _histogram(axes[0, 3], calibration)
+    for ax, (name, label) in zip(axes[1, :3], (("sd_deg", "sd σ (deg)"), ("length_1_mm", "L1 along fibre 1 (mm)"),
+                                              ("length_2_mm", "L2 along fibre 2 (mm)"))):
+        _profile(ax, fit, name, label)
+    _criteria(axes[1, 3], fit)
+    path = Path(path)
+    return write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
+
+
+def _colour_limits(calibration):
+    mean = calibration.fit.estimates["mean_deg"].value
+    half = float(np.max(np.abs(calibration.gamma0_deg - mean))) or 1.0
+    return mean - half, mean + half
+
+
+def _arrows(ax, calibration):
+    """The nominal fibre directions, from the middle of the sample."""
+    x, y = calibration.points.x_mm, calibration.points.y_mm
+    centre = np.array([x.mean(), y.mean()])
+    size = 0.25 * max(np.ptp(x), np.ptp(y), 1.0)
+    for k, angle in ((1, calibration.fibre1_deg), (2, calibration.fibre1_deg + 90.0)):
+        d = size * np.array([np.cos(np.deg2rad(angle)), np.sin(np.deg2rad(angle))])
+        ax.annotate("", xy=centre + d, xytext=centre, arrowprops=dict(arrowstyle="->", color="k", lw=1.2))
+        ax.text(*(centre + 1.12 * d), f"fibre {k}", ha="center", va="center", fontsize=8)
+
+
+def _points(ax, calibration, lim):
+    p = calibration.points
+    marker = np.where(p.fibre_set == 1, "o", "s")
+    for m, label in (("o", "set 1"), ("s", "set 2")):
+        keep = marker == m
+        if keep.any():
+            sc = ax.scatter(p.x_mm[keep], p.y_mm[keep], c=calibration.gamma0_deg[keep], cmap="coolwarm",
+                            vmin=lim[0], vmax=lim[1], marker=m, edgecolors="k", linewidths=0.4, label=label)
+    ax.figure.colorbar(sc, ax=ax, label="γ0 (deg)")
+    _arrows(ax, calibration)
+    ax.set(title="measured points\nγ0 = the fibre's deviation from nominal", xlabel="x (mm)", ylabel="y (mm)", aspect="equal")
+    ax.legend(fontsize=7, loc="lower right")
+
+
+def _field(fig, ax, calibration, lim):
+    """The field's conditional mean given the points, on a grid over their bounding box."""
+    p, fit = calibration.points, calibration.fit
+    pad = 0.05 * max(np.ptp(p.x_mm), np.ptp(p.y_mm), 1.0)
+    gx = np.linspace(p.x_mm.min() - pad, p.x_mm.max() + pad, _MAP_CELLS)
+    gy = np.linspace(p.y_mm.min() - pad, p.y_mm.max() + pad, _MAP_CELLS)
+    X, Y = np.meshgrid(gx, gy)
+    a, b = fibre_coordinates(X.ravel(), Y.ravel(), calibration.fibre1_deg)
+    mean, _ = fit.likelihood.predict(fit.chosen.theta, a, b)
+    mesh = ax.pcolormesh(gx, gy, mean.reshape(X.shape), cmap="coolwarm", vmin=lim[0], vmax=lim[1], shading="auto")
+    ax.scatter(p.x_mm, p.y_mm, s=6, c="k")
+    fig.colorbar(mesh, ax=ax, label="γ0 (deg)")
+    note = "iid: no structure between points" if fit.family == "iid" else (
+        f"L = {fit.chosen.length_mm[0]:.3g}, {fit.chosen.length_mm[1]:.3g} mm")
+    ax.set(title=f"fitted field (conditional mean)\n{note}", xlabel="x (mm)", ylabel="y (mm)", aspect="equal")
+
+
+def _loo(ax, calibration):
+    """Each point against its prediction from all the others, with the predictive band."""
+    fit = calibration.fit
+    y = calibration.gamma0_deg
+    pred, sd = fit.likelihood.leave_one_out(fit.chosen.theta)
+    z = scipy.stats.norm.ppf(0.5 + fit.level / 2)
+    inside = np.abs(y - pred) <= z * sd
+    ax.errorbar(pred, y, xerr=z * sd, fmt="none", ecolor="0.7", lw=0.8)
+    ax.scatter(pred[inside], y[inside], s=12, c="C0", label="inside")
+    ax.scatter(pred[~inside], y[~inside], s=14, c="C3", label="outside")
+    span = [min(y.min(), pred.min()), max(y.max(), pred.max())]
+    ax.plot(span, span, "k-", lw=0.8)
+    ax.set(title=f"predictive check: {inside.sum()} of {len(y)} points inside\nthe {100 * fit.level:g} % "
+                 "band predicted from the others",
+           xlabel="γ0 predicted from the other points (deg)", ylabel="γ0 measured (deg)")
+    ax.legend(fontsize=7)
+
+
+def _histogram(ax, calibration):
+    fit = calibration.fit
+    y = calibration.gamma0_deg
+    ax.hist(y, bins=max(5, int(np.sqrt(len(y)))), density=True, color="0.75", edgecolor="k", lw=0.4)
+    mean = fit.estimates["mean_deg"].value
+    sd = np.hypot(fit.chosen.sd_deg, fit.chosen.nugget_deg)
+    grid = np.linspace(y.min() - sd, y.max() + sd, 200)
+    ax.plot(grid, scipy.stats.norm.pdf(grid, mean, sd), "C0-",
+            label=f"fitted N({mean:.3g}, {sd:.3g}²)\n(field and nugget)")
+    ax.set(title="distribution of γ0", xlabel="γ0 (deg)", ylabel="density")
+    ax.legend(fontsize=7, loc="upper left")
+
+
+def _profile(ax, fit, name, label):
+    profile = fit.profiles.get(name)
+    if profile is None:
+        ax.text(0.5, 0.5, f"{fit.family}: no {label.split(' ')[0]}", ha="center", va="center",
+                transform=ax.transAxes)
+        ax.set(title=f"profile likelihood of {label}", xticks=[], yticks=[])
+        return
+    estimate = fit.estimates[name]
+    values, deviance = profile_curve(fit, name)
+    ax.plot(values, deviance, "C0.-")
+    lo, hi = profile.cut
+    ax.axhline(lo, color="C3", ls=":", lw=0.8)
+    if hi != lo:
+        ax.axhline(hi, color="C3", ls="--", lw=0.8)
+    ax.axvspan(estimate.lower, estimate.upper, color="C0", alpha=0.12)
+    ax.axvline(estimate.value, color="k", lw=0.8)
+    ends = ("≤" if estimate.lower_open else "") + f"{estimate.lower:.3g}", \
+        ("≥" if estimate.upper_open else "") + f"{estimate.upper:.3g}"
+    ax.set(title=f"profile likelihood of {label}\n{estimate.value:.3g} [{ends[0]}, {ends[1]}]",
+           xlabel=label, ylabel="2 (ℓ̂ − ℓ_profile)", ylim=(0, 1.6 * max(lo, hi)))
+
+
+def _criteria(ax, fit):
+    names = list(fit.fits)
+    values = [getattr(fit.fits[n], fit.criterion) for n in names]
+    colours = ["C0" if n == fit.family else "0.7" for n in names]
+    ax.bar(range(len(names)), np.asarray(values) - min(values), color=colours)
+    ax.set_xticks(range(len(names)), [n.replace("_", "\n") for n in names], fontsize=8)
+    ax.set(title=f"{fit.criterion.upper()} − least (the kept family in blue)",
+           ylabel=f"Δ{fit.criterion.upper()}")

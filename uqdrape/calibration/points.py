@@ -1,0 +1,108 @@
+"""Measured local fibre angles on a flat fabric sample, read from a CSV.
+
+Format (a header row, columns in any order, extra columns refused so a misspelt
+optional column is not silently ignored)::
+
+    x_mm,y_mm,angle_deg,fibre_set[,sd_deg]
+    12.5,40.0,42.1,1
+    37.5,40.0,136.2,2
+
+``x_mm``, ``y_mm``: the point on the sample (mm, any origin). ``angle_deg``: the plan
+direction of the measured fibre, degrees anticlockwise from the sample's x axis (the
+weft datum of the thesis's Table 5.1); a fibre is a line, so 42 and 222 are the same.
+``fibre_set``: 1 or 2, which of the two tow sets was measured. ``sd_deg`` (optional): the
+measurement's own standard deviation (deg, >= 0), e.g. the scatter of repeated readings.
+
+Every problem raises :class:`PointsError`, one line naming the file, the row (the
+file's line number) and the column.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..files import FileFormatError, read_text
+
+REQUIRED_COLUMNS = ("x_mm", "y_mm", "angle_deg", "fibre_set")
+SD_COLUMN = "sd_deg"
+FIBRE_SETS = (1, 2)
+
+
+class PointsError(FileFormatError):
+    """A problem in a fibre-angle CSV; ``key`` is the column at fault (None: the file)."""
+
+
+@dataclass(frozen=True)
+class AnglePoints:
+    """Measured fibre angles: position (mm), plan angle (deg from x), fibre set (1 or 2),
+    the measurement sd (deg; 0 where the file gives none), each point's line in the file
+    (``rows``, for messages) and the file as it was named (``source``)."""
+
+    x_mm: np.ndarray
+    y_mm: np.ndarray
+    angle_deg: np.ndarray
+    fibre_set: np.ndarray
+    sd_deg: np.ndarray
+    rows: np.ndarray
+    source: str
+
+    def __len__(self) -> int:
+        return len(self.x_mm)
+
+
+def read_points(path) -> AnglePoints:
+    """The fibre-angle points of the CSV ``path`` (see the module docstring)."""
+    path = Path(path)
+    text = read_text(path, "fibre-angle CSV", error=PointsError)
+    rows = csv.reader(io.StringIO(text))
+    header = [h.strip() for h in next(rows, [])]
+
+    def fail(why, column=None):
+        raise PointsError(f"{path}: {why}", path, column)
+
+    valid = f"columns {', '.join(REQUIRED_COLUMNS)} (optional: {SD_COLUMN})"
+    for name in header:
+        if name not in (*REQUIRED_COLUMNS, SD_COLUMN):
+            fail(f"row 1: column {name!r} is unknown; valid: {valid}", name)
+        if header.count(name) > 1:
+            fail(f"row 1: column {name!r} is repeated; valid: {valid}", name)
+    for name in REQUIRED_COLUMNS:
+        if name not in header:
+            fail(f"row 1: column {name!r} is missing; the header is {','.join(header)!r}, valid: {valid}", name)
+    values = {name: [] for name in header}
+    lines = []
+    for line, row in enumerate(rows, start=2):
+        if not any(cell.strip() for cell in row):
+            continue  # a blank line
+        lines.append(line)
+        if len(row) != len(header):
+            fail(f"row {line}: {len(row)} values for {len(header)} columns")
+        for name, cell in zip(header, row):
+            values[name].append(_value(name, cell.strip(), lambda why, n=name: fail(f"row {line}: {why}", n)))
+    if not values["x_mm"]:
+        fail("no data rows after the header")
+    columns = {name: np.asarray(v, dtype=float) for name, v in values.items()}
+    sd = columns.get(SD_COLUMN, np.zeros(len(columns["x_mm"])))
+    return AnglePoints(columns["x_mm"], columns["y_mm"], columns["angle_deg"], columns["fibre_set"].astype(int),
+                       sd, np.asarray(lines), str(path))
+
+
+def _value(name: str, text: str, fail) -> float:
+    """The number in cell ``text`` of column ``name``, checked for that column."""
+    try:
+        value = float(text)
+    except ValueError:
+        fail(f"column {name!r} = {text!r} is not a number")
+    if not math.isfinite(value):
+        fail(f"column {name!r} = {text!r} is not finite")
+    if name == "fibre_set" and value not in FIBRE_SETS:
+        fail(f"column 'fibre_set' = {text!r}; valid: 1 or 2")
+    if name == SD_COLUMN and value < 0:
+        fail(f"column {SD_COLUMN!r} = {text!r}; valid: a measurement sd >= 0 (deg)")
+    return value

@@ -1,0 +1,79 @@
+"""Estimators of a design's statistics from its per-drape quantities, with confidence
+limits, and what the optimiser minimises of them (see ``uqdrape.design``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+
+from ..stats import line_means, mean_statistics, quantile_statistics, wilson_interval
+from ..study.spec import DESIGN_OBJECTIVES
+
+#: Statistic of the draw-in limit, and the value of a design that breaks it before its
+#: excess (mm) is added: above every feasible objective (probabilities, degrees, mm).
+DRAW_IN = "q95_max_draw_in"
+INFEASIBLE = 1.0e6
+STATISTICS = tuple(DESIGN_OBJECTIVES)
+
+
+def per_realization(record: xr.Dataset, k_max: int) -> dict[str, np.ndarray]:
+    """The per-drape quantity of each statistic (name -> (R,) array)."""
+    asym = line_means(record["line_shear"], k_max)["asymmetry"]
+    return {"p_locked": record["any_locked"].values, "q95_max_abs_shear": record["max_abs_shear"].values,
+            "abs_mean_asymmetry": asym.values, DRAW_IN: record["max_draw_in"].values}
+
+
+def statistics(values: dict, confidence: float) -> dict[str, tuple]:
+    """(estimate, lower, upper) of every statistic of per-drape quantities ``values``
+    (name -> array (..., R)): floats for one design, arrays (...) for a stack of them
+    (e.g. bootstrap resamples)."""
+    out = {}
+    for name, v in values.items():
+        v = np.asarray(v, dtype=float)
+        kind = DESIGN_OBJECTIVES[name][1]
+        drapes = xr.DataArray(v).rename({f"dim_{v.ndim - 1}": "realization"})
+        if kind == "probability":
+            n = np.count_nonzero(~np.isnan(v), axis=-1)
+            k = np.nansum(v, axis=-1)
+            lo, hi = wilson_interval(k, n, confidence)
+            triple = (k / n, lo, hi)
+        elif kind == "quantile95":
+            q = quantile_statistics(drapes, [0.95], confidence).isel(quantile=0)
+            triple = tuple(q[f"quantile_{s}"].values for s in ("value", "lower", "upper"))
+        else:
+            m = mean_statistics(drapes, confidence)
+            mean, lo, hi = (m[s].values for s in ("mean", "mean_lower", "mean_upper"))
+            straddles = (lo <= 0) & (hi >= 0)  # |mean| folded at 0
+            triple = (np.abs(mean), np.where(straddles, 0.0, np.minimum(np.abs(lo), np.abs(hi))),
+                      np.maximum(np.abs(lo), np.abs(hi)))
+        out[name] = tuple(float(t) if np.ndim(t) == 0 else np.asarray(t, dtype=float) for t in triple)
+    return out
+
+
+def _statistic(stats: dict, name: str, spec):
+    """The spec's statistic (upper limit or estimate) of statistic ``name``."""
+    estimate, _, upper = stats[name]
+    value = upper if spec.statistic == "upper" else estimate
+    if not np.all(np.isfinite(value)):
+        raise ValueError(f"the {spec.statistic} of {name} is undefined (no valid realisation, or too few "
+                         "for its confidence limit)")
+    return value
+
+
+def excess(stats: dict, spec):
+    """How far (mm) a design breaks the draw-in limit, 0 if it keeps it or there is none."""
+    if spec.max_draw_in_mm is None:
+        return np.zeros(np.shape(stats[DRAW_IN][0]))
+    return np.maximum(_statistic(stats, DRAW_IN, spec) - spec.max_draw_in_mm, 0.0)
+
+
+def objective_value(stats: dict, spec):
+    """What the design minimises of its statistics (a float, or an array for a stack)."""
+    value = _statistic(stats, spec.objective, spec)
+    return np.abs(value - spec.target) if spec.target is not None else value
+
+
+def penalised(stats: dict, spec):
+    """The objective, or ``INFEASIBLE`` + the excess (mm) of a design over the draw-in limit."""
+    over = excess(stats, spec)
+    return np.where(over > 0, INFEASIBLE + over, objective_value(stats, spec))

@@ -1,0 +1,199 @@
+"""Readers of shear-test files: a specimen's CSV and the rig file that names them.
+
+Test CSV: optional ``#`` comment lines, a header naming the columns, then one row per
+sample: crosshead force (N), crosshead displacement (mm) and optionally the optically
+measured shear angle of the central region (deg, the thesis's recommendation for BE).
+Which header names these are is the rig file's ``[columns]`` table; other columns are
+ignored.
+
+Rig file (TOML), lengths in mm, angles in deg::
+
+    name = "ebx936_pf"              # optional: the card's name (default: the card's stem)
+    description = "..."             # optional
+    test = "picture_frame"          # or "bias_extension"
+    phi0_deg = 45.0                 # the card's φ0; negative-branch specimens are tested
+                                    # at 90 − φ0 (the other bisector)
+    side_mm = 145.0                 # picture frame: side L (hinge to hinge)
+    height_mm = 180.0               # bias extension: free height h0 ...
+    width_mm = 90.0                 # ... and width w0 (κ = h0/w0 · tan φ0)
+
+    [columns]                       # optional; these are the defaults
+    force = "force_n"
+    displacement = "displacement_mm"
+    angle = "angle_deg"             # used where the header has it
+
+    [fit]                           # optional; these are the defaults
+    knots = 5                       # interior knots of the monotone spline
+    jump_deg = 1.0                  # rows below this shear are the friction jump: not fitted
+    friction = "keep"               # or "subtract": the fit's value at 0 (the jump) removed
+    max_angle_deg = 60.0            # the valid range ends here at the latest ...
+    max_divergence_deg = 2.0        # ... or where measured and kinematic θ differ by more
+    step_deg = 1.0                  # the card's angle spacing
+
+    [[specimen]]                    # one per test
+    file = "pf1.csv"                # relative to the rig file
+    branch = "positive"             # or "negative" (NCFs: tested the other way)
+    # height_mm / width_mm / side_mm here override the rig's for this specimen
+
+Every problem raises `ShearTestError`, one line naming the file and the key, or the line
+and column of the CSV, at fault.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ...files import Document, FileFormatError, Table, read_text
+from .bias_extension import BiasExtension
+from .picture_frame import PictureFrame
+
+#: Fewest data rows a specimen's CSV may have: a spline of 5 knots wants many more points.
+MIN_ROWS = 20
+TESTS = ("picture_frame", "bias_extension")
+BRANCHES = ("positive", "negative")
+_COLUMNS = {"force": "force_n", "displacement": "displacement_mm", "angle": "angle_deg"}
+_FIT = {"knots": 5, "jump_deg": 1.0, "friction": "keep", "max_angle_deg": 60.0, "max_divergence_deg": 2.0,
+        "step_deg": 1.0}
+_DIMENSIONS = {"picture_frame": ("side_mm",), "bias_extension": ("height_mm", "width_mm")}
+_TOP = ("name", "description", "test", "phi0_deg", "side_mm", "height_mm", "width_mm", "columns", "fit", "specimen")
+
+
+class ShearTestError(FileFormatError):
+    """A problem in a shear-test rig file or test CSV (one line naming file and place)."""
+
+
+@dataclass(frozen=True)
+class TestData:
+    """One specimen's rows: force (N), displacement (mm), measured angle (deg) or None,
+    and the file line of each row."""
+
+    path: Path
+    force_n: np.ndarray
+    displacement_mm: np.ndarray
+    angle_deg: np.ndarray | None
+    lines: np.ndarray
+    columns: dict
+
+    def fail(self, row: int, column: str, why: str):
+        """Raise the error of data row ``row`` (index), column ``column`` (a [columns] key)."""
+        raise ShearTestError(f"{self.path}: line {self.lines[row]}, column {self.columns[column]}: {why}", self.path)
+
+
+@dataclass(frozen=True)
+class Specimen:
+    """A specimen of the rig file: its data, branch and rig geometry (a PictureFrame or a
+    BiasExtension at the φ0 it was tested at)."""
+
+    data: TestData
+    branch: str
+    rig: PictureFrame | BiasExtension
+
+
+@dataclass(frozen=True)
+class RigFile:
+    """A rig file read: the card's name, description, test, φ0, fit options and specimens."""
+
+    path: Path
+    name: str | None
+    description: str
+    test: str
+    phi0_deg: float
+    fit: dict
+    specimens: list
+
+
+def read_test_csv(path, columns: dict) -> TestData:
+    """The rows of the test CSV ``path``; ``columns`` maps force/displacement/angle to the
+    header names (angle optional: used if the header has it)."""
+    path = Path(path)
+    text = read_text(path, "test CSV", error=ShearTestError)
+
+    def fail(why):
+        raise ShearTestError(f"{path}: {why}", path)
+
+    numbered = [(n, ln) for n, ln in enumerate(text.splitlines(), start=1)
+                if ln.strip() and not ln.lstrip().startswith("#")]
+    if not numbered:
+        fail(f"no header line; expected columns {columns['force']}, {columns['displacement']}"
+             f"[, {columns['angle']}]")
+    rows = list(csv.reader(io.StringIO("\n".join(ln for _, ln in numbered))))
+    header = [h.strip() for h in rows[0]]
+    for key in ("force", "displacement"):
+        if columns[key] not in header:
+            fail(f"no column {columns[key]!r} ({key}) in the header {','.join(header)}; name it in the rig "
+                 f"file's [columns] {key}")
+    if len(set(header)) != len(header):
+        fail(f"the header {','.join(header)} names a column twice")
+    wanted = {key: header.index(name) for key, name in columns.items() if name in header}
+    values = {key: [] for key in wanted}
+    for (lineno, _), row in zip(numbered[1:], rows[1:]):
+        if len(row) != len(header):
+            fail(f"line {lineno} has {len(row)} values, the header {len(header)} ({','.join(header)})")
+        for key, index in wanted.items():
+            cell = row[index].strip()
+            try:
+                value = float(cell)
+            except ValueError:
+                fail(f"line {lineno}, column {columns[key]}: {cell!r} is not a number")
+            if not np.isfinite(value):
+                fail(f"line {lineno}, column {columns[key]}: {cell!r} is not a finite number")
+            values[key].append(value)
+    if len(rows) - 1 < MIN_ROWS:
+        fail(f"{len(rows) - 1} data rows; a fit needs at least {MIN_ROWS}")
+    arrays = {key: np.asarray(v) for key, v in values.items()}
+    return TestData(path, arrays["force"], arrays["displacement"], arrays.get("angle"),
+                    np.array([n for n, _ in numbered[1:]]), dict(columns))
+
+
+def read_rig(path) -> RigFile:
+    """The rig file ``path`` and the test CSVs it names, validated."""
+    doc = Document(path, "rig file", error=ShearTestError)
+    top = Table(doc, "", doc.read(), _TOP)
+    test = top.string("test", choices=TESTS)
+    phi0 = top.number("phi0_deg", 45.0, gt=0.0, lt=90.0)
+    columns = top.table("columns", tuple(_COLUMNS))
+    names = {key: columns.string(key, default) for key, default in _COLUMNS.items()}
+    fit = top.table("fit", tuple(_FIT))
+    options = {
+        "knots": fit.number("knots", _FIT["knots"], integer=True, ge=1),
+        "jump_deg": fit.number("jump_deg", _FIT["jump_deg"], ge=0.0),
+        "friction": fit.string("friction", _FIT["friction"], choices=("keep", "subtract")),
+        "max_angle_deg": fit.number("max_angle_deg", _FIT["max_angle_deg"], gt=0.0),
+        "max_divergence_deg": fit.number("max_divergence_deg", _FIT["max_divergence_deg"], gt=0.0),
+        "step_deg": fit.number("step_deg", _FIT["step_deg"], gt=0.0),
+    }
+    if options["jump_deg"] >= options["max_angle_deg"]:
+        fit.invalid("jump_deg", f"jump_deg must be below max_angle_deg = {options['max_angle_deg']:g}")
+    for other in set(_DIMENSIONS) - {test}:
+        for key in _DIMENSIONS[other]:
+            if top.has(key):
+                top.invalid(key, f"{key} is a {other.replace('_', '-')} dimension; this rig's test is {test}")
+    listed = top.raw("specimen", [], "")
+    if not isinstance(listed, list) or not listed:
+        doc.missing("specimen", "give one [[specimen]] table per test, with file = \"test.csv\"")
+    specimens = []
+    for i, item in enumerate(listed):
+        entry = Table(doc, f"specimen[{i}]", item, ("file", "branch", *_DIMENSIONS[test]))
+        branch = entry.string("branch", "positive", choices=BRANCHES)
+        dims = {key: entry.number(key, gt=0.0) if entry.has(key) else top.number(key, gt=0.0)
+                for key in _DIMENSIONS[test]}
+        tested = phi0 if branch == "positive" else 90.0 - phi0
+        rig = PictureFrame(dims["side_mm"], tested) if test == "picture_frame" else \
+            BiasExtension(dims["height_mm"], dims["width_mm"], tested)
+        if test == "bias_extension" and not rig.kappa > 1.5:
+            entry.doc.fail(f"specimen[{i}]: kappa = (height_mm/width_mm) tan(phi0) = {rig.kappa:.4g} is invalid: "
+                           "region A exists only for kappa > 1.5 (the normal requirement is kappa >= 2)",
+                           f"specimen[{i}]")
+        file = entry.string("file", hint="file must name the specimen's test CSV (relative to the rig file)")
+        data = read_test_csv(doc.relative_file(f"specimen[{i}].file", file), names)
+        specimens.append(Specimen(data, branch, rig))
+    if not any(s.branch == "positive" for s in specimens):
+        doc.missing("specimen", "at least one [[specimen]] must test the positive branch (a card needs "
+                                "[shear.positive])")
+    return RigFile(Path(path), top.string("name") if top.has("name") else None,
+                   top.string("description", ""), test, phi0, options, specimens)

@@ -1,0 +1,15 @@
+"""uqdrape.reliability: probabilities of rare events, P(g(U) <= 0) for a limit state g of
+standard normal variables U in any dimension (a drape's random fields and factors map
+from them, ``uqdrape.ensemble.inputs_from_design``), with the estimate's coefficient of
+variation and the number of model calls it took.
+
+``subset_simulation`` (Au & Beck 2001: nested intermediate failure domains, each
+populated by modified Metropolis chains from the previous one's samples);
+``limit_states`` holds analytic cases with known P (linear, and the sphere's exterior)
+that check it.
+"""
+
+from .limit_states import linear_limit_state, sphere_limit_state
+from .subset import SubsetResult, subset_simulation
+
+__all__ = ["SubsetResult", "linear_limit_state", "sphere_limit_state", "subset_simulation"]

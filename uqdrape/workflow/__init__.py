@@ -1,0 +1,39 @@
+"""The application layer: every command goes cli -> workflow -> the engines.
+
+- ``run``: run a study (its Monte Carlo ensemble, its SALib design and indices, or its
+  blank-holder design) and report a finished run;
+- ``preflight``: what a study needs of this machine and of its physics (memory, disk,
+  writability, placement of the first realisation), checked at the start of every run
+  and by ``uqdrape validate``;
+- ``commands``: one drape to files, material cards (show, derive, fit to shear tests),
+  exports;
+- ``text``: the command line's descriptions of moulds, architectures and studies;
+- ``serve``: a study as a UM-Bridge model (``uqdrape serve``);
+- ``calibrate``: measured fibre angles -> a calibrated ``[uncertainty.zero_angle]`` block.
+
+The names below are imported on first use (PEP 562), so that ``uqdrape --help`` and the
+light commands do not pay for dask, matplotlib and SALib.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+_EXPORTS = {
+    "run": ("run_study", "run_design", "run_report", "write_sensitivity", "open_sensitivity", "INDICES_FILE",
+            "MAPS_FILE"),
+    "preflight": ("load_study", "validate_study", "check_resources", "check_placement", "run_preflight"),
+    "commands": ("check_drape_inputs", "drape_to_files", "material_list", "material_text", "derive_material", "fit_material",
+                 "export_result"),
+    "text": ("geometry_help", "architectures", "describe_study", "version_text"),
+    "serve": ("serve_study", "input_names", "nominal_input"),
+    "calibrate": ("calibrate_fibre_angles",),
+}
+_MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
+__all__ = sorted(_MODULE_OF)
+
+
+def __getattr__(name: str):
+    if name not in _MODULE_OF:
+        raise AttributeError(f"module 'uqdrape.workflow' has no attribute {name!r}")
+    return getattr(importlib.import_module(f".{_MODULE_OF[name]}", __name__), name)

@@ -1,0 +1,184 @@
+"""The single-shot commands: one drape to files, material cards (list, show, derive from
+an architecture) and exports of a drape or a run. Each returns what it wrote and a
+summary; the CLI only prints."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..conventions import cf_encode
+from ..drape import drape
+from ..ensemble import Progress, write_netcdf
+from ..export import cut_files, fe_files, flat_files, levels, open_result, vtk_files
+from ..files import write_all, write_text_atomic
+from ..errors import ParameterError
+from ..geometry import build
+from ..material import available_materials, load_material, plot_material
+from ..material.architecture import derive_card, load_architecture, summed
+from ..material.cards import card_material, card_text
+from ..material.plot import plot_architecture, plot_sheartest
+from ..material.sheartest import fit_card, read_rig
+from ..report import plot_lines, plot_net
+from ..schema import MAX_RINGS, SOLVER_INPUTS
+from .preflight import WORKING_BYTES_PER_NODE, memory_bytes
+
+
+def drape_to_files(geometry: str, params: dict, spacing: float, rings: int, out, *, material=None,
+                   progress=True, command: str = "uqdrape drape", **options) -> tuple[list[Path], str]:
+    """Drape one net (``uqdrape.drape.drape`` with ``options``) over mould ``geometry``
+    and write ``OUT.nc`` (CF netCDF), ``OUT-net.png`` and ``OUT-lines.png``, all three or
+    none; return the paths and a one-line summary. The inputs are checked first against
+    the same physical ranges a study's are (``check_drape_inputs``), and the net against
+    this machine's memory. ``command`` is recorded as the file's history."""
+    check_drape_inputs(spacing, rings, options)
+    surface = build(geometry, **params)
+    card = load_material(material) if material else None
+    # a ring k/n counter: a bar on a terminal, elsewhere a line every PLAIN_EVERY s of a long drape
+    bar = Progress(rings, enabled=progress, desc="ring", unit="ring", last_line=False)
+    try:
+        ds = drape(surface, spacing, rings, material=card, progress=lambda k: bar.update(k - bar.n), **options)
+    finally:
+        bar.close()
+    out = Path(out)
+    mode = options.get("mode", "geodesic")
+    encoded, encoding = cf_encode(ds, title=f"uqdrape {mode} drape of {surface.describe()}", history=command)
+    nc = out.with_suffix(".nc")
+    written = write_all({
+        nc: lambda tmp: write_netcdf(encoded, tmp, encoding, target=nc),
+        out.with_name(out.name + "-net.png"): lambda tmp: plot_net(
+            ds, tmp, title=f"{surface.describe()}, {mode} drape, s = {spacing} mm"),
+        out.with_name(out.name + "-lines.png"): lambda tmp: plot_lines(ds, tmp),
+    })
+    shear = ds.shear.values
+    summary = (f"valid nodes {float((ds.status == 0).mean()):.1%}; shear {np.nanmin(shear):.1f} to "
+               f"{np.nanmax(shear):.1f} deg; energy shear {float(ds.energy_shear[0]):.4g} J, blank-holder "
+               f"{float(ds.energy_blankholder[0]):.4g} J; converged {bool(ds.converged[0])} "
+               f"({int(ds.iterations[0])} iterations)")
+    return written, summary
+
+
+def check_drape_inputs(spacing: float, rings: int, options: dict) -> None:
+    """Refuse a single drape's inputs outside the physical ranges a study's must keep
+    (``uqdrape.schema``: the solver's scalar inputs, MAX_RINGS) or whose net would need
+    more than half this machine's memory; ParameterError names the drape argument."""
+    if not (isinstance(spacing, (int, float)) and math.isfinite(spacing) and spacing > 0):
+        raise ParameterError("spacing", f"spacing must be a positive length in mm, got {spacing!r}")
+    if not 1 <= rings <= MAX_RINGS:
+        raise ParameterError("rings", f"rings must be an integer in [1, {MAX_RINGS}], got {rings!r}")
+    nodes = (2 * rings + 1) ** 2
+    if nodes * WORKING_BYTES_PER_NODE > memory_bytes() / 2:
+        raise ParameterError("rings", f"rings = {rings}: one drape of {nodes:,} nodes needs about "
+                                      f"{nodes * WORKING_BYTES_PER_NODE / 2**30:.3g} GiB, more than half of this "
+                                      f"machine's {memory_bytes() / 2**30:.3g} GiB")
+    for name, value in options.items():
+        inp = SOLVER_INPUTS.get(name)
+        if inp is not None and np.ndim(value) == 0 and not (math.isfinite(value) and inp.admits(value)):
+            raise ParameterError(name, f"{name} = {value:g} is invalid: {name} {inp.describe_range()}")
+    turn = options.get("pre_shear", 0.0) + options.get("skew", 0.0)
+    if np.ndim(turn) == 0 and not abs(turn) < 90.0:
+        raise ParameterError(("pre_shear", "skew"), f"pre_shear + skew = {turn:g} is invalid: it must lie in "
+                                                    "(-90, 90) degrees")
+    tolerance = options.get("tolerance", 1e-3)
+    if not (math.isfinite(tolerance) and 0 < tolerance <= 1.0):
+        raise ParameterError("tolerance", f"tolerance = {tolerance:g} is invalid: the minimiser's tolerance on "
+                                          "turn angles must lie in (0, 1] degrees")
+
+
+def material_list() -> list[tuple[str, str]]:
+    """(name, description) of every shipped material card."""
+    return [(name, load_material(name).description) for name in available_materials()]
+
+
+def material_text(name: str, plot=None) -> str:
+    """What a card says (locking angles, bending stiffness, note); ``plot``: also write its
+    curves to that PNG."""
+    m = load_material(name)
+    text = (f"{m.name}: {m.description}\nlocking angle +{m.locking_angle_deg} / -{m.locking_angle_neg_deg} deg, "
+            f"bending stiffness {m.bending_stiffness} N m^2\n{m.note}")
+    if plot:
+        text += f"\nwrote {plot_material(m, plot)}"
+    return text
+
+
+def derive_material(source: str, out, plot=None) -> str:
+    """Derive a card from architecture ``source`` (a TOML file or a shipped name) into
+    ``out`` (.toml), with the thesis Fig 4.18 picture if ``plot`` (True: next to the
+    card, or a PNG path); a card that would not load is not written. Returns the summary."""
+    out = Path(out)
+    arch = load_architecture(source)
+    terms = summed(arch)
+    doc = derive_card(arch, name=out.stem, source=Path(source).name, terms=terms)
+    text = card_text(doc, f"Material card derived by `uqdrape materials derive {Path(source).name}`: "
+                          "regenerate it, do not edit it.")
+    material = card_material(text, str(out))
+    gamma0 = doc["architecture"]["zero_force_angle_deg"]
+    out.parent.mkdir(parents=True, exist_ok=True)
+    png = None
+    if plot:  # the picture first: if it fails, no card is left behind either
+        png = out.with_suffix(".png") if plot is True else Path(plot)
+        png.parent.mkdir(parents=True, exist_ok=True)
+        plot_architecture(arch, png, terms, gamma0)
+    write_text_atomic(out, text)
+    summary = (f"wrote {out}: {material.name}, zero-force angle {gamma0:.2f} deg, locking "
+               f"+{material.locking_angle_deg:g} / -{material.locking_angle_neg_deg:g} deg (pre-strain "
+               f"{100 * arch.prestrain:.3g} %, beta {arch.beta:.4g})")
+    return summary + (f"\nwrote {png}" if png else "")
+
+
+def fit_material(rig, out, plot=None) -> str:
+    """Fit a card to the shear tests named by rig file ``rig`` (thesis ch. 3, see
+    ``uqdrape.material.sheartest``) and write it to ``out`` (.toml), with the normalisation
+    figure if ``plot`` (True: next to the card, or a PNG path); a card that would not load
+    is not written. Returns the summary, warnings (kappa < 2) on lines of their own."""
+    out = Path(out)
+    rig_file = read_rig(rig)
+    result = fit_card(rig_file, rig_file.name or out.stem, Path(rig).name)
+    text = card_text(result.doc, f"Material card fitted by `uqdrape materials fit {Path(rig).name}` from shear "
+                                 "tests: regenerate it, do not edit it.")
+    material = card_material(text, str(out))
+    png = None
+    if plot:  # the picture first: if it fails, no card is left behind either
+        png = out.with_suffix(".png") if plot is True else Path(plot)
+        plot_sheartest(result, png)
+    write_text_atomic(out, text)
+    record = result.doc["sheartest"]
+    branches = "; ".join(
+        f"{branch}: {len(record[branch]['files'])} specimens to {material.curve(branch)[0][-1]:g} deg, N_s "
+        f"{material.curve(branch)[1][-1]:.4g} N/m there, fit residual <= {max(record[branch]['residual_rms_n']):.3g} N"
+        for branch in ("positive", "negative") if branch in record)
+    lines = [f"wrote {out}: {material.name} ({branches})", *(f"warning: {w}" for w in result.warnings)]
+    return "\n".join(lines + ([f"wrote {png}"] if png else []))
+
+
+def export_result(result, to, *, out=None, mesh=None, tolerance=None, reference=None, flavours=("abaqus",),
+                  trim=None, ply=None) -> tuple[list[Path], list[str]]:
+    """Export a drape file or a run folder ``result`` as ``to`` (some of "vtk", "fe",
+    "flat", "cut"); every file is computed first and written together, all or nothing.
+    ``flavours``: the FE solvers' cards for "fe"; ``trim``: the part's edge (plan CSV) for
+    "cut" (default: the mould's own outline), ``ply`` its label. Returns the paths and the
+    lines to tell the user (the FE mapping counts)."""
+    if "fe" in to and not mesh:
+        raise ValueError("--to fe needs --mesh FILE (a surface mesh meshio reads: .inp, .msh, .vtu, .stl, ...)")
+    result = Path(result)
+    ds, is_ensemble = open_result(result)
+    stem = Path(out) if out else (result / "export" / result.name if is_ensemble else result.with_suffix(""))
+    levels_ = levels(ds, is_ensemble)
+    for level in levels_ if reference is not None else ():
+        level.orientation = reference
+    writers, notes = {}, []
+    if "vtk" in to:
+        writers.update(vtk_files(levels_, ds, stem))
+    if "fe" in to:
+        fe, statuses = fe_files(levels_, ds, mesh, stem, tolerance, flavours)
+        writers.update(fe)
+        counts = [int(n) for n in np.bincount(statuses[0], minlength=3)]
+        notes.append(f"{mesh}: {sum(counts)} elements, {counts[0]} on the net, {counts[1]} outside it, "
+                     f"{counts[2]} off the mould (flagged in map_status and each flavour's unmapped set)")
+    if "flat" in to:
+        writers.update(flat_files(levels_, stem))
+    if "cut" in to:
+        writers.update(cut_files(levels_, ds, stem, trim=trim, ply=ply or result.stem))
+    return write_all(writers), notes

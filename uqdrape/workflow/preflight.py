@@ -1,0 +1,106 @@
+"""What a study needs of this machine and of its physics, checked before anything is
+draped: at the start of every run and design, and by ``uqdrape validate``.
+
+The study file itself is checked where it is read (``uqdrape.study.load_study``: keys,
+types, ranges, the rules tying sections together); this is what reading a file cannot
+know: the memory a chunk takes, the disk the chunks still to be written take in the
+folder that will actually be written, whether that folder is writable, and whether the
+first realisation's net can be placed on the mould at all. Every refusal is a
+``StudyError`` naming the study file and the key to change.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from ..drape import placement_failures
+from ..ensemble import drape_inputs, inputs_from_design, sampled_inputs
+from ..study import load_study, study_error
+
+#: Bytes a node costs in a chunk file (x, y, z, shear, locked, status and the cells' values)
+#: and, about, in the solver's working arrays of an energy drape (candidate rings per step).
+STORED_BYTES_PER_NODE = 64
+WORKING_BYTES_PER_NODE = 600
+
+
+def memory_bytes() -> int:
+    """This machine's physical memory (bytes)."""
+    return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+
+
+def nearest_existing(path: Path) -> Path:
+    """``path`` (absolute) or its nearest ancestor that exists: where a folder will be made."""
+    path = Path(path).absolute()
+    while not path.exists():
+        path = path.parent
+    return path
+
+
+def check_resources(study, output_dir: Path, drapes_to_write: int, chunk_size: int | None = None) -> None:
+    """Refuse a study whose drape or chunk would not fit in memory, whose output folder
+    cannot be written, or whose ``drapes_to_write`` drapes would not fit on that folder's
+    disk (estimates, stated in the message)."""
+    nodes = (2 * study.solver.rings + 1) ** 2
+    memory = memory_bytes()
+    if nodes * WORKING_BYTES_PER_NODE > memory / 2:
+        raise study_error(study.path, "solver.rings", study.solver.rings,
+                          f"one drape of {nodes:,} nodes needs about {nodes * WORKING_BYTES_PER_NODE / 2**30:.3g} "
+                          f"GiB, more than half of this machine's {memory / 2**30:.3g} GiB")
+    chunk_size = study.chunk_size if chunk_size is None else chunk_size
+    batch = min(chunk_size, study.realizations)
+    need = batch * nodes * WORKING_BYTES_PER_NODE
+    if need > memory / 2:
+        raise study_error(study.path, "study.chunk_size", chunk_size,
+                          f"a chunk of {batch} drapes of {nodes:,} nodes needs about {need / 2**30:.3g} GiB, more "
+                          f"than half of this machine's {memory / 2**30:.3g} GiB; use a smaller chunk_size")
+    existing = nearest_existing(output_dir)
+    if not existing.is_dir():
+        raise study_error(study.path, "output.directory", str(output_dir), f"{existing} is a file, not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise study_error(study.path, "output.directory", str(output_dir), f"{existing} is not writable")
+    disk = drapes_to_write * nodes * STORED_BYTES_PER_NODE
+    free = shutil.disk_usage(existing).free
+    if disk > free:
+        raise study_error(study.path, "study.realizations", study.realizations,
+                          f"{drapes_to_write:,} drapes of {nodes:,} nodes take about {disk / 2**30:.3g} GiB, "
+                          f"more than the {free / 2**30:.3g} GiB free under {existing}")
+
+
+def check_placement(study, realization: int = 0, force: float | None = None, design_rows=None) -> None:
+    """Drape one realisation of the study (row ``realization`` of ``design_rows`` if
+    given) here, before any worker starts, and refuse the study if more than its
+    ``[solver] failure_budget`` of the nodes cannot be placed: such a run would only write
+    NaNs (the crossover off the mould, a net larger than the mould)."""
+    r = np.arange(realization, realization + 1)
+    inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows[r])
+    force = study.force_levels[0] if force is None else force
+    failed, why = placement_failures(drape_inputs(study, r, inputs, force=force)["status"].values[0])
+    if failed > study.solver.failure_budget:
+        raise study_error(study.path, "solver.rings", study.solver.rings,
+                          f"{failed:.0%} of the nodes of realisation {realization} cannot be placed, more than "
+                          f"solver.failure_budget = {study.solver.failure_budget:g} ({why}): use fewer rings, a "
+                          "smaller spacing or move the crossover")
+
+
+def run_preflight(study, output_dir, *, chunk_size: int | None = None, design_rows=None):
+    """The ``preflight`` of ``uqdrape.ensemble.run_ensemble`` for a run of ``study`` into
+    ``output_dir``: resources for the drapes still to write, placement of the first."""
+    def check(drapes: int, first: int, force: float) -> None:
+        check_resources(study, Path(output_dir), drapes, chunk_size)
+        check_placement(study, first, force, design_rows)
+    return check
+
+
+def validate_study(path):
+    """Read a study file (``uqdrape.study.load_study``) and run the preflight a run of it
+    would run: resources for the whole ensemble in its output folder, and the placement of
+    its first realisation. Returns the Study; raises StudyError naming file and key."""
+    study = load_study(path)
+    drapes = study.realizations * len(study.force_levels)
+    check_resources(study, study.output_dir, 0 if study.design is not None else drapes)
+    check_placement(study)
+    return study

@@ -1,0 +1,218 @@
+"""Run a study: its Monte Carlo ensemble, its SALib design and indices, or its
+blank-holder design; and the report of a finished run.
+
+Sensitivity studies. ``run_study`` of a study with ``[sensitivity] method = "sobol" |
+"morris"`` drapes the rows of ``uqdrape.sensitivity.study_design`` as its realisations
+(same chunked, resumable engine, the same rows at every blank-holder level: common
+random numbers), then computes the quantities of interest of every drape and their
+indices per force level into ``<output_dir>/sensitivity.nc`` (dims factor, qoi,
+blankholder_force) and the per-node shear index maps into
+``<output_dir>/sensitivity_maps.nc`` (dims factor, i, j, blankholder_force).
+
+Method override: a run with another method than the study's (``uqdrape run --method``)
+writes to ``<output_dir>-<method>``; Morris then uses the study's base_samples as
+trajectories if the study is a Morris study, else ``MORRIS_SCREENING_TRAJECTORIES``.
+
+Design studies. A study with a ``[design]`` section is run by :func:`run_design`: its
+candidate designs drape the study's realisations with common random numbers
+(``uqdrape.design``) into ``<output_dir>/design.nc``, under the same run lock and on the
+same worker pool as an ensemble.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import sys
+import time
+from pathlib import Path
+
+import xarray as xr
+
+from ..design import DESIGN_FILE, Evaluator, drape_design, optimise, problem, result_dataset
+from ..ensemble import (Progress, design_variables, local_pool, open_ensemble, read_manifest, run_ensemble, run_lock,
+                        write_atomic)
+from ..report import write_design_report, write_report
+from ..sensitivity import map_indices, qoi_indices, study_design
+from ..stats import SENSITIVITY_QOIS, realization_qois
+from ..study import SENSITIVITY_METHODS, Study, from_dict, identity, load_study
+from .preflight import check_placement, check_resources, run_preflight
+from .target import run_to_target
+
+#: Files a sensitivity run writes into its output folder.
+INDICES_FILE = "sensitivity.nc"
+MAPS_FILE = "sensitivity_maps.nc"
+
+
+def run_study(study, *, scheduler: str | None = None, workers: int | None = None,
+              chunk_size: int | None = None, resume: bool = True, progress: bool = True,
+              method: str | None = None, verbose: bool = False) -> Path:
+    """Run a study (a ``Study`` or a study file's path); return its output folder.
+
+    ``method`` None: the study's [sensitivity] method; "sobol" / "morris": drape that
+    SALib design and write sensitivity.nc; "none": the Monte Carlo sample. Another method
+    than the study's writes to ``<output_dir>-<method>``. The other arguments are those of
+    ``uqdrape.ensemble.run_ensemble``. A study with a [design] section runs its design
+    (:func:`run_design`); ``method`` must then be None. A study with a ``[study] target``
+    (and no sensitivity method) runs in rounds until it is met (``uqdrape.workflow.target``).
+    """
+    study = study if isinstance(study, Study) else load_study(study)
+    if study.design is not None:
+        if method is not None:
+            raise ValueError(f"study {study.name!r} is a [design] study; it takes no sensitivity method")
+        return run_design(study, scheduler=scheduler, workers=workers, progress=progress)
+    method = study.sensitivity.method if method is None else method
+    if method not in SENSITIVITY_METHODS:
+        raise ValueError(f"method must be one of {', '.join(SENSITIVITY_METHODS)}, got {method!r}")
+    design = None if method == "none" else study_design(study, method)
+    if design is not None:
+        assert design.problem["names"] == design_variables(study), "problem and ensemble disagree on the variables"
+    out = study.output_dir
+    provenance = study.to_dict()
+    if method != study.sensitivity.method:
+        out = out.with_name(f"{out.name}-{method}")
+        provenance["sensitivity"]["method"] = method
+        provenance["sensitivity"].pop("base_samples", None)
+    attrs = {}
+    if design is not None:
+        provenance["sensitivity"]["base_samples"] = design.meta["base_samples"]
+        attrs = dict(design_method=design.method, design_base_samples=design.meta["base_samples"],
+                     design_evaluations=design.n_evaluations)
+    if design is None and study.target is not None:
+        def run_round(sample, again):
+            return run_ensemble(sample, output_dir=out, scheduler=scheduler, workers=workers, chunk_size=chunk_size,
+                                resume=again, progress=progress, verbose=verbose,
+                                preflight=run_preflight(sample, out, chunk_size=chunk_size))
+        return run_to_target(study, run_round, chunk_size=chunk_size or study.chunk_size, resume=resume,
+                             progress=progress)
+    out = run_ensemble(study, design_rows=None if design is None else design.standard, output_dir=out,
+                       provenance=provenance, attrs=attrs, scheduler=scheduler, workers=workers,
+                       chunk_size=chunk_size, resume=resume, progress=progress, verbose=verbose,
+                       preflight=run_preflight(study, out, chunk_size=chunk_size,
+                                               design_rows=None if design is None else design.standard))
+    if design is not None and resume and analysed(out):
+        if progress:
+            print(f"{study.name}: {design.method} indices already analysed in {out}", file=sys.stderr)
+    elif design is not None:
+        if progress:
+            print(f"{study.name}: analysing {design.method} indices of {design.n_evaluations} evaluations"
+                  + (f" at {len(study.force_levels)} force levels" if study.is_sweep else ""), file=sys.stderr)
+        write_sensitivity(out, design, qoi=study.sensitivity.qoi, seed=study.seed, progress=progress)
+    return out
+
+
+def _run_key(output_dir) -> str:
+    """What a run folder's analysis is of: a digest of its manifest's study identity and
+    chunk names (the drapes are a function of these alone)."""
+    manifest = read_manifest(output_dir) or {}
+    what = {"study": identity(manifest["study"]) if "study" in manifest else None, "chunks": manifest.get("chunks")}
+    return hashlib.sha256(json.dumps(what, sort_keys=True).encode()).hexdigest()
+
+
+def analysed(output_dir) -> bool:
+    """Whether ``output_dir`` holds the sensitivity files of its own finished run (both
+    files, written for the run its manifest describes), so a resume need not redo them."""
+    out = Path(output_dir)
+    keys = []
+    for name in (INDICES_FILE, MAPS_FILE):
+        try:
+            with xr.open_dataset(out / name) as ds:
+                keys.append(ds.attrs.get("run_key"))
+        except (OSError, ValueError):
+            return False
+    return keys[0] == keys[1] == _run_key(out)
+
+
+def write_sensitivity(output_dir, design, *, qoi=None, seed: int, progress: bool = False) -> tuple[Path, Path]:
+    """Analyse a finished sensitivity run in ``output_dir`` (its realisations are the
+    design's rows): QoI indices to ``sensitivity.nc``, node-shear index maps to
+    ``sensitivity_maps.nc`` (both written whole, then renamed, with the attribute
+    ``run_key`` naming the run they are of: see :func:`analysed`). ``qoi``: names (default
+    ``SENSITIVITY_QOIS``); ``progress``: count the analysed nodes on stderr. Returns the
+    two paths."""
+    out = Path(output_dir)
+    with open_ensemble(out) as ds:
+        qois = realization_qois(ds, SENSITIVITY_QOIS if qoi is None else qoi)
+        shear = ds["shear"].load()
+        study_name = ds.attrs.get("study_name", out.name)
+    indices = qoi_indices(design, qois, seed=seed)
+    nodes = shear.isel({dim: 0 for dim in shear.dims if dim not in ("i", "j")}).size
+    bar = Progress(nodes * shear.sizes.get("blankholder_force", 1), enabled=progress, desc="index maps", unit="node")
+    try:
+        maps = map_indices(design, shear, seed=seed, progress=bar.update)
+    finally:
+        bar.close()
+    for result in (indices, maps):
+        result.attrs.update(study_name=study_name, run_key=_run_key(out))
+    if "k_max" in qois.attrs:
+        indices.attrs["line_k_max"] = qois.attrs["k_max"]
+    return write_atomic(indices, out / INDICES_FILE), write_atomic(maps, out / MAPS_FILE)
+
+
+def open_sensitivity(output_dir) -> tuple[xr.Dataset, xr.Dataset] | None:
+    """(QoI indices, node-shear index maps) of a sensitivity run in ``output_dir``, loaded;
+    None if the folder holds no sensitivity results."""
+    out = Path(output_dir)
+    if not (out / INDICES_FILE).is_file():
+        return None
+    return xr.load_dataset(out / INDICES_FILE), xr.load_dataset(out / MAPS_FILE)
+
+
+def run_design(study, *, output_dir=None, scheduler: str | None = None, workers: int | None = None,
+               progress: bool = True, drape=drape_design) -> Path:
+    """Run the [design] of a study (a ``Study`` or a study file's path): write
+    ``design.nc`` and the per-design records into the output folder (default the
+    study's; resumes from the records of an earlier run of the same study) and return the
+    folder. ``drape`` is the task that drapes one chunk of one design (a test passes a
+    synthetic one through the same pipeline)."""
+    start = time.perf_counter()
+    study = study if isinstance(study, Study) else load_study(study)
+    if study.design is None:
+        raise ValueError(f"study {study.name!r} ({study.path}) has no [design] section; run it with `uqdrape run`")
+    prob = problem(study)
+    out = Path(study.output_dir if output_dir is None else output_dir)
+    check_resources(study, out, 0)  # a design's records are per-drape numbers and node sums, not nets
+    check_placement(study)
+    out.mkdir(parents=True, exist_ok=True)
+    local = scheduler in (None, "processes")
+    # one pool for the whole run: a design is many small batches, and starting worker
+    # processes for each would cost more than draping it; one run at a time in the folder
+    with run_lock(out), local_pool(workers) if local else contextlib.nullcontext() as pool:
+        evaluate = Evaluator(prob, out, scheduler=scheduler, workers=workers, progress=progress, drape=drape,
+                             pool=pool)
+        result = optimise(prob, evaluate)
+        ds = result_dataset(result, evaluate)
+        # this run's own time: a resumed run replays earlier designs from their records
+        ds.attrs["wall_time_s"] = round(time.perf_counter() - start, 1)
+        write_atomic(ds, out / DESIGN_FILE)
+    if progress:
+        print(f"{study.name}: {ds.attrs['summary']}", file=sys.stderr)
+    return out
+
+
+def run_report(output_dir, out_dir=None) -> Path:
+    """Report of a finished run: the ensemble under ``output_dir`` with the title
+    (the study's name), description, study text, histogram nodes and experimental CSV of
+    the study stored in its attributes, the wall time from its manifest, and its
+    sensitivity results if it has them; of a design run, its design page. Writes into
+    ``out_dir`` (default ``output_dir/report``); returns the index.html path."""
+    design = Path(output_dir) / DESIGN_FILE
+    ds = xr.load_dataset(design) if design.is_file() else open_ensemble(output_dir)
+    study = from_dict(json.loads(ds.attrs["study_json"]), Path(output_dir))
+    report = Path(out_dir) if out_dir else Path(output_dir) / "report"
+    if design.is_file():
+        return write_design_report(ds, report, surface=study.geometry.build_mould())
+    sensitivity = open_sensitivity(output_dir)
+    manifest = read_manifest(output_dir)
+    target = manifest.get("target") or {}  # a target run: what stopped it, for the page's attributes
+    ds.attrs.update({f"target_{k}": v for k, v in target.items() if k not in ("forces", "rounds")})
+    if target:
+        ds.attrs["target_rounds"] = [r["realizations"] for r in target["rounds"]]
+    return write_report(ds, report, title=study.name,
+                        description=study.description or None, study_text=ds.attrs.get("study_toml"),
+                        histogram_nodes=list(study.report.histogram_nodes) or None,
+                        experimental_csv=study.report.experimental_csv,
+                        wall_time_s=manifest.get("wall_time_s"),
+                        replicates=study.sampling.randomizations if study.sampling.plan == "rqmc" else None,
+                        **({} if sensitivity is None else dict(zip(("sensitivity", "sensitivity_maps"), sensitivity))))

@@ -1,0 +1,178 @@
+"""A study as a UM-Bridge model (``uqdrape serve STUDY``): any UQ toolkit with a UM-Bridge
+client (OpenTURNS, UQLab, MUQ, QMCPy, PyMC, emcee, ...) can evaluate the drape.
+
+The model, named ``forward``, takes one input vector: the study's scalar uncertain
+factors at their physical values, in the study's order and units (N, -, deg, mm, as
+the study file gives them), then each random field's truncated Karhunen-Loeve mode
+variables (standard normals, ``kl_retained`` of its variance; 0 is the field's mean),
+named as ``uqdrape.ensemble.design_variables``. Physical values rather than the SALib
+standard variables, so that a caller samples the factors with its own distributions
+(the study's are printed at start); the fields have no physical coordinates of their
+own, so their standard variables are the input. The nominal input is every factor's
+median and every mode 0.
+
+It returns one output vector per blank-holder force level of the study: the chosen
+per-drape quantities of interest (``uqdrape.stats.qoi``; default the study's
+``[sensitivity] qoi``), each drape one call of the ensemble engine's ``drape_inputs``,
+so an evaluation equals ``uqdrape drape`` with the same settings.
+
+The server speaks the UM-Bridge protocol 1.0 (GET /Info; POST /ModelInfo, /InputSizes,
+/OutputSizes, /Evaluate; errors as ``{"error": {"type", "message"}}``) with the standard
+library's HTTP server, so serving needs no package beyond uqdrape's own; a client needs
+``umbridge`` (``pip install uqdrape[serve]``) or any other UM-Bridge client. It listens
+on 127.0.0.1 unless given another host, one evaluation at a time, and stops by itself
+after ``max_requests`` evaluations or ``timeout_s`` seconds if given. From Python::
+
+    import umbridge
+    model = umbridge.HTTPModel("http://127.0.0.1:4242", "forward")
+    print(model([[0.2, 15.0]]))          # e.g. friction, orientation
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from http.server import BaseHTTPRequestHandler, HTTPServer
+
+import numpy as np
+
+from ..ensemble import design_variables, drape_inputs, inputs_from_design
+from ..material import load_material
+from ..schema import SOLVER_INPUTS
+from ..stats.qoi import check_qois, realization_qois
+
+#: Name of the served model.
+MODEL_NAME = "forward"
+
+
+def input_names(study) -> list[str]:
+    """Names of the model's input vector: the factors, then ``field[k]`` KL modes."""
+    return design_variables(study)
+
+
+def nominal_input(study) -> list[float]:
+    """The nominal input vector: each factor's median, each KL mode 0."""
+    d = len(study.uncertainty.factors)
+    medians = [float(f.ppf(0.5)) for f in study.uncertainty.factors.values()]
+    return medians + [0.0] * (len(input_names(study)) - d)
+
+
+def evaluate(study, x, qoi, *, surface=None, material=None) -> list[list[float]]:
+    """The QoIs ``qoi`` (one list per force level) of one drape at input vector ``x``."""
+    names = input_names(study)
+    x = np.asarray(x, dtype=float)
+    if x.shape != (len(names),) or not np.isfinite(x).all():
+        raise ValueError(f"the input must be {len(names)} finite numbers ({', '.join(names)}), got {x.tolist()}")
+    factors = study.uncertainty.factors
+    d = len(factors)
+    X = np.concatenate([np.full(d, 0.5), x[d:]])[None]  # factor columns replaced by their values below
+    inputs = inputs_from_design(study, X)
+    for k, name in enumerate(factors):
+        inp = SOLVER_INPUTS[name]
+        if not inp.admits(x[k]):  # the physical limits of every entry point, not the study's distribution
+            raise ValueError(f"input {name} = {x[k]:g} is invalid: {name} {inp.describe_range()}")
+        inputs[name] = x[k:k + 1]
+    out = []
+    for force in study.force_levels:
+        ds = drape_inputs(study, [0], inputs, force=force if study.is_sweep else None, surface=surface,
+                          material=material)
+        q = realization_qois(ds, qoi)
+        out.append([float(q[name].values.ravel()[0]) for name in qoi])
+    return out
+
+
+class _Handler(BaseHTTPRequestHandler):
+    """The UM-Bridge protocol 1.0 for one model (``server.model``: input and output sizes,
+    evaluate); errors answer as the protocol's ``{"error": {"type", "message"}}``."""
+
+    def log_message(self, format, *args):  # the server's own lines go through ``announce``
+        pass
+
+    def _send(self, status: int, body: dict) -> None:
+        data = json.dumps(body).encode()
+        self.send_response(status)
+        self.send_header("Content-Type", "application/json")
+        self.send_header("Content-Length", str(len(data)))
+        self.end_headers()
+        self.wfile.write(data)
+
+    def _error(self, status: int, kind: str, message: str) -> None:
+        self._send(status, {"error": {"type": kind, "message": message}})
+
+    def do_GET(self):
+        if self.path == "/Info":
+            self._send(200, {"protocolVersion": 1.0, "models": [MODEL_NAME]})
+        else:
+            self._error(404, "NotFound", f"no GET {self.path}; UM-Bridge asks GET /Info")
+
+    def do_POST(self):
+        model = self.server.model
+        try:
+            request = json.loads(self.rfile.read(int(self.headers.get("Content-Length", 0))) or b"{}")
+        except ValueError:
+            return self._error(400, "InvalidInput", "the request body is not JSON")
+        if request.get("name") != MODEL_NAME:
+            return self._error(400, "ModelNotFound", f"model {request.get('name')!r} not found; served: {MODEL_NAME}")
+        if self.path == "/ModelInfo":
+            return self._send(200, {"support": {"Evaluate": True, "Gradient": False, "ApplyJacobian": False,
+                                                "ApplyHessian": False}})
+        if self.path == "/InputSizes":
+            return self._send(200, {"inputSizes": model.input_sizes})
+        if self.path == "/OutputSizes":
+            return self._send(200, {"outputSizes": model.output_sizes})
+        if self.path != "/Evaluate":
+            return self._error(400, "UnsupportedFeature", f"{self.path} is not supported; only Evaluate")
+        parameters = request.get("input")
+        if not (isinstance(parameters, list) and len(parameters) == 1 and isinstance(parameters[0], list)):
+            return self._error(400, "InvalidInput", f"input must be one vector of {model.input_sizes[0]} numbers")
+        try:
+            output = model(parameters[0])
+        except ValueError as err:
+            return self._error(400, "InvalidInput", str(err))
+        self._send(200, {"output": output})
+        self.server.served += 1
+
+
+class _Forward:
+    """The study's forward model: input and output sizes and one evaluation."""
+
+    def __init__(self, study, qoi):
+        self.study, self.qoi = study, qoi
+        self.surface, self.material = study.geometry.build_mould(), load_material(study.fabric.material)
+        self.input_sizes = [len(input_names(study))]
+        self.output_sizes = [len(qoi)] * len(study.force_levels)
+
+    def __call__(self, x):
+        return evaluate(self.study, x, self.qoi, surface=self.surface, material=self.material)
+
+
+def serve_study(study, *, host: str = "127.0.0.1", port: int = 4242, qoi=None, max_requests: int | None = None,
+                timeout_s: float | None = None, announce=print) -> int:
+    """Serve ``study`` as the UM-Bridge model ``forward`` at ``host``:``port`` until
+    stopped (Ctrl-C, SIGTERM) or after ``max_requests`` evaluations / ``timeout_s``
+    seconds; returns the evaluations served. ``announce`` gets the lines describing the
+    model."""
+    qoi = check_qois(qoi if qoi else study.sensitivity.qoi)
+    if max_requests is not None and max_requests < 1:
+        raise ValueError(f"--max-requests must be at least 1, got {max_requests}")
+    if timeout_s is not None and not timeout_s > 0:
+        raise ValueError(f"--timeout must be a positive number of seconds, got {timeout_s}")
+    server = HTTPServer((host, port), _Handler)
+    server.model, server.served = _Forward(study, qoi), 0
+    factors = {name: f.describe() for name, f in study.uncertainty.factors.items()}
+    announce(f"UM-Bridge model {MODEL_NAME!r} of study {study.name!r} at http://{host}:{server.server_port}")
+    announce("input: " + ", ".join(f"{n} ~ {factors[n]}" if n in factors else n for n in input_names(study)))
+    announce(f"nominal input: {nominal_input(study)}")
+    announce(f"output per force level {list(study.force_levels)} N: {', '.join(qoi)}")
+    deadline = None if timeout_s is None else time.monotonic() + timeout_s
+    try:
+        with server:
+            while max_requests is None or server.served < max_requests:
+                left = None if deadline is None else deadline - time.monotonic()
+                if left is not None and left <= 0:
+                    break
+                server.timeout = left
+                server.handle_request()
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: a served model's normal end
+        pass
+    return server.served

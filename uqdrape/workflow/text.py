@@ -1,0 +1,51 @@
+"""Text the command line shows before anything heavy is imported: the mould kinds with
+their parameters, the shipped architectures, the version, and what a validated study
+will run."""
+
+from __future__ import annotations
+
+import inspect
+from pathlib import Path
+
+from ..conventions import version_text  # noqa: F401  (re-exported for the CLI)
+from ..geometry import KINDS
+
+
+def geometry_help() -> str:
+    """One line per mould kind with its shape parameters and defaults (mm, degrees)."""
+    lines = []
+    for kind, cls in KINDS.items():
+        sig = inspect.signature(cls.__init__)
+        params = ", ".join(f"{p.name}={p.default!r}" if p.default is not p.empty else p.name
+                           for p in list(sig.parameters.values())[1:])
+        lines.append(f"  {kind:12s} {params}")
+    return "\n".join(lines)
+
+
+def architectures() -> list[str]:
+    """Shipped architecture names, without importing the (numpy/scipy) material package."""
+    return sorted(p.stem for p in (Path(__file__).parents[1] / "material" / "architectures").glob("*.toml"))
+
+
+def describe_study(s) -> str:
+    """A few lines saying what a validated study will run."""
+    material = Path(s.fabric.material).name
+    levels_ = ", ".join(f"{f:g}" for f in s.force_levels)
+    force = f"sweep {levels_} N" if s.is_sweep else f"{levels_} N"
+    varying = []
+    for name, f in s.uncertainty.fields.items():
+        what = ", ".join(f"{k} {v:g}" for k, v in f.params.items())
+        length = f", L = {f.length_mm[0]:g} x {f.length_mm[1]:g} mm" if f.length_mm else ""
+        varying.append(f"{name} field ({what}; {f.correlation}{length})")
+    varying += [f"{name} ~ {factor.describe()}" for name, factor in s.uncertainty.factors.items()]
+    sens = s.sensitivity.method
+    if sens != "none":
+        sens += f", {s.sensitivity.base_samples} base samples"
+    return "\n".join([
+        f"{s.name}: {s.realizations} realisations, seed {s.seed}, {s.sampling.plan} plan, chunks of {s.chunk_size}",
+        f"  mould {s.geometry.build_mould().describe()}; "
+        f"material {material}; spacing {s.fabric.spacing_mm:g} mm, {s.solver.rings} rings, {s.solver.mode} mode",
+        f"  blank-holder force {force}, friction {s.process.friction:g}, {s.process.blankholder_model} friction model",
+        f"  varying: {'; '.join(varying) if varying else 'nothing (deterministic)'}",
+        f"  sensitivity: {sens}; output: {s.output_dir}",
+    ])
