@@ -36,10 +36,10 @@ def test_a_circle_through_a_thin_plate_keeps_the_crossing_on_the_net_s_side(thin
     the nearer crossing is skipped for the top; facing -t the bottom is the root."""
     kind, par = thin_plate.kernel
     args = (kind, par, (0.0, 0.0, -1.5), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0), 2.0, 1e-10)
-    q, ok, grad = kernels._solve_on_circle(*args, 1.0)
+    q, ok, grad, _ = kernels._solve_on_circle(*args, 1.0)
     assert ok and q == pytest.approx((2.0 * np.cos(np.arcsin(0.75)), 0.0, 0.0), abs=1e-9)
     assert grad == pytest.approx((0.0, 0.0, 1.0))
-    q, ok, grad = kernels._solve_on_circle(*args, -1.0)
+    q, ok, grad, _ = kernels._solve_on_circle(*args, -1.0)
     assert ok and q == pytest.approx((2.0 * np.cos(np.arcsin(0.25)), 0.0, -1.0), abs=1e-9)
     assert grad == pytest.approx((0.0, 0.0, -1.0))
 
@@ -49,9 +49,9 @@ def test_a_circle_that_only_enters_the_plate_has_no_root(thin_plate):
     enters its bottom face from below (t = asin(0.8)): no root on a sheet facing +t."""
     kind, par = thin_plate.kernel
     args = (kind, par, (0.0, 0.0, -3.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0), 2.5, 1e-10)
-    q, ok, _ = kernels._solve_on_circle(*args, 1.0)
+    q, ok, _, _ = kernels._solve_on_circle(*args, 1.0)
     assert not ok
-    q, ok, _ = kernels._solve_on_circle(*args, -1.0)
+    q, ok, _, _ = kernels._solve_on_circle(*args, -1.0)
     assert ok and q == pytest.approx((1.5, 0.0, -1.0), abs=1e-9)
 
 
@@ -427,3 +427,74 @@ def test_a_mesh_study_gives_the_same_numbers_in_two_processes_and_after_a_resume
     chunk = sorted((tmp_path / "two" / "chunks").glob("*.nc"))[1]
     chunk.unlink()
     xr.testing.assert_identical(one, ensemble("two", chunk_size=2, workers=1))
+
+
+def test_fe_export_maps_the_elements_of_a_wall(tmp_path):
+    """FE export onto the box drape: a part mesh of the box (12.5 mm triangles) has its wall
+    elements carried onto the mesh by closest point and located on the net in space; those
+    under the net get fibre directions tangent to the wall; none is off the mould."""
+    from uqdrape.drape import drape
+    from uqdrape.export import levels, open_result
+    from uqdrape.export.fe import (
+        OFF_MOULD,
+        ON_NET,
+        centroids,
+        map_level,
+        read_surface_mesh,
+    )
+
+    box = trimesh.creation.box(extents=(100.0, 100.0, 60.0))
+    box.apply_translation((0.0, 0.0, -30.0))
+    surface = MeshSurface(_save(box, tmp_path / "box.stl"))
+    drape(surface, S, 16).to_netcdf(tmp_path / "box.nc")
+    part = _save(box.subdivide().subdivide().subdivide(), tmp_path / "part.stl")
+    result, ensemble = open_result(tmp_path / "box.nc")
+    mesh, blocks = read_surface_mesh(part)
+    c = centroids(mesh, blocks)
+    values = map_level(levels(result, ensemble)[0], surface, c, S)
+    status = values["map_status"]
+    wall = (np.abs(np.abs(c[:, 0]) - 50.0) < 1e-6) & (c[:, 2] < -5.0)
+    assert (status != OFF_MOULD).all() and (status[wall] == ON_NET).sum() >= 100
+    foot, _, _ = surface.project(c)
+    n = surface.normal_at(foot)
+    for name in ("fibre1", "fibre2"):
+        d = values[name][status == ON_NET]
+        assert np.abs((d * n[status == ON_NET]).sum(1)).max() < 1e-12, name
+
+
+def test_nodes_over_a_hole_in_the_mesh_are_off_the_mould(tmp_path):
+    """A plate with a 40 x 40 mm hole cut at x = 40 mm: the nodes over the hole land on the
+    tangent plane that continues the mesh past its open edge, so they are flagged
+    off_mould (and the nodes built from them dependent), never placed as on the tool."""
+    from uqdrape.drape import Status, drape
+
+    sheet = _grid_sheet(np.linspace(-100, 100, 21), np.linspace(-100, 100, 21), lambda X, Y: 0 * X)
+    centre = sheet.triangles.mean(1)
+    hole = (np.abs(centre[:, 0] - 40.0) < 20.0) & (np.abs(centre[:, 1]) < 20.0)
+    holed = trimesh.Trimesh(sheet.vertices, sheet.faces[~hole], process=False)
+    ds = drape(MeshSurface(_save(holed, tmp_path / "holed.stl")), S, 12)
+    st, P = ds.status.values[0], _positions(ds)[0]
+    over = (np.abs(P[..., 0] - 40.0) < 20.0 - 1e-9) & (np.abs(P[..., 1]) < 20.0 - 1e-9)
+    assert (st == Status.OFF_MOULD).sum() > 0 and not over[st == Status.OK].any()
+    assert (st == Status.OK).sum() > 0.6 * st.size
+
+
+@pytest.mark.parametrize("suffix", [".ply", ".obj", ".vtu", ".msh"])
+def test_other_mesh_formats_give_the_same_mould(tmp_path, suffix):
+    """The box in PLY, OBJ (trimesh) and VTU, Gmsh (meshio) drapes as its STL does."""
+    import meshio
+
+    from uqdrape.drape import drape
+
+    box = trimesh.creation.box(extents=(101.0, 101.0, 60.0))
+    box.apply_translation((0.0, 0.0, -30.0))
+    path = tmp_path / f"box{suffix}"
+    if suffix in (".ply", ".obj"):
+        box.export(path)
+    else:
+        meshio.write(path, meshio.Mesh(np.asarray(box.vertices), [("triangle", np.asarray(box.faces))]),
+                     **({"file_format": "gmsh22"} if suffix == ".msh" else {}))
+    a = drape(MeshSurface(path), S, 12)
+    b = drape(MeshSurface(_save(box, tmp_path / "box.stl")), S, 12)
+    np.testing.assert_array_equal(a.status.values, b.status.values)
+    assert np.nanmax(np.abs(_positions(a) - _positions(b))) < 1e-4  # STL stores float32

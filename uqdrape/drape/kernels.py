@@ -26,7 +26,7 @@ import math
 import numpy as np
 
 from .._jit import jit
-from ..geometry.compiled import gap, on_mould, surface_normal
+from ..geometry.compiled import gap_on, surface_normal
 from .status import Status
 
 #: Largest circle angle (rad) searched either side of the reference direction.
@@ -48,15 +48,16 @@ NAN3 = (math.nan, math.nan, math.nan)
 
 @jit
 def _gap(kind, par, c, u, v, rho, t):
-    """Circle point q at angle t (mm), the mould function phi(q) (mm), its t-derivative and
-    the gradient of phi at q (3-tuple). For a height field, phi = z - h and the derivative
-    (d2 - hx d0) - hy d1, the same arithmetic as the vertical gap it replaces."""
+    """Circle point q at angle t (mm), the mould function phi(q) (mm), its t-derivative, the
+    gradient of phi at q (3-tuple) and whether q is on the mould (``compiled.gap_on``). For a
+    height field, phi = z - h and the derivative (d2 - hx d0) - hy d1, the same arithmetic
+    as the vertical gap it replaces."""
     ct, st = math.cos(t), math.sin(t)
     q = (c[0] + rho * (ct * u[0] + st * v[0]), c[1] + rho * (ct * u[1] + st * v[1]),
          c[2] + rho * (ct * u[2] + st * v[2]))
     d0, d1, d2 = rho * (-st * u[0] + ct * v[0]), rho * (-st * u[1] + ct * v[1]), rho * (-st * u[2] + ct * v[2])
-    phi, gx, gy, gz = gap(kind, par, q[0], q[1], q[2])
-    return q, phi, (gz * d2 + gx * d0) + gy * d1, (gx, gy, gz)
+    phi, gx, gy, gz, on = gap_on(kind, par, q[0], q[1], q[2])
+    return q, phi, (gz * d2 + gx * d0) + gy * d1, (gx, gy, gz), on
 
 
 @jit
@@ -101,8 +102,8 @@ def _bracket(kind, par, c, u, v, rho, tol, up):
             else:
                 b, gb = t_new, g_new
             side = 1 if left else -1
-    q, g_t, _, grad = _gap(kind, par, c, u, v, rho, t)
-    return q, found and abs(g_t) < tol, grad
+    q, g_t, _, grad, on = _gap(kind, par, c, u, v, rho, t)
+    return q, found and abs(g_t) < tol, grad, on
 
 
 @jit
@@ -110,15 +111,15 @@ def _solve_on_circle(kind, par, c, u, v, rho, tol, up):
     """Point of the circle ``c + rho (cos t u + sin t v)`` on the surface, |t| < THETA_MAX,
     where phi rises with ``up`` * t (+-1: the net's own sheet, see the module docstring).
 
-    Returns (q, ok, gradient of phi at q): the root nearest t = 0 by safeguarded Newton
+    Returns (q, ok, gradient of phi at q, q on the mould): the root nearest t = 0 by safeguarded Newton
     (steps clipped to 0.2 rad), falling back to a bracketing search when Newton does not
     settle in _NEWTON_ITERS steps, starts to alternate or lands on a crossing of the wrong
     orientation; ``tol`` is the |phi| accepted (mm).
     """
     if not (math.isfinite(c[0] + c[1] + c[2] + u[0] + u[1] + u[2] + v[0] + v[1] + v[2] + rho) and rho > 0):
-        return NAN3, False, NAN3
+        return NAN3, False, NAN3, False
     theta, last, older = 0.0, math.nan, math.nan
-    q, g, dg, grad = _gap(kind, par, c, u, v, rho, theta)
+    q, g, dg, grad, on = _gap(kind, par, c, u, v, rho, theta)
     for _ in range(_NEWTON_ITERS):
         if abs(g) < tol:
             break
@@ -128,9 +129,9 @@ def _solve_on_circle(kind, par, c, u, v, rho, tol, up):
         older, last, theta = last, theta, theta + min(max(step, -0.2), 0.2)
         if theta == older:  # a 2-cycle: Newton would alternate until it gives up
             return _bracket(kind, par, c, u, v, rho, tol, up)
-        q, g, dg, grad = _gap(kind, par, c, u, v, rho, theta)
+        q, g, dg, grad, on = _gap(kind, par, c, u, v, rho, theta)
     if abs(g) < tol and abs(theta) < THETA_MAX and dg * up > 0:
-        return q, True, grad
+        return q, True, grad, on
     return _bracket(kind, par, c, u, v, rho, tol, up)
 
 
@@ -151,13 +152,13 @@ def _unit(a):
 
 
 @jit
-def _status(kind, par, q, ok, parents_valid):
-    """Status code of a placed node (``Status``)."""
+def _status(ok, on, parents_valid):
+    """Status code of a node from its root (found, on the mould) and its parents (``Status``)."""
     if not parents_valid:
         return DEPENDENT
     if not ok:
         return NO_INTERSECTION
-    if not on_mould(kind, par, q[0], q[1], q[2]):
+    if not on:
         return OFF_MOULD
     return OK
 
@@ -175,9 +176,9 @@ def arm_node(kind, par, p, direction, turn, length, tol):
     w = _cross(n, t)
     ct, st = math.cos(turn), math.sin(turn)
     t = (ct * t[0] + st * w[0], ct * t[1] + st * w[1], ct * t[2] + st * w[2])
-    q, ok, _ = _solve_on_circle(kind, par, p, t, n, length, tol, 1.0)  # t rises along n: outwards
+    q, ok, _, on = _solve_on_circle(kind, par, p, t, n, length, tol, 1.0)  # t rises along n: outwards
     parents = math.isfinite(p[0] + p[1] + p[2] + direction[0] + direction[1] + direction[2])
-    status = _status(kind, par, q, ok, parents)
+    status = _status(ok, on, parents)
     return (q if status == OK else NAN3), status
 
 
@@ -200,9 +201,9 @@ def fill(kind, par, a, b, c, la, lb, sign_ij, tol):
     u = _unit((guess[0] - ge * e[0], guess[1] - ge * e[1], guess[2] - ge * e[2]))
     v = _cross(e, u)
     # v = e x u points along sign_ij times the outward normal on a right-handed cell
-    q, ok, grad = _solve_on_circle(kind, par, centre, u, v, rho, tol, float(sign_ij))
+    q, ok, grad, on = _solve_on_circle(kind, par, centre, u, v, rho, tol, float(sign_ij))
     parents = math.isfinite(a[0] + a[1] + a[2] + b[0] + b[1] + b[2] + c[0] + c[1] + c[2])
-    status = _status(kind, par, q, ok, parents)
+    status = _status(ok, on, parents)
     if status == OK:
         s = math.sqrt(grad[0] * grad[0] + grad[1] * grad[1] + grad[2] * grad[2])
         n = (grad[0] / s, grad[1] / s, grad[2] / s)  # the normal at q, from the root's last gradient

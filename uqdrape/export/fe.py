@@ -4,7 +4,9 @@ Each element's centroid (mean of its corner nodes) is moved along the mould norm
 the mould, located in a cell of the draped net in plan (each quad split into two
 triangles along its (i, j)-(i+1, j+1) diagonal) and given the net's node values by
 linear barycentric interpolation: exact for fields linear in plan position, error
-O(s^2) for smooth fields at spacing s. The fibre directions are interpolated, laid on
+O(s^2) for smooth fields at spacing s. On a mesh mould, whose walls have no plan
+position, the centroid goes to its closest point on the mesh and is located on the
+nearest net triangle in space (within half the tolerance; farther is off the net). The fibre directions are interpolated, laid on
 the mould's tangent plane and opened to 90 deg - the interpolated shear
 (``fibre_frame``). Elements are never dropped: ``map_status`` says why one has no values.
 Both yarns are then given in each element's own frame (``elements``) and written in the
@@ -92,7 +94,10 @@ def centroids(mesh: meshio.Mesh, blocks) -> np.ndarray:
 
 def onto_mould(surface, c: np.ndarray, iterations: int = 30):
     """Foot points on the mould of the points ``c`` (M, 3) moved along the mould normal:
-    (plan positions (M, 2) mm, signed distance along the normal (M,) mm, inside domain)."""
+    (plan positions (M, 2) mm, signed distance along the normal (M,) mm, inside domain);
+    on a mesh mould, whose walls have no plan position, the closest points (M, 3) instead."""
+    if hasattr(surface, "project"):
+        return surface.project(c)
     xy = c[:, :2].copy()
     for _ in range(iterations):
         n = surface.normal(xy[:, 0], xy[:, 1])
@@ -100,6 +105,30 @@ def onto_mould(surface, c: np.ndarray, iterations: int = 30):
         d = dot(c - np.column_stack([xy, h]), n)
         xy = c[:, :2] - d[:, None] * n[:, :2]
     return xy, d, surface.inside(xy[:, 0], xy[:, 1])
+
+
+def foot_normal(surface, foot) -> np.ndarray:
+    """The mould's unit normal (M, 3) at ``onto_mould``'s foot points."""
+    xy = foot[0]
+    return surface.normal_at(xy) if xy.shape[1] == 3 else surface.normal(xy[:, 0], xy[:, 1])
+
+
+def locate_on(points: np.ndarray, tri: np.ndarray, reach: float):
+    """Triangle index (M,) (-1: none within ``reach`` mm) and barycentric weights (M, 3) of
+    the points (M, 3) on their nearest of the triangles ``tri`` (T, 3, 3) in space."""
+    import trimesh
+
+    tree = cKDTree(tri.mean(1))
+    k = min(CANDIDATES, len(tri))
+    _, cand = tree.query(points, k=k)
+    cand = cand.reshape(len(points), k)
+    near = trimesh.triangles.closest_point(tri[cand.ravel()], np.repeat(points, k, axis=0)).reshape(-1, k, 3)
+    dist = np.linalg.norm(near - points[:, None], axis=-1)
+    best = np.argmin(dist, axis=1)
+    rows = np.arange(len(points))
+    pick = cand[rows, best]
+    lam = trimesh.triangles.points_to_barycentric(tri[pick], near[rows, best])
+    return np.where(dist[rows, best] <= reach, pick, -1), lam
 
 
 def locate(points: np.ndarray, tri_xy: np.ndarray):
@@ -140,8 +169,12 @@ def _interpolate(P: np.ndarray, shear: np.ndarray, surface, foot, tolerance_mm: 
     tris = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
     pts = P.reshape(-1, 3)[kept]
     xy, dist, on_mould = foot
+    if xy.shape[1] == 3:  # a mesh mould's foot points, located on the net in space
+        tri, lam = (locate_on(xy, pts[tris], 0.5 * tolerance_mm) if len(tris)
+                    else (np.full(len(xy), -1), np.zeros((len(xy), 3))))
+    else:
+        tri, lam = locate(xy, pts[tris, :2]) if len(tris) else (np.full(len(xy), -1), np.zeros((len(xy), 3)))
     near = on_mould & (np.abs(dist) <= tolerance_mm)
-    tri, lam = locate(xy, pts[tris, :2]) if len(tris) else (np.full(len(xy), -1), np.zeros((len(xy), 3)))
     hit = near & (tri >= 0)
     status = np.where(~near, OFF_MOULD, np.where(hit, ON_NET, OFF_NET)).astype(np.int8)
     corner = tris[np.where(hit, tri, 0)]
@@ -153,7 +186,7 @@ def _interpolate(P: np.ndarray, shear: np.ndarray, surface, foot, tolerance_mm: 
         out[~hit] = np.nan
         return out
 
-    normal = surface.normal(xy[:, 0], xy[:, 1])
+    normal = foot_normal(surface, foot)
     shear_e = interp(shear)
     with np.errstate(invalid="ignore"):
         e1, e2 = fibre_frame(interp(d1), interp(d2), normal, shear_e)
@@ -178,7 +211,7 @@ def _ensemble_angles(level: Level, surface, foot, tolerance_mm: float, frame, no
     placed = data.status.values == 0
     P = np.stack([np.where(placed, data[c].values, np.nan) for c in ("x", "y", "z")], axis=-1)
     shear = np.where(placed, data.shear.values, np.nan)
-    normal = surface.normal(foot[0][:, 0], foot[0][:, 1])
+    normal = foot_normal(surface, foot)
     samples = {"theta1": [], "theta2": []}
     for r in range(P.shape[0]):
         one = _interpolate(P[r], shear[r], surface, foot, tolerance_mm)
@@ -216,7 +249,7 @@ def fe_files(levels: list[Level], ds, mesh_path, stem, tolerance_mm: float | Non
     corners = corner_nodes(blocks)
     frame = element_frames(mesh.points, corners)
     foot = onto_mould(surface, c)
-    normal = surface.normal(foot[0][:, 0], foot[0][:, 1])
+    normal = foot_normal(surface, foot)
     writers, statuses = {}, []
     for level in levels:
         values = map_level(level, surface, c, tol, foot)

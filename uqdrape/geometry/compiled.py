@@ -15,8 +15,7 @@ DOUBLE_DOME  [half, dome R, base radius, centre distance, blend, depth, rim slop
 SADDLE       [half, R]
 MESH         a triangle mesh with its bounding-volume hierarchy (``meshquery``)
 
-Every kind is also an implicit surface for the node solver (``gap``, ``surface_normal``,
-``on_mould``): a height field through its closed form, a mesh through its signed distance.
+Every kind is also an implicit surface for the node solver (``gap_on``, ``surface_normal``): a height field through its closed form, a mesh through its signed distance.
 """
 
 from __future__ import annotations
@@ -118,16 +117,26 @@ def inside(kind, p, x, y):
 
 
 @jit
-def gap(kind, p, x, y, z):
+def gap_on(kind, p, x, y, z):
     """The mould as an implicit surface at the point (x, y, z) (mm): (phi, dphi/dx, dphi/dy,
-    dphi/dz), phi = 0 on the mould, > 0 on the side the fabric comes from, its gradient the
-    outward normal (not unit). A height field is phi = z - h(x, y), gradient (-hx, -hy, 1);
-    a mesh its signed distance (``meshquery.signed_distance``)."""
+    dphi/dz, on), phi = 0 on the mould, > 0 on the side the fabric comes from, its gradient
+    the outward normal (not unit), and whether a point of the surface there lies on the
+    mould (a node placed where ``on`` is False is off the mould). A height field is
+    phi = z - h(x, y), gradient (-hx, -hy, 1), on its plan domain; a mesh its signed
+    distance, on it within its tolerance, not on the tangent plane continuing it past an
+    open edge (``meshquery.signed_distance``, one closest-point query for all of it)."""
     if kind == MESH:
-        phi, g = meshquery.signed_distance(p, x, y, z)
-        return phi, g[0], g[1], g[2]
+        phi, g, on = meshquery.signed_distance(p, x, y, z)
+        return phi, g[0], g[1], g[2], on
     h, hx, hy = height_gradient(kind, p, x, y)
-    return z - h, -hx, -hy, 1.0
+    return z - h, -hx, -hy, 1.0, inside(kind, p, x, y)
+
+
+@jit
+def gap(kind, p, x, y, z):
+    """(phi, dphi/dx, dphi/dy, dphi/dz) of ``gap_on``."""
+    phi, gx, gy, gz, _ = gap_on(kind, p, x, y, z)
+    return phi, gx, gy, gz
 
 
 @jit
@@ -140,16 +149,6 @@ def surface_normal(kind, p, x, y, z):
     _, gx, gy, gz = gap(kind, p, x, y, z)
     s = math.sqrt(gx * gx + gy * gy + gz * gz)
     return (gx / s, gy / s, gz / s)
-
-
-@jit
-def on_mould(kind, p, x, y, z):
-    """True where the surface point (x, y, z) (mm) lies on the mould (a height field: its
-    plan position inside the domain; a mesh: on it within its tolerance, not on the tangent
-    plane continuing it past an open edge)."""
-    if kind == MESH:
-        return meshquery.on_mesh(p, x, y, z)
-    return inside(kind, p, x, y)
 
 
 @jit

@@ -23,7 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
-from . import compiled, meshquery as mq
+from . import compiled
+from . import meshquery as mq
 from .analytic import MAX_LENGTH_MM
 from .base import Surface
 
@@ -329,6 +330,15 @@ class MeshSurface(Surface):
     def normal_at(self, points):
         """The solver's unit normal (..., 3) at points (..., 3) mm on the mesh (NaN in, NaN out)."""
         return compiled.evaluate_normal(self.kernel, points)
+
+    def project(self, points):
+        """Foot points (M, 3) on the mesh of points (M, 3) mm, their signed distances (M,) mm
+        and whether each has one (finite), the mesh's closest points: the way to carry
+        points onto a mould whose walls have no plan position."""
+        points = np.ascontiguousarray(points, float).reshape(-1, 3)
+        foot, phi = np.empty_like(points), np.empty(len(points))
+        mq.closest_many(self.kernel[1], points, foot, phi)
+        return foot, phi, np.isfinite(phi)
 
     def triangles(self):
         """The mesh in the solver frame: vertices (nv, 3) mm, faces (nf, 3) in the hierarchy's

@@ -180,15 +180,18 @@ def _on_boundary(p, f, region):
 
 @jit
 def signed_distance(p, x, y, z):
-    """(phi, gradient 3-tuple) of the mesh at (x, y, z): the signed distance (> 0 outside, on
-    the normals' side) and its gradient, as set out in the module docstring."""
+    """(phi, gradient 3-tuple, on the mesh) at (x, y, z): the signed distance (> 0 outside, on
+    the normals' side), its gradient, as set out in the module docstring, and whether the
+    point lies on the mesh within the stored tolerance (not on the tangent plane that
+    continues it past an open edge), from the one closest-point query."""
     f, c, _, region, d2 = closest(p, x, y, z)
     if f < 0:
-        return math.nan, (math.nan, math.nan, math.nan)
+        return math.nan, (math.nan, math.nan, math.nan), False
+    on = d2 <= p[ON_TOL] * p[ON_TOL]
     n = _face_normal(p, f)
     diff = (x - c[0], y - c[1], z - c[2])
     if region == 0 or _on_boundary(p, f, region):
-        return _dot(diff, n), n
+        return _dot(diff, n), n, on
     if region >= 4:
         g = int(p[int(p[OFF_NB]) + 3 * f + region - 4])
         m = _face_normal(p, g)
@@ -199,9 +202,20 @@ def signed_distance(p, x, y, z):
     sign = 1.0 if _dot(diff, pseudo) >= 0.0 else -1.0
     d = math.sqrt(d2)
     if d > 1e-9 * p[SCALE]:
-        return sign * d, (sign * diff[0] / d, sign * diff[1] / d, sign * diff[2] / d)
+        return sign * d, (sign * diff[0] / d, sign * diff[1] / d, sign * diff[2] / d), on
     s = math.sqrt(_dot(pseudo, pseudo))
-    return sign * d, (pseudo[0] / s, pseudo[1] / s, pseudo[2] / s)
+    return sign * d, (pseudo[0] / s, pseudo[1] / s, pseudo[2] / s), on
+
+
+@jit
+def closest_many(p, points, foot, phi):
+    """Closest points ``foot`` (M, 3) on the mesh and the signed distances ``phi`` (M,) of
+    ``points`` (M, 3) mm, filled in place (NaN for a non-finite point)."""
+    for m in range(points.shape[0]):
+        x, y, z = points[m, 0], points[m, 1], points[m, 2]
+        c = closest(p, x, y, z)[1]
+        foot[m, 0], foot[m, 1], foot[m, 2] = c
+        phi[m] = signed_distance(p, x, y, z)[0]
 
 
 @jit
@@ -257,12 +271,6 @@ def normal(p, x, y, z):
         (1 - u) * 0.5 * (nf[2] + m[2]) + u * n[2]
     s = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
     return (s0 / s, s1 / s, s2 / s)
-
-
-@jit
-def on_mesh(p, x, y, z):
-    """True where (x, y, z) lies on the mesh, within the stored tolerance (mm)."""
-    return closest(p, x, y, z)[4] <= p[ON_TOL] * p[ON_TOL]
 
 
 @jit
