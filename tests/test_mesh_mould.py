@@ -401,6 +401,7 @@ def test_a_mesh_study_gives_the_same_numbers_in_two_processes_and_after_a_resume
     worker processes in chunks of 2 (each worker reads the mesh itself), and again after a
     chunk file is deleted (resume): the same ensemble to the last bit."""
     import dataclasses
+    import shutil
     from pathlib import Path
 
     import xarray as xr
@@ -411,7 +412,8 @@ def test_a_mesh_study_gives_the_same_numbers_in_two_processes_and_after_a_resume
 
     root = Path(__file__).resolve().parent.parent
     text = (root / "studies" / "cspar-misalignment.toml").read_text()
-    text = text.replace('path = "meshes/cspar.stl"', f'path = "{(root / "studies" / "meshes" / "cspar.stl").as_posix()}"')
+    (tmp_path / "meshes").mkdir()  # a study names files in its own folder only
+    shutil.copy(root / "studies" / "meshes" / "cspar.stl", tmp_path / "meshes" / "cspar.stl")
     text = text.replace("realizations = 16", "realizations = 6").replace("rings = 20", "rings = 8")
     (tmp_path / "cspar.toml").write_text(text)
     study = load_study(tmp_path / "cspar.toml")
