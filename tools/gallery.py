@@ -31,7 +31,7 @@ import numpy as np
 import xarray as xr
 from scipy.stats import spearmanr
 
-from uqdrape.stats import inner_outer_sd, line_scalars, line_statistics, wrinkle_risk
+from uqdrape.stats import inner_outer_sd, line_scalars, line_statistics, node_statistics, wrinkle_risk
 
 ROOT = Path(__file__).resolve().parent.parent
 #: Where the committed reference reports live, relative to the checkout root.
@@ -132,6 +132,23 @@ def _wrinkle_headline(ds: xr.Dataset) -> dict:
             "nodes with P > 0.05": int((p > 0.05).sum())}
 
 
+def _mesh_headline(ds: xr.Dataset) -> dict:
+    """A mesh mould's ensemble per force level: the largest |mean| and sd of node shear, the
+    largest wrinkle risk, and how much of the net hangs below the top (on walls, z < -1 mm)."""
+    st, risk = node_statistics(ds), wrinkle_risk(ds)
+    below = float((ds["z"].mean("realization") < -1.0).mean())
+    out = {"share of the net's nodes below the top (on walls)": _round(below)}
+    for f in ds["blankholder_force"].values:
+        level = {"blankholder_force": f}
+        out[f"max |mean shear| / max sd at {float(f):g} N (deg)"] = (
+            f"{_round(float(abs(st['mean'].sel(level)).max()))} / {_round(float(st['sd'].sel(level).max()))}")
+        if risk is not None:
+            p = risk["probability"].sel(level)
+            out[f"max {risk.attrs['risk']} at {float(f):g} N; nodes with P > 0.5"] = (
+                f"{float(p.max()):.2f}; {int((p > 0.5).sum())}")
+    return out
+
+
 def _design_headline(ds: xr.Dataset) -> dict:
     """The design's optimum and its objective on the validation sample against the
     baseline (and, for sectors, the uniform force at the same total), from design.nc."""
@@ -230,6 +247,11 @@ GALLERY = (
           "sensitivity_vs_force.png", _sensitivity_headline, "scatter fell as blank-holder force rose, cause not "
           "modelled; here Sobol' indices per force level over the full 61 x 61 net (fields correlated over 20 mm, "
           "95 % of their variance kept; 896 drapes per level)", reads_folder=True),
+    Entry("cspar-misalignment", "beyond the thesis (a tool no height field holds)", "mean_shear.png", _mesh_headline,
+          "moulds are height fields there; here a C-spar (web, 10 mm fillets, 90 deg flanges) as a triangle mesh, "
+          "+-45 deg fabric under ply misalignment sd 2 deg"),
+    Entry("pan-corner-lock", "beyond the thesis (a tool no height field holds)", "wrinkle_risk.png", _mesh_headline,
+          "here a male pan (vertical walls, 8 mm radii) as a triangle mesh: where it locks against blank-holder force"),
     Entry("design-nosecone-symmetrise", "beyond the thesis (its closing question: which pressure)", "objective.png",
           _design_headline, "'almost symmetric at 252 N, entirely symmetric at 378 N' (measured); here the least "
           "force whose upper 95 % limit of |mean asymmetry| is 1 deg under gamma0 scatter (EBXhd-936, derived card)"),

@@ -110,6 +110,7 @@ def _map(ds: xr.Dataset, values: xr.DataArray, path, *, norm, cmap, cbar_label: 
         v = values.sel({FORCE: force}).transpose("i", "j").values
         x, y = xy["x"].transpose("i", "j").values, xy["y"].transpose("i", "j").values
         tri, used = triangulation(x, y, np.isfinite(x) & np.isfinite(y) & np.isfinite(v))
+        ax.set_facecolor("0.9")  # the net stands out where its values are white (no risk)
         ax.tripcolor(tri, v.flat[used], shading="gouraud", norm=norm, cmap=cmap)
         xlabel, ylabel = map_labels(ds)
         ax.set(xlabel=xlabel, ylabel=ylabel, aspect="equal", title=force_title(force))
