@@ -1,6 +1,6 @@
 """A seeded mutator over every kind of file uqdrape reads (issue 26): each case mutates a
 valid file (bit flips, inserted tokens, extreme numbers in place of numbers, deletions,
-duplications, truncation) and reads it as a command would, through ``uqdrape.cli.main``
+duplications, truncation, values of another type) and reads it as a command would, through ``uqdrape.cli.main``
 (its exception handling, exit codes and printing), with stdout and stderr captured at
 the file descriptors (C libraries' messages included). Every case must end in exit 0, 2
 or 3 with nothing or one line on stderr and no traceback.
@@ -14,6 +14,7 @@ its input. Slow suite: CASES per kind; the default suite runs SMOKE_CASES of eac
 
 from __future__ import annotations
 
+import errno
 import json
 import random
 import re
@@ -30,7 +31,7 @@ import trimesh
 
 import uqdrape.cli as cli
 import uqdrape.ensemble.run as run_module
-from conftest import write_study
+from conftest import assert_one_line_error, write_study
 from uqdrape.ensemble.hygiene import LOCK, run_lock
 from uqdrape.ensemble.store import MANIFEST, open_ensemble, read_manifest
 from uqdrape.experimental import read_experimental
@@ -42,11 +43,17 @@ from uqdrape.study import load_study
 #: Cases per file type in the slow suite, and in the default suite.
 CASES = 1000
 SMOKE_CASES = 25
-#: A run.json or chunk accepted by its reader is also opened as a report opens the run
-#: (about 0.5 s each): this many per kind.
+#: A run.json accepted by its reader is also opened as a report opens the run (about 0.5 s
+#: each): this many; and this many chunks that pass the resume check (every damaged one is).
 MAX_OPENED = 5
+MAX_INTACT_OPENED = 20
 
 _NUMBER = re.compile(rb"-?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?")
+#: A TOML ``key = value`` or JSON ``"key": value`` (the value up to the line's end or a comma).
+_VALUE = re.compile(rb"(?:=|\":)\s*([^,\n]+)")
+#: Values of the wrong type or shape, put in place of a whole value.
+_VALUES = [b'"x"', b'""', b"[]", b"[1, 2]", b"[[0, 0]]", b"{}", b"{ a = 1 }", b"true", b"false", b'"../x"',
+           b'"/etc/passwd"', b'"nan"', b"null", b"[0.0, 1e308]", rb'"\u0000"', b'"' + b"a" * 300 + b'"']
 _EXTREME = [b"0", b"-0", b"-1", b"1", b"0.5", b"1e308", b"-1e308", b"1e309", b"1e-320", b"nan", b"inf", b"-inf",
             b"99999999999999999999999", b"4194305", b"2147483648", b"1e6", b"-1e-9", b"90", b"89.9999", b"3"]
 _TOKENS = {
@@ -61,12 +68,13 @@ _TOKENS = {
 
 
 def _mutate(data: bytes, rng: random.Random, tokens: list[bytes]) -> bytes:
-    """1-4 random edits of ``data``; a text file's numbers are the most likely target."""
+    """1-4 random edits of ``data``; a text file's numbers and values are the likeliest targets."""
     data = bytearray(data)
     for _ in range(rng.randint(1, 4)):
-        op = rng.choices(range(7), weights=(2, 3, 1, 4, 1, 1, 1))[0]
+        op = rng.choices(range(8), weights=(2, 3, 1, 4, 1, 1, 1, 3))[0]
         pos = rng.randrange(len(data) + 1)
         numbers = list(_NUMBER.finditer(data)) if op == 3 else []
+        values = list(_VALUE.finditer(data)) if op == 7 else []
         if op == 0 and data:  # flip a bit
             data[min(pos, len(data) - 1)] ^= 1 << rng.randrange(8)
         elif op == 1:  # insert a token
@@ -83,6 +91,9 @@ def _mutate(data: bytes, rng: random.Random, tokens: list[bytes]) -> bytes:
             data[pos:pos] = data[start:start + rng.randint(1, 200)]
         elif op == 6 and data:  # overwrite 8 bytes
             data[pos:pos + 8] = rng.choice(tokens[:6]).ljust(8, b"\x00")[:8]
+        elif op == 7 and values:  # a value of another type in place of a value
+            m = rng.choice(values)
+            data[m.start(1):m.end(1)] = rng.choice(_VALUES + _EXTREME)
     return bytes(data)
 
 
@@ -129,11 +140,13 @@ def bases(tmp_path_factory):
                 opened.append(path)
                 open_ensemble(path.parent).close()
 
-    def intact(path):
-        if run_module.chunk_intact(path, chunk_plan) and len(opened) < 2 * MAX_OPENED:  # kept: a report reads it
+    def intact(path):  # as a resuming run checks it, then as a report opens it (a report does not check)
+        if run_module.chunk_intact(path, chunk_plan):
+            if len(opened) >= MAX_INTACT_OPENED:
+                return
             opened.append(path)
-            with open_ensemble(run) as ds:
-                ds.load()
+        with open_ensemble(run) as ds:
+            ds.load()
 
     def locked(path):
         with run_lock(path.parent):
@@ -219,3 +232,39 @@ def test_the_mutator_is_seeded_and_mutates(bases):
     assert _case(bases, "study", 7) == _case(bases, "study", 7)
     assert len({_case(bases, "study", seed) for seed in range(50)}) >= 45
     assert all(_case(bases, "chunk", seed) != bases["chunk"][1] for seed in range(20))
+
+
+# ----------------------------------------------------------------------------- what it found
+
+
+@pytest.mark.parametrize("old, new, key", [
+    (b"side_mm = 1.87", b"side_mm = 1e308", "side_mm"),  # seed 245: side^2 overflowed (OverflowError)
+    (b"negative_ns = [60.0, 60.0]", b"negative_ns = [-1e308, 60.0]", "calibration.negative_ns"),  # seed 197
+])
+def test_an_architecture_value_past_its_range_is_one_line(tmp_path, old, new, key):
+    data = _shipped("architectures", "fge106hd.toml")
+    assert old in data
+    path = tmp_path / "arch.toml"
+    path.write_bytes(data.replace(old, new))
+    with pytest.raises(ValueError) as err:
+        load_architecture(path)
+    assert_one_line_error(str(err.value), file=path)
+    assert getattr(err.value, "key", None) and key in err.value.key
+
+
+def test_chunks_that_no_longer_combine_are_a_corrupt_run(bases):
+    """A chunk whose node index runs backwards opens, but the run's chunks no longer
+    combine (xarray's ValueError, which named no file): a corrupt run folder, exit 3."""
+    import xarray as xr
+
+    chunk = bases["chunk"][0]
+    original = chunk.read_bytes()
+    try:
+        with xr.open_dataset(chunk, engine="netcdf4", decode_cf=False) as ds:
+            flipped = ds.load().assign_coords(i=ds["i"].values[::-1])
+        flipped.to_netcdf(chunk, engine="netcdf4")
+        with pytest.raises(OSError) as err:
+            open_ensemble(chunk.parent.parent)
+        assert err.value.errno == errno.EIO and str(chunk.parent) in err.value.filename
+    finally:
+        chunk.write_bytes(original)

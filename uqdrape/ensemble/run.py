@@ -138,7 +138,7 @@ def chunk_intact(path: Path, chunk: Chunk) -> bool:
             return ("shear" in ds.variables and FORCE in ds.variables and REALIZATION in ds.variables
                     and ds[FORCE].values.tolist() == [chunk.force]
                     and ds[REALIZATION].values.tolist() == list(range(chunk.start, chunk.stop)))
-    except (OSError, ValueError, KeyError, RuntimeError):
+    except (OSError, ValueError, KeyError, RuntimeError, AttributeError):  # netCDF4's for an unreadable attribute
         return False
 
 

@@ -100,14 +100,16 @@ def open_ensemble(output_dir) -> xr.Dataset:
             paths, engine="netcdf4", combine="by_coords", data_vars="minimal", coords="minimal",
             compat="override", join="exact", combine_attrs="override",
         )
-    except (OSError, RuntimeError) as err:
+    except (OSError, RuntimeError, AttributeError, ValueError) as err:  # a damaged chunk: netCDF4's errors (an
+        # unreadable attribute: AttributeError), an undecodable text attribute, coordinates that no longer combine
         for path in paths:  # which one: a truncated or overwritten chunk
             try:
                 xr.open_dataset(path, engine="netcdf4").close()
-            except (OSError, RuntimeError):
+            except (OSError, RuntimeError, AttributeError, ValueError):
                 raise OSError(errno.EIO, f"a corrupt chunk file ({err}); delete it and run the study again "
                               "to resume", str(path)) from None
-        raise
+        raise OSError(errno.EIO, f"the chunk files do not combine into one ensemble ({err}); run the study "
+                      "again with --no-resume", str(output_dir / CHUNKS)) from None
     if FORCE not in files.dims:
         files.close()
         raise ValueError(f"{output_dir} was written by an older uqdrape (no {FORCE!r} dimension); "

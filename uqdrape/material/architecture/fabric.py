@@ -84,14 +84,21 @@ class Architecture:
         return math.degrees(2.0 * phi0 - math.asin(math.sin(2.0 * phi0) * self.vf0 / self.va))
 
 
+#: Upper ends of the positive sizes (mm, needles per inch, GPa, McBride's beta): far past
+#: any stitched fabric (the shipped ones: 1.65-5 mm stitches, gauge 6, 2 mm thick, 1.87 mm
+#: crossovers, 72 GPa, beta 464), short of the overflow of the model's powers (beta^4, side^2).
+_MOST = {"stitch_length_mm": 100.0, "gauge": 100.0, "thickness_mm": 100.0, "crossover_side_mm": 100.0,
+         "fibre_modulus_GPa": 1000.0, "beta": 1e6}
+
+
 def _validate(a: Architecture) -> None:
     def bad(key, why):
         raise ArchitectureError(key, getattr(a, key), why)
 
-    for key in ("stitch_length_mm", "gauge", "thickness_mm", "crossover_side_mm", "fibre_modulus_GPa", "beta"):
+    for key, most in _MOST.items():
         value = getattr(a, key)
-        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-            bad(key, "must be a number > 0")
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and 0 < value <= most):
+            bad(key, f"must be a number in (0, {most:g}]")
     if not 0.0 < a.phi0_deg < 90.0:
         bad("phi0_deg", "must lie in (0, 90) deg")
     if (len(a.lapping) == 0 or any(not isinstance(n, int) or isinstance(n, bool) for n in a.lapping)

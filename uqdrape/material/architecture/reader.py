@@ -109,6 +109,9 @@ def architecture_from_document(data: dict, source: Document, _chain=()) -> Archi
         if not cal.has("negative_ns"):
             source.missing("calibration.negative_ns", f'compaction.beta = "calibrate" needs it: {hint}')
         targets["negative_ns"] = cal.numbers("negative_ns", length=2, hint=hint)
+        angle, ns = targets["negative_ns"]
+        if not (0.0 < angle < 90.0 and 0.0 < ns <= 1e6):
+            cal.invalid("negative_ns", f"{hint} with 0 < angle_deg < 90 and 0 < N_s <= 1e6 N/m")
     try:
         return calibrate(arch, **targets)
     except ValueError as err:
