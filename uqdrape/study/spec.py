@@ -107,6 +107,9 @@ class Process:
 
 @dataclass(frozen=True)
 class Solver:
+    """The drape solver's settings: ``mode`` (schema.MODES), ``rings`` n of the
+    (2n + 1)^2-node net, the minimiser's tolerance (deg) and iteration cap per step."""
+
     mode: str
     rings: int
     tolerance_deg: float
