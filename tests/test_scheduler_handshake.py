@@ -108,11 +108,27 @@ def test_other_protocols_are_left_to_distributed():
     check_scheduler("tcp://no-port-digits:x", 0.1)
 
 
-def test_run_against_an_http_server_is_one_line_exit_3(tmp_path, http_server, capsys, monkeypatch):
+def test_run_against_an_http_server_is_one_line_exit_3_and_writes_nothing(tmp_path, http_server, capsys,
+                                                                            monkeypatch):
     monkeypatch.setattr(run_module, "SCHEDULER_TIMEOUT", 1)
     study = write_study(tmp_path)
     assert cli(["run", str(study), "--scheduler", http_server, "--no-report"]) == 3
     assert_one_line_error(capsys.readouterr().err, valid=[http_server, "is it a dask scheduler?"])
+    assert not (tmp_path / "tiny").exists()  # no run.json, no chunks/, no lock: the folder was never made
+
+
+def test_a_design_run_against_a_closed_port_writes_nothing(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(run_module, "SCHEDULER_TIMEOUT", 0.5)
+    port = socket.create_server(("127.0.0.1", 0))
+    address = f"tcp://127.0.0.1:{port.getsockname()[1]}"
+    port.close()
+    study = tmp_path / "design.toml"
+    text = (run_module.Path(__file__).parents[1] / "studies" / "design-nosecone-symmetrise.toml").read_text()
+    assert "[output]" not in text
+    study.write_text(text + f'\n[output]\ndirectory = "{tmp_path / "design"}"\n')
+    assert cli(["run", str(study), "--scheduler", address, "--no-report"]) == 3
+    assert_one_line_error(capsys.readouterr().err, valid=[address, "ConnectionRefusedError"])
+    assert not (tmp_path / "design").exists()
 
 
 def test_the_command_against_an_answering_http_server_is_one_line(tmp_path):

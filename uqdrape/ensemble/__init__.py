@@ -12,8 +12,8 @@ from .chunk import drape_inputs, write_atomic, write_netcdf
 from .inputs import design_variables, inputs_from_design, sampled_inputs
 from .hygiene import local_pool, run_lock
 from .progress import Progress
-from .run import compute_tasks, run_ensemble
+from .run import compute_tasks, reach_scheduler, run_ensemble
 from .store import open_ensemble, read_manifest
 
 __all__ = ["run_ensemble", "open_ensemble", "sampled_inputs", "inputs_from_design", "design_variables",
-           "drape_inputs", "write_atomic", "write_netcdf", "read_manifest", "compute_tasks", "Progress", "local_pool", "run_lock"]
+           "drape_inputs", "write_atomic", "write_netcdf", "read_manifest", "compute_tasks", "reach_scheduler", "Progress", "local_pool", "run_lock"]

@@ -191,6 +191,18 @@ def _prepare(out: Path, manifest: dict, resume: bool) -> None:
     write_manifest(out, manifest)
 
 
+def reach_scheduler(scheduler: str | None) -> None:
+    """Raise a one-line OSError unless ``scheduler`` is local or answers as a dask
+    scheduler within ``SCHEDULER_TIMEOUT`` s. Runs call it before they touch their output
+    folder, so a wrong address leaves nothing behind (distributed itself trusts a
+    non-dask server's first bytes)."""
+    if scheduler is None or scheduler in LOCAL_SCHEDULERS:
+        return
+    from .handshake import check_scheduler
+
+    check_scheduler(scheduler, SCHEDULER_TIMEOUT)
+
+
 def compute_tasks(tasks: list, sizes: list, scheduler: str | None, workers: int | None, progress: Progress,
                   pool=None) -> list:
     """Run dask tasks locally or on a dask.distributed cluster, counting each finished
@@ -214,9 +226,7 @@ def compute_tasks(tasks: list, sizes: list, scheduler: str | None, workers: int 
                 return list(dask.compute(*tasks, scheduler="processes", pool=pool, chunksize=1))
     from distributed import Client, as_completed
 
-    from .handshake import check_scheduler
-
-    check_scheduler(scheduler, SCHEDULER_TIMEOUT)  # distributed trusts a non-dask server's first bytes
+    reach_scheduler(scheduler)
     try:
         client = Client(scheduler, timeout=SCHEDULER_TIMEOUT)
     except (OSError, TimeoutError) as err:
@@ -275,6 +285,7 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
     chunks = plan_chunks(study, chunk_size, n, _kept_chunks(out, provenance, study, chunk_size, n, resume))
     manifest = {"study": provenance, "chunk_size": chunk_size, "chunks": [c.name for c in chunks],
                 "uqdrape_version": __version__}
+    reach_scheduler(scheduler)
     if preflight is not None:
         done = {p.name for p in (out / CHUNKS).glob("*.nc")} if resume else set()
         todo = [c for c in chunks if c.name not in done]

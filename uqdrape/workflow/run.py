@@ -31,8 +31,8 @@ from pathlib import Path
 import xarray as xr
 
 from ..design import DESIGN_FILE, Evaluator, drape_design, optimise, problem, result_dataset
-from ..ensemble import (Progress, design_variables, local_pool, open_ensemble, read_manifest, run_ensemble, run_lock,
-                        write_atomic)
+from ..ensemble import (Progress, design_variables, local_pool, open_ensemble, read_manifest, reach_scheduler,
+                        run_ensemble, run_lock, write_atomic)
 from ..report import write_design_report, write_report
 from ..sensitivity import map_indices, qoi_indices, study_design
 from ..stats import SENSITIVITY_QOIS, realization_qois
@@ -174,6 +174,7 @@ def run_design(study, *, output_dir=None, scheduler: str | None = None, workers:
     out = Path(study.output_dir if output_dir is None else output_dir)
     check_resources(study, out, 0)  # a design's records are per-drape numbers and node sums, not nets
     check_placement(study)
+    reach_scheduler(scheduler)
     out.mkdir(parents=True, exist_ok=True)
     local = scheduler in (None, "processes")
     # one pool for the whole run: a design is many small batches, and starting worker
