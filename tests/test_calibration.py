@@ -82,6 +82,16 @@ def test_read_points_errors_name_the_file_row_and_column(tmp_path, header, rows,
     assert err.value.key == key and err.value.path == path
 
 
+def test_read_points_does_not_echo_a_file_that_is_not_a_points_csv(tmp_path):
+    """A file named by mistake (here a passwd-like one) is refused without its contents."""
+    path = tmp_path / "passwd"
+    path.write_text("# accounts\ndaemon:x:1:1:daemon:/usr/sbin:/usr/sbin/nologin\nsecret,1,2\n", encoding="utf-8")
+    with pytest.raises(PointsError) as err:
+        read_points(path)
+    assert_one_line_error(str(err.value), file=path, valid=["row 2 (the header)", "x_mm, y_mm"])
+    assert "nologin" not in str(err.value) and "secret" not in str(err.value)
+
+
 def test_read_points_refuses_a_short_row_an_empty_file_and_binary(tmp_path):
     for rows, what in ((["0,0,45"], "row 2"), ([], "no data rows")):
         path = _csv(tmp_path, rows)

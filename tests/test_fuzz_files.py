@@ -8,8 +8,10 @@ or 3 with nothing or one line on stderr and no traceback.
 The readers run in-process, one case in a few milliseconds (a subprocess costs a second
 of start-up): the command is ``validate`` with its body replaced by the reader under test,
 so the exit code and message are exactly those a user's command gets for that reader's
-failure. A failure names the file type and the case's seed; ``_case(kind, seed)`` rebuilds
-its input. Slow suite: CASES per kind; the default suite runs SMOKE_CASES of each.
+failure. A failure names the file type and the case's seed and keeps its input in a
+``failures/`` folder beside the case's file (named in the message): a base written by a run
+(run.json, a chunk) holds its own paths and dates, so ``_case(kind, seed)`` rebuilds the same
+input only within one session. Slow suite: CASES per kind; the default suite runs SMOKE_CASES of each.
 """
 
 from __future__ import annotations
@@ -34,10 +36,12 @@ import uqdrape.ensemble.run as run_module
 from conftest import assert_one_line_error, write_study
 from uqdrape.ensemble.hygiene import LOCK, run_lock
 from uqdrape.ensemble.store import MANIFEST, open_ensemble, read_manifest
+from uqdrape.calibration import read_points
 from uqdrape.experimental import read_experimental
 from uqdrape.geometry import build
 from uqdrape.material import load_material
 from uqdrape.material.architecture import load_architecture
+from uqdrape.material.sheartest import fit_card, read_rig
 from uqdrape.study import load_study
 
 #: Cases per file type in the slow suite, and in the default suite.
@@ -152,8 +156,20 @@ def bases(tmp_path_factory):
         with run_lock(path.parent):
             pass
 
+    shear = Path(__file__).parents[1] / "studies" / "sheartests"
+    (d / "pf1.csv").write_bytes((shear / "pf1.csv").read_bytes())
+    (d / "rig.toml").write_text('test = "picture_frame"\nside_mm = 145.0\n\n[fit]\nfriction = "subtract"\n\n'
+                                '[[specimen]]\nfile = "pf1.csv"\n', encoding="utf-8")
+
+    def fitted(rig):  # as `uqdrape materials fit` reads and fits
+        fit_card(read_rig(rig), "fuzz", rig.name)
+
+    points = Path(__file__).parents[1] / "studies" / "measurements" / "fibre-angles.csv"
     text, binary = _TOKENS["text"], _TOKENS["binary"]
     return {
+        "rig": (d / "rig.toml", (d / "rig.toml").read_bytes(), text, fitted),
+        "test_csv": (d / "pf1.csv", (d / "pf1.csv").read_bytes(), text, lambda path: fitted(d / "rig.toml")),
+        "points_csv": (d / "points.csv", points.read_bytes(), text, read_points),
         "study": (study, study.read_bytes(), text, load_study),
         "card_toml": (d / "card.toml", _shipped("cards", "generic_woven.toml"), text, load_material),
         "card_csv": (d / "curve.csv", b"# measured\nangle_deg,ns_positive,ns_negative\n0,0,0\n10,5,3\n20,20,10\n"
@@ -206,15 +222,19 @@ def _fuzz(bases, command, capfd, kind: str, cases: int) -> None:
             lines = err.splitlines()
             if code not in (0, 2, 3) or len(lines) > 1 or "Traceback" in err or (err and not err.endswith("\n")):
                 failures.append((seed, code, err[:300]))
+                kept = path.parent / "failures" / f"{kind}-{seed}{path.suffix}"
+                kept.parent.mkdir(exist_ok=True)
+                kept.write_bytes(path.read_bytes())
     finally:
         path.write_bytes(original)
         (path.parent / LOCK).unlink(missing_ok=True) if kind == "run_lock" else None
     print(f"{kind}: {cases} cases in {time.monotonic() - start:.1f} s, exit codes {codes}")
-    assert failures == [], f"{kind}: {len(failures)} of {cases} cases failed, first: {failures[:3]}"
+    assert failures == [], (f"{kind}: {len(failures)} of {cases} cases failed (inputs kept in "
+                            f"{path.parent / 'failures'}), first: {failures[:3]}")
 
 
 KINDS = ["study", "card_toml", "card_csv", "architecture", "experimental_csv", "run_json", "run_lock", "chunk",
-         "mesh", "mesh_obj"]
+         "mesh", "mesh_obj", "rig", "test_csv", "points_csv"]
 
 
 @pytest.mark.parametrize("kind", KINDS)

@@ -326,7 +326,10 @@ def _bad_case(tmp_path, case):
     csv_name, keys, expect = "bad.csv", dict(side_mm=145.0), None
     if case == "missing column":
         (tmp_path / csv_name).write_text("\n".join(["load,displacement_mm", *text[2:]]), encoding="utf-8")
-        expect = "bad.csv: no column 'force_n' (force) in the header load,displacement_mm"
+        expect = "bad.csv: the header (the first line that is not a # comment) has no column 'force_n' (force)"
+    elif case == "another file":  # named by mistake, or by someone else's rig file: not echoed
+        (tmp_path / csv_name).write_text("daemon:x:1:1:daemon:/usr/sbin:/usr/sbin/nologin\nsecret,1\n", encoding="utf-8")
+        expect = "bad.csv: the header (the first line that is not a # comment) has no column 'force_n' (force)"
     elif case == "not a number":
         text[7] = "12.5,abc"
         (tmp_path / csv_name).write_text("\n".join(text), encoding="utf-8")
@@ -362,7 +365,7 @@ def _bad_case(tmp_path, case):
     return write_rig(tmp_path / "rig.toml", test, [(csv_name, "positive")], **keys), expect
 
 
-BAD_CASES = ["missing column", "not a number", "not finite", "row length", "too few rows", "beyond the frame",
+BAD_CASES = ["missing column", "another file", "not a number", "not finite", "row length", "too few rows", "beyond the frame",
              "file not found", "missing side", "wrong dimension", "unknown key", "kappa"]
 
 
@@ -375,4 +378,5 @@ def test_a_bad_file_gives_one_line_naming_file_and_place(tmp_path, case, capsys)
     assert main(["materials", "fit", str(path), "--out", str(tmp_path / "c.toml")]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and expect in lines[0]
+    assert "nologin" not in lines[0] and "secret" not in lines[0]
     assert not (tmp_path / "c.toml").exists()

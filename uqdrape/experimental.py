@@ -1,6 +1,6 @@
 """Measured shear along the max-shear lines, read from a CSV, for overlay on line plots.
 
-Format (header row required, extra columns ignored)::
+Format (a header row after any ``#`` comment lines, extra columns ignored)::
 
     distance_mm,shear_deg,quadrant_sign[,blankholder_force_N]
     12.5,8.1,1
@@ -13,11 +13,12 @@ blank-holder force sweep (without it every point is shown on every panel).
 
 from __future__ import annotations
 
-import csv
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from .files import QUOTED_CELL, csv_number, csv_rows, read_text
 
 REQUIRED_COLUMNS = ("distance_mm", "shear_deg", "quadrant_sign")
 FORCE_COLUMN = "blankholder_force_N"
@@ -43,54 +44,38 @@ class ExperimentalPoints:
 def read_experimental(path) -> ExperimentalPoints:
     """Read and check an experimental CSV (see module docstring); ValueError naming file, row
     and column. A file without the required header is not echoed (it may be any file named
-    by mistake); past the header a bad cell is quoted (40 characters at most)."""
+    by mistake); past the header a bad cell is quoted (``csv_number``)."""
     path = Path(path)
+    label = f"experimental CSV {str(path)!r}"
     if not path.is_file():
-        raise ValueError(f"experimental CSV {str(path)!r} does not exist")
-    try:
-        fh = path.open(newline="", encoding="utf-8-sig")
-    except OSError as err:
-        raise ValueError(f"experimental CSV {str(path)!r}: cannot read it: {err.strerror or err}") from None
-    try:
-        reader = csv.DictReader(fh)
-        header = [h.strip() for h in (reader.fieldnames or [])]
-        missing = [c for c in REQUIRED_COLUMNS if c not in header]
-        if missing:
-            raise ValueError(
-                f"experimental CSV {str(path)!r}: missing column(s) {missing} in its first line (the header); "
-                f"required: {', '.join(REQUIRED_COLUMNS)} (optional: {FORCE_COLUMN})"
-            )
-        reader.fieldnames = header
-        columns = {c: [] for c in (*REQUIRED_COLUMNS, FORCE_COLUMN)}
-        for row_number, row in enumerate(reader, start=2):
-            for name in columns:
-                cell = (row.get(name) or "").strip()
-                text = cell[:40]  # as quoted in a message
-                if name == FORCE_COLUMN and not cell:
-                    columns[name].append(np.nan)
-                    continue
-                try:
-                    value = float(cell)
-                except ValueError:
-                    value = None
-                why = (f"column {name!r} = {text!r} is not a number" if value is None
-                       else f"column {name!r} = {text!r} is not finite" if not np.isfinite(value)
-                       else f"quadrant_sign = {text!r}; valid: +1 (i*j > 0 quadrants) or -1"
-                       if name == "quadrant_sign" and value not in (1.0, -1.0)
-                       else f"distance_mm = {text!r} must be >= 0 (mm)" if name == "distance_mm" and value < 0
-                       else None)
-                if why is not None:
-                    raise ValueError(f"experimental CSV {str(path)!r} row {row_number}: {why}")
-                columns[name].append(value)
-    except csv.Error as err:
-        raise ValueError(f"experimental CSV {str(path)!r}: not a CSV ({err})") from None
-    except UnicodeDecodeError as err:
-        raise ValueError(f"experimental CSV {str(path)!r}: not UTF-8 text (byte offset {err.start}); "
-                         "save it as UTF-8") from None
-    finally:
-        fh.close()
-    if not columns["distance_mm"]:
-        raise ValueError(f"experimental CSV {str(path)!r} has a header but no data rows")
+        raise ValueError(f"{label} does not exist")
+    (_, header), *rows = csv_rows(read_text(path, "experimental CSV"), label)
+    missing = [c for c in REQUIRED_COLUMNS if c not in header]
+    if missing:
+        raise ValueError(f"{label}: missing column(s) {missing} in its header (the first line that is not a "
+                         f"# comment); required: {', '.join(REQUIRED_COLUMNS)} (optional: {FORCE_COLUMN})")
+    index = {name: header.index(name) for name in (*REQUIRED_COLUMNS, FORCE_COLUMN) if name in header}
+    columns = {c: [] for c in (*REQUIRED_COLUMNS, FORCE_COLUMN)}
+    for line, row in rows:
+        for name in columns:
+            cell = row[index[name]] if name in index and index[name] < len(row) else ""
+            if name == FORCE_COLUMN and not cell:
+                columns[name].append(np.nan)
+                continue
+            try:
+                value = csv_number(cell)
+            except ValueError as err:
+                raise ValueError(f"{label} row {line}: column {name!r}: {err}") from None
+            text = cell[:QUOTED_CELL]
+            why = (f"quadrant_sign = {text!r}; valid: +1 (i*j > 0 quadrants) or -1"
+                   if name == "quadrant_sign" and value not in (1.0, -1.0)
+                   else f"distance_mm = {text!r} must be >= 0 (mm)" if name == "distance_mm" and value < 0
+                   else None)
+            if why is not None:
+                raise ValueError(f"{label} row {line}: {why}")
+            columns[name].append(value)
+    if not rows:
+        raise ValueError(f"{label} has a header but no data rows")
     return ExperimentalPoints(*(np.asarray(columns[c], dtype=float) for c in (*REQUIRED_COLUMNS, FORCE_COLUMN)),
                               source=path.name)
 

@@ -1,4 +1,4 @@
-"""uqdrape's files: one validating TOML reader and one atomic writer.
+"""uqdrape's files: one validating TOML reader, one CSV splitter and one atomic writer.
 
 Reading. :func:`read_toml` turns a TOML file into a dict or raises :class:`FileFormatError`
 with a one-line message naming the file and the cause (unreadable, too large, not text,
@@ -10,6 +10,9 @@ error with ``key`` set to the dotted key, in one style::
     <file>: unknown key <key>; valid keys in [<table>]: <k1>, <k2>, ...
     <file>: <key> is missing: <why>
 
+CSV. :func:`csv_rows` splits a CSV's text into header and numbered rows and
+:func:`csv_number` reads a cell; each CSV reader checks its own columns.
+
 Writing. :func:`write_atomic` has a callback write a temporary file beside the target and
 renames it into place, so a target exists only complete; :func:`write_text_atomic` and
 :func:`write_all` (several files, all or nothing) are built on it.
@@ -19,6 +22,7 @@ This module imports nothing from uqdrape: every other part may use it.
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 import numbers
@@ -77,6 +81,39 @@ def read_text(path, what: str, *, error: type[FileFormatError] = FileFormatError
         fail(f"not UTF-8 text: byte 0x{data[err.start]:02x} at offset {err.start} ({err.reason}); "
              f"save the {what} as UTF-8")
     return text
+
+
+#: Most characters of a bad CSV cell quoted in a message.
+QUOTED_CELL = 40
+
+
+def csv_rows(text: str, label: str, *, error: type[FileFormatError] = FileFormatError, path=None):
+    """The rows of CSV ``text``, the header first: each ``(line, cells)``, its line in the
+    file and its cells stripped; blank and ``#`` comment lines are skipped (so
+    ``(line, header), *rows = csv_rows(...)``). No header, or text the csv module cannot
+    split, raises ``error`` naming ``label``. Nothing of the text is quoted: a reader
+    checks the header before it quotes a cell, so a wrong file is not echoed."""
+    numbered = [(n, line) for n, line in enumerate(text.splitlines(), start=1)
+                if line.strip() and not line.lstrip().startswith("#")]
+    if not numbered:
+        raise error(f"{label}: no header line (the file is empty or holds only # comments)", path)
+    try:
+        cells = list(csv.reader(line for _, line in numbered))
+    except csv.Error as err:
+        raise error(f"{label}: not a CSV file ({err})", path) from None
+    return [(n, [c.strip() for c in row]) for (n, _), row in zip(numbered, cells)]
+
+
+def csv_number(cell: str) -> float:
+    """The finite number in the CSV cell ``cell``; ValueError saying what it is instead
+    (the cell quoted, QUOTED_CELL characters at most)."""
+    try:
+        value = float(cell)
+    except ValueError:
+        raise ValueError(f"{cell[:QUOTED_CELL]!r} is not a number") from None
+    if not math.isfinite(value):
+        raise ValueError(f"{cell[:QUOTED_CELL]!r} is not a finite number")
+    return value
 
 
 def parse_toml(text: str, label: str, *, error: type[FileFormatError] = FileFormatError, path=None) -> dict:

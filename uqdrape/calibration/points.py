@@ -1,6 +1,6 @@
 """Measured local fibre angles on a flat fabric sample, read from a CSV.
 
-Format (a header row, columns in any order, extra columns refused so a misspelt
+Format (a header row after any ``#`` comment lines, columns in any order, extra columns refused so a misspelt
 optional column is not silently ignored)::
 
     x_mm,y_mm,angle_deg,fibre_set[,sd_deg]
@@ -19,15 +19,12 @@ file's line number) and the column.
 
 from __future__ import annotations
 
-import csv
-import io
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..files import FileFormatError, read_text
+from ..files import QUOTED_CELL, FileFormatError, csv_number, csv_rows, read_text
 
 REQUIRED_COLUMNS = ("x_mm", "y_mm", "angle_deg", "fibre_set")
 SD_COLUMN = "sd_deg"
@@ -57,53 +54,50 @@ class AnglePoints:
 
 
 def read_points(path) -> AnglePoints:
-    """The fibre-angle points of the CSV ``path`` (see the module docstring)."""
+    """The fibre-angle points of the CSV ``path`` (see the module docstring). A header that
+    names none of the required columns is not quoted: the file may be any file named by
+    mistake."""
     path = Path(path)
-    text = read_text(path, "fibre-angle CSV", error=PointsError)
-    rows = csv.reader(io.StringIO(text))
-    header = [h.strip() for h in next(rows, [])]
+    (top, header), *rows = csv_rows(read_text(path, "fibre-angle CSV", error=PointsError), str(path),
+                                    error=PointsError, path=path)
 
     def fail(why, column=None):
         raise PointsError(f"{path}: {why}", path, column)
 
     valid = f"columns {', '.join(REQUIRED_COLUMNS)} (optional: {SD_COLUMN})"
+    if not set(header) & set(REQUIRED_COLUMNS):
+        fail(f"row {top} (the header) names none of the required columns; "
+             f"valid: {valid}")
     for name in header:
         if name not in (*REQUIRED_COLUMNS, SD_COLUMN):
-            fail(f"row 1: column {name!r} is unknown; valid: {valid}", name)
+            fail(f"row {top}: column {name[:QUOTED_CELL]!r} is unknown; valid: {valid}", name)
         if header.count(name) > 1:
-            fail(f"row 1: column {name!r} is repeated; valid: {valid}", name)
+            fail(f"row {top}: column {name!r} is repeated; valid: {valid}", name)
     for name in REQUIRED_COLUMNS:
         if name not in header:
-            fail(f"row 1: column {name!r} is missing; the header is {','.join(header)!r}, valid: {valid}", name)
+            fail(f"row {top}: column {name!r} is missing; valid: {valid}", name)
     values = {name: [] for name in header}
-    lines = []
-    for line, row in enumerate(rows, start=2):
-        if not any(cell.strip() for cell in row):
-            continue  # a blank line
-        lines.append(line)
+    for line, row in rows:
         if len(row) != len(header):
             fail(f"row {line}: {len(row)} values for {len(header)} columns")
         for name, cell in zip(header, row):
-            values[name].append(_value(name, cell.strip(),
-                                       lambda why, n=name, at=line: fail(f"row {at}: {why}", n)))
-    if not values["x_mm"]:
+            values[name].append(_value(name, cell, lambda why, n=name, at=line: fail(f"row {at}: {why}", n)))
+    if not rows:
         fail("no data rows after the header")
     columns = {name: np.asarray(v, dtype=float) for name, v in values.items()}
-    sd = columns.get(SD_COLUMN, np.zeros(len(columns["x_mm"])))
+    sd = columns.get(SD_COLUMN, np.zeros(len(rows)))
     return AnglePoints(columns["x_mm"], columns["y_mm"], columns["angle_deg"], columns["fibre_set"].astype(int),
-                       sd, np.asarray(lines), str(path))
+                       sd, np.asarray([line for line, _ in rows]), str(path))
 
 
 def _value(name: str, text: str, fail) -> float:
     """The number in cell ``text`` of column ``name``, checked for that column."""
     try:
-        value = float(text)
-    except ValueError:
-        fail(f"column {name!r} = {text!r} is not a number")
-    if not math.isfinite(value):
-        fail(f"column {name!r} = {text!r} is not finite")
+        value = csv_number(text)
+    except ValueError as err:
+        fail(f"column {name!r}: {err}")
     if name == "fibre_set" and value not in FIBRE_SETS:
-        fail(f"column 'fibre_set' = {text!r}; valid: 1 or 2")
+        fail(f"column 'fibre_set' = {text[:QUOTED_CELL]!r}; valid: 1 or 2")
     if name == SD_COLUMN and value < 0:
-        fail(f"column {SD_COLUMN!r} = {text!r}; valid: a measurement sd >= 0 (deg)")
+        fail(f"column {SD_COLUMN!r} = {text[:QUOTED_CELL]!r}; valid: a measurement sd >= 0 (deg)")
     return value

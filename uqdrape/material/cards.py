@@ -36,12 +36,10 @@ fabric is symmetric.
 
 from __future__ import annotations
 
-import csv
-import io
 from importlib import resources
 from pathlib import Path
 
-from ..files import Document, Table, parse_toml, read_text, toml_text
+from ..files import Document, Table, csv_number, csv_rows, parse_toml, read_text, toml_text
 from .model import Material, MaterialError
 
 _CARD_KEYS = {
@@ -162,31 +160,23 @@ def _shear_curves(shear: Table, source: Document) -> dict:
 
 def _read_csv(text, label):
     """Curve arguments of `Material` from CSV text (header angle_deg,ns_positive[,ns_negative]).
-    A file whose first line is not that header is not echoed (it may be any file named by
-    mistake, or by someone else's card); past the header a bad cell is quoted (40 characters
-    at most)."""
-    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
-    try:
-        rows = list(csv.reader(io.StringIO("\n".join(lines))))
-    except csv.Error as err:
-        raise ValueError(f"{label}: not a curve CSV ({err})") from None
-    if not rows:
-        raise ValueError(f"{label}: empty CSV; expected a header {','.join(_CSV_COLUMNS)}")
-    header = [h.strip() for h in rows[0]]
+    A file whose header is not that is not echoed (it may be any file named by mistake, or
+    by someone else's card); past the header a bad cell is quoted (``csv_number``)."""
+    (_, header), *rows = csv_rows(text, label)
     if header not in (list(_CSV_COLUMNS[:2]), list(_CSV_COLUMNS)):
         raise ValueError(
             f"{label}: not a curve CSV: its first line that is not a # comment must be the header "
             "angle_deg,ns_positive or angle_deg,ns_positive,ns_negative"
         )
     columns = {name: [] for name in header}
-    for lineno, row in enumerate(rows[1:], start=2):
+    for lineno, row in rows:
         if len(row) != len(header):
             raise ValueError(f"{label}: data row {lineno} has {len(row)} values, expected {len(header)} ({','.join(header)})")
         for name, cell in zip(header, row):
             try:
-                columns[name].append(float(cell))
-            except ValueError:
-                raise ValueError(f"{label}: data row {lineno}, column {name}: {cell.strip()[:40]!r} is not a number") from None
+                columns[name].append(csv_number(cell))
+            except ValueError as err:
+                raise ValueError(f"{label}: data row {lineno}, column {name}: {err}") from None
     curves = {"angles_deg_pos": columns["angle_deg"], "ns_pos": columns["ns_positive"]}
     if "ns_negative" in columns:
         curves.update(angles_deg_neg=columns["angle_deg"], ns_neg=columns["ns_negative"])

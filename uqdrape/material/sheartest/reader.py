@@ -41,14 +41,12 @@ and column of the CSV, at fault.
 
 from __future__ import annotations
 
-import csv
-import io
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ...files import Document, FileFormatError, Table, read_text
+from ...files import Document, FileFormatError, Table, csv_number, csv_rows, read_text
 from .bias_extension import BiasExtension
 from .picture_frame import PictureFrame
 
@@ -109,45 +107,37 @@ class RigFile:
 
 def read_test_csv(path, columns: dict) -> TestData:
     """The rows of the test CSV ``path``; ``columns`` maps force/displacement/angle to the
-    header names (angle optional: used if the header has it)."""
+    header names (angle optional: used if the header has it). A header without the force
+    and displacement columns is not quoted: the file may be any file named by mistake."""
     path = Path(path)
-    text = read_text(path, "test CSV", error=ShearTestError)
+    (_, header), *rows = csv_rows(read_text(path, "test CSV", error=ShearTestError), str(path),
+                                  error=ShearTestError, path=path)
 
     def fail(why):
         raise ShearTestError(f"{path}: {why}", path)
 
-    numbered = [(n, ln) for n, ln in enumerate(text.splitlines(), start=1)
-                if ln.strip() and not ln.lstrip().startswith("#")]
-    if not numbered:
-        fail(f"no header line; expected columns {columns['force']}, {columns['displacement']}"
-             f"[, {columns['angle']}]")
-    rows = list(csv.reader(io.StringIO("\n".join(ln for _, ln in numbered))))
-    header = [h.strip() for h in rows[0]]
     for key in ("force", "displacement"):
         if columns[key] not in header:
-            fail(f"no column {columns[key]!r} ({key}) in the header {','.join(header)}; name it in the rig "
-                 f"file's [columns] {key}")
+            fail(f"the header (the first line that is not a # comment) has no column {columns[key]!r} ({key}); "
+                 f"expected columns {columns['force']}, {columns['displacement']}[, {columns['angle']}], or name "
+                 f"yours in the rig file's [columns] {key}")
     if len(set(header)) != len(header):
-        fail(f"the header {','.join(header)} names a column twice")
+        fail(f"the header names a column twice ({len(header)} names, {len(set(header))} different)")
     wanted = {key: header.index(name) for key, name in columns.items() if name in header}
     values = {key: [] for key in wanted}
-    for (lineno, _), row in zip(numbered[1:], rows[1:]):
+    for lineno, row in rows:
         if len(row) != len(header):
-            fail(f"line {lineno} has {len(row)} values, the header {len(header)} ({','.join(header)})")
+            fail(f"line {lineno} has {len(row)} values, the header {len(header)}")
         for key, index in wanted.items():
-            cell = row[index].strip()
             try:
-                value = float(cell)
-            except ValueError:
-                fail(f"line {lineno}, column {columns[key]}: {cell!r} is not a number")
-            if not np.isfinite(value):
-                fail(f"line {lineno}, column {columns[key]}: {cell!r} is not a finite number")
-            values[key].append(value)
-    if len(rows) - 1 < MIN_ROWS:
-        fail(f"{len(rows) - 1} data rows; a fit needs at least {MIN_ROWS}")
+                values[key].append(csv_number(row[index]))
+            except ValueError as err:
+                fail(f"line {lineno}, column {columns[key]}: {err}")
+    if len(rows) < MIN_ROWS:
+        fail(f"{len(rows)} data rows; a fit needs at least {MIN_ROWS}")
     arrays = {key: np.asarray(v) for key, v in values.items()}
     return TestData(path, arrays["force"], arrays["displacement"], arrays.get("angle"),
-                    np.array([n for n, _ in numbered[1:]]), dict(columns))
+                    np.array([n for n, _ in rows]), dict(columns))
 
 
 def read_rig(path) -> RigFile:
