@@ -288,13 +288,14 @@ def test_the_block_is_a_study_block_a_study_uses_as_is(tmp_path):
     cal = calibrate_points(read_points(_grid_csv(tmp_path, "exponential")), family="exponential")
     text = block_text(cal, "uqdrape calibrate points.csv")
     table = study_block(cal)["uncertainty"]["zero_angle"]
-    assert set(table) == {"mean_deg", "sd_deg", "correlation", "length_mm"}
+    assert set(table) == {"mean_deg", "sd_deg", "correlation", "length_mm", "sd_dof"}
     assert table["sd_deg"] == float(f"{cal.fit.estimates['sd_deg'].value:.4g}")
     study = tmp_path / "s.toml"
     study.write_text(study_text(tmp_path, "s") + "\n" + text, encoding="utf-8")
     field = load_study(study).uncertainty.fields["zero_angle"]
     assert field.correlation == "exponential" and field.length_mm == tuple(table["length_mm"])
     assert field.params == {"mean_deg": table["mean_deg"], "sd_deg": table["sd_deg"]}
+    assert field.sd_dof == table["sd_dof"]
     for line in ("from points.csv: 64 points (fibre set 1: 32, set 2: 32)", "<- kept", "sd_deg", "nugget_deg"):
         assert line in text
 

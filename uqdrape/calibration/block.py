@@ -6,13 +6,18 @@ go wherever the block is pasted. They name the source file, the mapping, every f
 criterion, each estimate with its interval and the measurement error left out of the
 field. The table holds only what a study reads: ``mean_deg``, ``sd_deg``,
 ``correlation`` and, for a correlated family, ``length_mm = [L1, L2]`` (mm along fibre 1
-and fibre 2), each rounded to 4 significant digits.
+and fibre 2), each rounded to 4 significant digits, and ``sd_dof``: the sd's estimation
+uncertainty for a hierarchical ensemble (:func:`sd_dof`), unless its interval is open.
 """
 
 from __future__ import annotations
 
+import math
 from datetime import date
 from pathlib import Path
+
+import scipy.optimize
+import scipy.stats
 
 from .. import __version__
 from ..files import toml_text
@@ -31,6 +36,25 @@ def _interval(estimate) -> str:
     return f"[{lower}, {upper}]"
 
 
+def sd_dof(estimate, level: float) -> float | None:
+    """The degrees of freedom m whose scaled-inverse-χ² sd, σ̂ √(m / χ²_m), has an
+    equal-tailed ``level`` interval as wide (in log σ) as ``estimate``'s; None if an end
+    is open. For iid points it is n − 1 (the interval is the chi-square one), so a run
+    drawing sd_r = σ̂ √(m / χ²_m) per realisation (``[uncertainty.zero_angle] sd_dof``)
+    samples the sd's posterior under the reference prior; for a correlated field it is an
+    effective m matched to the profile-likelihood interval."""
+    if estimate.lower_open or estimate.upper_open or not 0 < estimate.lower < estimate.upper:
+        return None
+    alpha = 1.0 - level
+    target = math.log(estimate.upper / estimate.lower)
+
+    def width(log_m):
+        m = math.exp(log_m)
+        return 0.5 * math.log(scipy.stats.chi2.ppf(1 - alpha / 2, m) / scipy.stats.chi2.ppf(alpha / 2, m)) - target
+
+    return float(math.exp(scipy.optimize.brentq(width, math.log(0.05), math.log(1e7), xtol=1e-10)))
+
+
 def study_block(calibration) -> dict:
     """The ``{"uncertainty": {"zero_angle": ...}}`` table of a :class:`PointsCalibration`."""
     fit = calibration.fit
@@ -39,6 +63,9 @@ def study_block(calibration) -> dict:
              "correlation": fit.family}
     if fit.family != "iid":
         table["length_mm"] = [_round(est["length_1_mm"].value), _round(est["length_2_mm"].value)]
+    m = sd_dof(est["sd_deg"], fit.level)
+    if m is not None:
+        table["sd_dof"] = _round(m)
     return {"uncertainty": {"zero_angle": table}}
 
 
@@ -65,6 +92,10 @@ def block_text(calibration, command: str = "uqdrape calibrate") -> str:
                          "not part of the study's field)")
         else:
             lines.append(f"  {name:12s} {estimate.value:8.4g}  {_interval(estimate)}")
+    m = sd_dof(fit.estimates["sd_deg"], fit.level)
+    lines.append(f"sd_dof = {m:.4g}: the sd's interval as a scaled-inverse-chi-square posterior; a run draws each "
+                 "realisation's sd from it (delete sd_dof for a fixed sd; correlation lengths stay fixed)"
+                 if m is not None else "no sd_dof: the sd's interval is open, the data do not bound it")
     if points.sd_deg.any():
         lines.append(f"per-point measurement sd from the file: {points.sd_deg.min():.3g} to "
                      f"{points.sd_deg.max():.3g} deg (left out of sd_deg)")

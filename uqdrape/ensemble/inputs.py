@@ -23,6 +23,13 @@ own unit). Two sources of standard variables share one map (:func:`_inputs`):
   columns as named by :func:`design_variables`: factor uniforms first, then each field's
   truncated Karhunen-Loeve mode variables (standard normals), ``name[k]``.
 
+A zero-angle field with ``sd_dof`` (a hierarchical ensemble) also draws each
+realisation's sd, :func:`realization_sd_deg`: one more standard normal z of the
+realisation's stream, after all the others (so the other numbers stay as without it),
+mapped to sd_r = sd_deg √(m / χ²_m(Φ(z))), m = sd_dof; the field is then
+γ0 = μ0 + sd_r ξ_c. Only :func:`sampled_inputs` does this (validation refuses ``sd_dof``
+with rqmc and sensitivity designs).
+
 Returned inputs are a dict of arrays with a leading realisation axis: ``seg_i``
 (R, 2n, 2n+1) and ``seg_j`` (R, 2n+1, 2n) in mm if spacing varies, ``gamma0``
 (R, 2n, 2n) in degrees if the zero angle varies, and one (R,) array per scalar factor
@@ -33,6 +40,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.special import ndtr
+from scipy.stats import chi2
 
 from ..stochastic import realization_normals, sample_uniforms, uniforms_to_normals
 from ..stochastic.sampling import RQMC, rqmc_points, rqmc_uniforms
@@ -72,6 +80,37 @@ def _inputs(study, fields: dict, xi: dict, u: np.ndarray) -> dict:
     return out
 
 
+def _hierarchical(study):
+    """The zero-angle field whose sd is drawn per realisation, or None."""
+    field = study.uncertainty.fields.get("zero_angle")
+    return field if field is not None and field.sd_dof is not None else None
+
+
+def _normals(study, r, fields) -> tuple:
+    """Each realisation's stream: the fields' noise, the factors' (monte_carlo), then the
+    hierarchical sd's one normal."""
+    d = len(study.uncertainty.factors)
+    sizes = [inp.n_variables for inp in fields.values()] + ([d] if study.sampling.plan == "monte_carlo" else [])
+    return realization_normals(study.seed, r, sizes + ([1] if _hierarchical(study) else []))
+
+
+def _sd_from_normal(field, z) -> np.ndarray:
+    """sd_r = sd_deg √(m / χ²_m) with χ²_m its Φ(z) quantile (deg)."""
+    m = field.sd_dof
+    return field.params["sd_deg"] * np.sqrt(m / chi2.ppf(ndtr(np.asarray(z, dtype=float)), m))
+
+
+def realization_sd_deg(study, realizations) -> np.ndarray:
+    """The zero-angle sd (deg) of each given realisation: drawn as in the module
+    docstring under ``sd_dof``, else the study's sd_deg (or 0 without a zero-angle field)."""
+    r = _realizations(study, realizations)
+    field = _hierarchical(study)
+    if field is None:
+        plain = study.uncertainty.fields.get("zero_angle")
+        return np.full(r.size, plain.params["sd_deg"] if plain is not None else 0.0)
+    return _sd_from_normal(field, _normals(study, r, _field_inputs(study, kl=False))[-1][:, 0])
+
+
 def sampled_inputs(study, realizations) -> dict:
     """Solver inputs of the given realisation indices of the study's ensemble."""
     r = _realizations(study, realizations)
@@ -79,12 +118,30 @@ def sampled_inputs(study, realizations) -> dict:
         return inputs_from_design(study, rqmc_design(study, r))
     fields = _field_inputs(study, kl=False)
     d = len(study.uncertainty.factors)
-    monte_carlo = study.sampling.plan == "monte_carlo"
-    sizes = [inp.n_variables for inp in fields.values()] + ([d] if monte_carlo else [])
-    normals = realization_normals(study.seed, r, sizes)
+    normals = _normals(study, r, fields)
     xi = dict(zip(fields, normals))
-    u = ndtr(normals[-1]) if monte_carlo else sample_uniforms(study.sampling.plan, study.realizations, d, study.seed)[r]
+    if study.sampling.plan == "monte_carlo":
+        u = ndtr(normals[len(fields)])
+    else:
+        u = sample_uniforms(study.sampling.plan, study.realizations, d, study.seed)[r]
+    field = _hierarchical(study)
+    if field is not None:  # the field at unit sd, scaled per realisation (the field is linear in its sd)
+        unit = fields["zero_angle"]
+        sd = _sd_from_normal(field, normals[-1][:, 0])
+        fields = dict(fields, zero_angle=lambda z: _scaled(unit, z, sd))
     return _inputs(study, fields, xi, u)
+
+
+def _scaled(inp, xi, sd) -> np.ndarray:
+    """γ0 = μ0 + sd_r ξ (deg) of a ZeroAngleInput ``inp`` with a sd per row of ``xi``."""
+    mean, sd0 = inp.mean_deg, inp.sd_deg
+    z = (inp(xi) - mean) / sd0 if sd0 > 0 else np.zeros_like(inp(xi))
+    gamma0 = mean + sd.reshape((-1,) + (1,) * (z.ndim - 1)) * z
+    bad = np.flatnonzero(np.any(np.abs(gamma0) >= 90.0, axis=tuple(range(1, z.ndim))))
+    if bad.size:
+        raise ValueError(f"zero angle mean_deg={mean:g} with a realisation's sd_deg={sd[bad[0]]:g} (drawn by sd_dof) "
+                         "gave |gamma0| >= 90 degrees; use a larger sd_dof or a smaller sd_deg")
+    return gamma0
 
 
 def rqmc_design(study, realizations) -> np.ndarray:

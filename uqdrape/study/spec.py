@@ -125,7 +125,10 @@ class RandomField:
     ``params`` is ``{"cv": ...}`` for spacing, ``{"mean_deg": ..., "sd_deg": ...}`` for the
     zero-energy angle, ``{"mean": ..., "sd": ...}`` for the stitch pre-strain (whose map to
     gamma0 comes from ``material``, the fabric's card); ``length_mm`` (along fibre 1,
-    fibre 2) is None for iid.
+    fibre 2) is None for iid. ``sd_dof`` (zero angle only; None: the sd is known) makes
+    the ensemble hierarchical: each realisation draws its own sd, ``sd_deg`` √(m / χ²_m)
+    with m = ``sd_dof``, the sd's uncertainty from a calibration on few points
+    (:func:`uqdrape.ensemble.inputs.realization_sd_deg`).
     """
 
     name: str
@@ -134,6 +137,7 @@ class RandomField:
     length_mm: tuple[float, float] | None
     kl_retained: float
     material: str | None = None
+    sd_dof: float | None = None
 
     def build_input(self, rings: int, spacing_mm: float):
         """The exact-sampling input map (uqdrape.stochastic SpacingInput / ZeroAngleInput /

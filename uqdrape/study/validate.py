@@ -18,7 +18,10 @@ Sections and keys (units: mm, N, degrees)::
                    failure_budget = 0.5 (a run stops before draping if more of the first
                    realisation's nodes cannot be placed)
     [uncertainty.spacing]     cv, correlation = "iid", length_mm, kl_retained = 0.95
-    [uncertainty.zero_angle]  mean_deg = 0, sd_deg, correlation = "iid", length_mm, kl_retained = 0.95
+    [uncertainty.zero_angle]  mean_deg = 0, sd_deg, correlation = "iid", length_mm, kl_retained = 0.95,
+                   sd_dof (> 0; a hierarchical ensemble: each realisation's sd is sd_deg sqrt(m / chi2_m),
+                   m = sd_dof, the estimation uncertainty of a calibrated sd; `uqdrape calibrate` writes it;
+                   sampling plans other than rqmc, no sensitivity design)
     [uncertainty.stitch_prestrain]  mean, sd (fractions), correlation = "iid", length_mm, kl_retained = 0.95:
                    each cell's stitch pre-strain, mapped to its zero-energy angle gamma0 through the
                    material card's [architecture] (uqdrape.material.architecture.material_zero_force_table);
@@ -287,7 +290,8 @@ def _solver(src: _Source, doc: dict) -> Solver:
 
 def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, material: str) -> RandomField:
     section = f"uncertainty.{name}"
-    t = Table(src, section, data, (*FIELD_KEYS[name], "correlation", "length_mm", "kl_retained"))
+    extra = ("sd_dof",) if name == "zero_angle" else ()
+    t = Table(src, section, data, (*FIELD_KEYS[name], "correlation", "length_mm", "kl_retained", *extra))
     if name == "spacing":
         params = {"cv": t.number("cv")}  # its range is checked by SpacingInput
     elif name == "zero_angle":
@@ -315,9 +319,10 @@ def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, materia
                       '"exponential" or "squared_exponential", or remove length_mm')
         length = t.numbers("length_mm", length=2, hint="length_mm must be two numbers [L1, L2] in mm, > 0")
     retained = t.number("kl_retained", 0.95)
+    sd_dof = t.number("sd_dof", gt=0) if t.has("sd_dof") else None
     _reach(src, name, t, params)
     spec = RandomField(name, params, correlation, length, retained,
-                       material if name == "stitch_prestrain" else None)
+                       material if name == "stitch_prestrain" else None, sd_dof)
     given = {k: (t.dotted(k), v) for k, v in t.data.items()}
     given["retained"] = (t.dotted("kl_retained"), retained)
     required = {"length_mm": t.dotted("length_mm")} if length is None and correlation != "iid" else {}
@@ -448,6 +453,7 @@ def _sampling(src: _Source, doc: dict, realizations: int, seed: int, uncertainty
         except ValueError as err:
             src.wrap(err, "sampling", given)
         return Sampling(plan)
+    _fixed_sd(src, uncertainty, f'sampling plan = "{RQMC}"')
     k = t.number("randomizations", integer=True)
     given["randomizations"] = ("sampling.randomizations", k)
     d = len(uncertainty.factors) + sum(f.build_input(solver.rings, fabric.spacing_mm).kl(f.kl_retained).n_variables
@@ -463,6 +469,16 @@ def _sampling(src: _Source, doc: dict, realizations: int, seed: int, uncertainty
     return Sampling(plan, k)
 
 
+def _fixed_sd(src: _Source, uncertainty: Uncertainty, what: str) -> None:
+    """Refuse a hierarchical zero-angle sd (``sd_dof``) under a design of standard
+    variables (rqmc, a sensitivity design): its columns hold no variable for the sd."""
+    field = uncertainty.fields.get("zero_angle")
+    if field is not None and field.sd_dof is not None:
+        src.invalid("uncertainty.zero_angle.sd_dof", field.sd_dof,
+                    f"a sd drawn per realisation is not supported with {what}: use plan = \"monte_carlo\", "
+                    "\"latin_hypercube\" or \"sobol\" without a sensitivity design, or remove sd_dof")
+
+
 def _sensitivity(src: _Source, doc: dict, uncertainty: Uncertainty) -> Sensitivity:
     t = Table(src, "sensitivity", doc.get("sensitivity", {}), ("method", "base_samples", "qoi"))
     method = t.string("method", "none", choices=SENSITIVITY_METHODS)
@@ -472,6 +488,7 @@ def _sensitivity(src: _Source, doc: dict, uncertainty: Uncertainty) -> Sensitivi
             t.invalid("base_samples", 'base_samples is only used by a sensitivity method: set method = '
                       '"sobol" or "morris", or remove base_samples')
     else:
+        _fixed_sd(src, uncertainty, f'sensitivity method = "{method}"')
         base = t.number("base_samples", integer=True, ge=1)
         try:
             _stochastic.check_base_samples(method, base)
