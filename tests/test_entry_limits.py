@@ -23,6 +23,7 @@ from uqdrape.workflow import check_drape_inputs, validate_study
     (["--spacing", "0"], "--spacing", "positive length"),
     (["--pre-shear", "60", "--skew", "40"], "--pre-shear and --skew", "(-90, 90)"),
     (["--tolerance", "1e9"], "--tolerance", "(0, 1]"),
+    (["--pre-shear", "50", "--material", "generic_woven"], "--pre-shear", "locking angle +50 deg"),
 ])
 def test_a_drape_flag_outside_a_studys_range_is_refused_before_draping(tmp_path, capsys, flags, named, valid):
     assert cli(["drape", *flags, "--out", str(tmp_path / "d" / "x")]) == 2
@@ -65,6 +66,35 @@ def test_a_field_reaching_past_its_physical_range_is_refused(tmp_path, field, ke
         load_study(path)
     assert err.value.key == key
     assert_one_line_error(str(err.value), file=path, key=key, valid=valid)
+
+
+@pytest.mark.parametrize("sections, key, valid", [
+    ({"fabric": {"pre_shear_deg": 89.9}}, "fabric.pre_shear_deg", ["locking angle +50 deg"]),
+    ({"fabric": {"pre_shear_deg": -50.0}}, "fabric.pre_shear_deg", ["locking angle -50 deg"]),
+    ({"uncertainty": {"pre_shear": {"dist": "normal", "mean": 10.0, "sd": 8.0}}}, "uncertainty.pre_shear",
+     ["pre-shear of 66.28 deg", "locking angle +50 deg"]),
+])
+def test_a_blank_pre_sheared_to_its_locking_angle_is_refused(tmp_path, sections, key, valid):
+    """generic_woven locks at +/-50 deg: a blank sheared that far is locked before forming
+    (mean + 7 sd = 66.28 deg for the factor)."""
+    path = write_study(tmp_path, **sections)
+    with pytest.raises(StudyError) as err:
+        load_study(path)
+    assert_one_line_error(str(err.value), file=path, key=key, valid=valid)
+
+
+def test_a_skew_past_locking_is_drawn_but_a_net_mostly_off_the_mould_is_a_warning(tmp_path, capsys):
+    """A skew is a choice of the drape (the thesis's Fig 5.5 goes past locking), so 89.9 deg
+    is accepted, but 40 % of its 81 nodes cannot be placed: validate and run say so on stderr
+    (within the failure budget), and --quiet says nothing."""
+    path = write_study(tmp_path, fabric={"skew_deg": 89.9})
+    assert cli(["validate", str(path)]) == 0
+    err = capsys.readouterr().err
+    assert_one_line_error(err, valid=["tiny: warning: 40% of the nodes of realisation 0 cannot be placed",
+                                      "failure_budget = 0.5", "NaN"])
+    assert cli(["run", str(path), "--scheduler", "synchronous", "--no-report", "-q"]) == 0
+    assert capsys.readouterr().err == ""
+    assert load_study(path).fabric.skew_deg == 89.9
 
 
 @pytest.mark.parametrize("sections, key", [

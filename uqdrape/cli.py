@@ -41,7 +41,7 @@ def cmd_drape(args) -> int:
                    crossover=tuple(args.crossover), mode=args.mode, blankholder_force=args.blankholder_force,
                    friction=args.friction, blankholder_model=args.blankholder_model, tolerance=args.tolerance)
     try:
-        check_drape_inputs(args.spacing, args.rings, options)
+        check_drape_inputs(args.spacing, args.rings, options, args.material)
     except ValueError as err:  # a ParameterError: name the flags
         flags = " and ".join("--" + name.replace("_", "-") for name in getattr(err, "names", ()))
         raise ValueError(f"{flags}: {err}" if flags else str(err)) from None

@@ -317,6 +317,17 @@ class Material:
         g = np.asarray(gamma_rad, dtype=float)
         return (g > self._pos.limit) | (-g > self._neg.limit)
 
+    def blank_shear_error(self, shear_deg: float) -> str | None:
+        """Why a flat blank pre-sheared by ``shear_deg`` (deg) cannot be draped with this
+        card (the end of a sentence "the blank is ..."), or None: at or past the locking
+        angle of that branch it is locked before it touches the mould. (A skew of the
+        generator paths is a choice of the drape, not of the blank: the thesis's Fig 5.5
+        skews past locking and the energy says so.)"""
+        lock, sign = (self.locking_angle_deg, "+") if shear_deg >= 0 else (self.locking_angle_neg_deg, "-")
+        if abs(shear_deg) < lock:
+            return None
+        return f"at or past the card {self.name}'s locking angle {sign}{lock:g} deg (locked before forming)"
+
     def cell_energy(self, gamma_rad, s1_mm, s2_mm, gamma0_rad=0.0):
         """Shear energy (J) of cells with fibre segments s1, s2 (mm) and zero-energy angle γ0 (rad).
 

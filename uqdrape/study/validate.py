@@ -225,7 +225,7 @@ def _fabric(src: _Source, doc: dict, mould) -> Fabric:
     else:
         t.invalid("material", hint)
     try:
-        _material.load_material(material)
+        card = _material.load_material(material)
     except ValueError as err:
         t.invalid("material", str(err))
     spacing = t.number("spacing_mm", gt=0)
@@ -234,6 +234,9 @@ def _fabric(src: _Source, doc: dict, mould) -> Fabric:
     skew = t.number("skew_deg", 0.0, gt=-90, lt=90)
     if abs(pre_shear + skew) >= 90:
         t.invalid("skew_deg", f"pre_shear_deg + skew_deg must lie in (-90, 90) degrees, got {pre_shear + skew:g}")
+    locked = card.blank_shear_error(pre_shear)
+    if locked:
+        t.invalid("pre_shear_deg", f"a blank pre-sheared {pre_shear:g} deg is {locked}")
     crossover = t.numbers("crossover", (0.0, 0.0), length=2,
                           hint="crossover must be two numbers [x, y] in mm")
     if not _inside(mould, *crossover):
@@ -399,6 +402,13 @@ def _uncertainty(src: _Source, doc: dict, fabric: Fabric, process: Process, solv
             src.invalid(f"uncertainty.{name}", t.data[name],
                         f"its values reach [{lo:g}, {hi:g}] but {name} {inp.describe_range()}; "
                         "use bounds (uniform/truncnormal) or a smaller sd")
+    if "pre_shear" in factors:  # the blank must not start locked anywhere in its reach
+        card = _material.load_material(fabric.material)
+        for pre in _extent(factors["pre_shear"]):
+            locked = card.blank_shear_error(pre)
+            if locked:
+                src.invalid("uncertainty.pre_shear", t.data["pre_shear"], f"its values reach a pre-shear of "
+                            f"{pre:.4g} deg, {locked}; use bounds (uniform/truncnormal) or a smaller sd")
     if {"crossover_x", "crossover_y"} & set(factors):
         xs = _extent(factors["crossover_x"]) if "crossover_x" in factors else (fabric.crossover[0],) * 2
         ys = _extent(factors["crossover_y"]) if "crossover_y" in factors else (fabric.crossover[1],) * 2

@@ -33,7 +33,7 @@ def drape_to_files(geometry: str, params: dict, spacing: float, rings: int, out,
     none; return the paths and a one-line summary. The inputs are checked first against
     the same physical ranges a study's are (``check_drape_inputs``), and the net against
     this machine's memory. ``command`` is recorded as the file's history."""
-    check_drape_inputs(spacing, rings, options)
+    check_drape_inputs(spacing, rings, options, material)
     surface = build(geometry, **params)
     card = load_material(material) if material else None
     # a ring k/n counter: a bar on a terminal, elsewhere a line every PLAIN_EVERY s of a long drape
@@ -60,10 +60,11 @@ def drape_to_files(geometry: str, params: dict, spacing: float, rings: int, out,
     return written, summary
 
 
-def check_drape_inputs(spacing: float, rings: int, options: dict) -> None:
+def check_drape_inputs(spacing: float, rings: int, options: dict, material: str | None = None) -> None:
     """Refuse a single drape's inputs outside the physical ranges a study's must keep
-    (``uqdrape.schema``: the solver's scalar inputs, MAX_RINGS) or whose net would need
-    more than half this machine's memory; ParameterError names the drape argument."""
+    (``uqdrape.schema``: the solver's scalar inputs, MAX_RINGS; a pre-shear short of the
+    card ``material``'s locking angle) or whose net would need more than half this
+    machine's memory; ParameterError names the drape argument."""
     if not (isinstance(spacing, (int, float)) and math.isfinite(spacing) and spacing > 0):
         raise ParameterError("spacing", f"spacing must be a positive length in mm, got {spacing!r}")
     if not 1 <= rings <= MAX_RINGS:
@@ -81,6 +82,9 @@ def check_drape_inputs(spacing: float, rings: int, options: dict) -> None:
     if np.ndim(turn) == 0 and not abs(turn) < 90.0:
         raise ParameterError(("pre_shear", "skew"), f"pre_shear + skew = {turn:g} is invalid: it must lie in "
                                                     "(-90, 90) degrees")
+    locked = material and load_material(material).blank_shear_error(options.get("pre_shear", 0.0))
+    if locked:
+        raise ParameterError("pre_shear", f"a blank pre-sheared {options.get('pre_shear', 0.0):g} deg is {locked}")
     tolerance = options.get("tolerance", 1e-3)
     if not (math.isfinite(tolerance) and 0 < tolerance <= 1.0):
         raise ParameterError("tolerance", f"tolerance = {tolerance:g} is invalid: the minimiser's tolerance on "

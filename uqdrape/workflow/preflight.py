@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -70,15 +71,27 @@ def check_resources(study, output_dir: Path, drapes_to_write: int, chunk_size: i
                           f"more than the {free / 2**30:.3g} GiB free under {existing}")
 
 
-def check_placement(study, realization: int = 0, force: float | None = None, design_rows=None) -> None:
+#: Share of the first realisation's nodes not placed above which a run or validate says so
+#: on stderr, within the failure budget (a square net's corners off a round mould are a
+#: few per cent; a pre-sheared or oversized net past this is worth a look).
+WARN_UNPLACED = 0.10
+
+
+def check_placement(study, realization: int = 0, force: float | None = None, design_rows=None, *,
+                    quiet: bool = False) -> None:
     """Drape one realisation of the study (row ``realization`` of ``design_rows`` if
     given) here, before any worker starts, and refuse the study if more than its
     ``[solver] failure_budget`` of the nodes cannot be placed: such a run would only write
-    NaNs (the crossover off the mould, a net larger than the mould)."""
+    NaNs (the crossover off the mould, a net larger than the mould). Within the budget,
+    more than WARN_UNPLACED of them is a warning on stderr (unless ``quiet``)."""
     r = np.arange(realization, realization + 1)
     inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows[r])
     force = study.force_levels[0] if force is None else force
     failed, why = placement_failures(drape_inputs(study, r, inputs, force=force)["status"].values[0])
+    if not quiet and WARN_UNPLACED < failed <= study.solver.failure_budget:
+        print(f"{study.name}: warning: {failed:.0%} of the nodes of realisation {realization} cannot be placed "
+              f"({why}); within solver.failure_budget = {study.solver.failure_budget:g}, so the run goes on "
+              "and those nodes are NaN in its results", file=sys.stderr)
     if failed > study.solver.failure_budget:
         raise study_error(study.path, "solver.rings", study.solver.rings,
                           f"{failed:.0%} of the nodes of realisation {realization} cannot be placed, more than "
@@ -86,12 +99,12 @@ def check_placement(study, realization: int = 0, force: float | None = None, des
                           "smaller spacing or move the crossover")
 
 
-def run_preflight(study, output_dir, *, chunk_size: int | None = None, design_rows=None):
+def run_preflight(study, output_dir, *, chunk_size: int | None = None, design_rows=None, quiet: bool = False):
     """The ``preflight`` of ``uqdrape.ensemble.run_ensemble`` for a run of ``study`` into
     ``output_dir``: resources for the drapes still to write, placement of the first."""
     def check(drapes: int, first: int, force: float) -> None:
         check_resources(study, Path(output_dir), drapes, chunk_size)
-        check_placement(study, first, force, design_rows)
+        check_placement(study, first, force, design_rows, quiet=quiet)
     return check
 
 

@@ -83,14 +83,15 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
         def run_round(sample, again):
             return run_ensemble(sample, output_dir=out, scheduler=scheduler, workers=workers, chunk_size=chunk_size,
                                 resume=again, progress=progress, verbose=verbose,
-                                preflight=run_preflight(sample, out, chunk_size=chunk_size))
+                                preflight=run_preflight(sample, out, chunk_size=chunk_size, quiet=not progress))
         return run_to_target(study, run_round, chunk_size=chunk_size or study.chunk_size, resume=resume,
                              progress=progress)
     out = run_ensemble(study, design_rows=None if design is None else design.standard, output_dir=out,
                        provenance=provenance, attrs=attrs, scheduler=scheduler, workers=workers,
                        chunk_size=chunk_size, resume=resume, progress=progress, verbose=verbose,
                        preflight=run_preflight(study, out, chunk_size=chunk_size,
-                                               design_rows=None if design is None else design.standard))
+                                               design_rows=None if design is None else design.standard,
+                                               quiet=not progress))
     if design is not None and resume and analysed(out):
         if progress:
             print(f"{study.name}: {design.method} indices already analysed in {out}", file=sys.stderr)
@@ -173,7 +174,7 @@ def run_design(study, *, output_dir=None, scheduler: str | None = None, workers:
     prob = problem(study)
     out = Path(study.output_dir if output_dir is None else output_dir)
     check_resources(study, out, 0)  # a design's records are per-drape numbers and node sums, not nets
-    check_placement(study)
+    check_placement(study, quiet=not progress)
     reach_scheduler(scheduler)
     out.mkdir(parents=True, exist_ok=True)
     local = scheduler in (None, "processes")
