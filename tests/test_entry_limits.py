@@ -7,11 +7,13 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
 import pytest
 
 from conftest import assert_one_line_error, write_study
 from uqdrape.cli import main as cli
 from uqdrape.errors import ParameterError
+from uqdrape.material import load_material
 from uqdrape.study import StudyError, load_study
 from uqdrape.workflow import check_drape_inputs, validate_study
 
@@ -20,7 +22,8 @@ from uqdrape.workflow import check_drape_inputs, validate_study
     (["--blankholder-force", "1e12"], "--blankholder-force", "[0, 1e+06] N"),
     (["--friction", "1e9"], "--friction", "[0, 2]"),
     (["--rings", "100000"], "--rings", "[1, 1000]"),
-    (["--spacing", "0"], "--spacing", "positive length"),
+    (["--spacing", "0"], "--spacing", "[0.01, 1000) mm"),
+    (["--spacing", "1e-6"], "--spacing", "[0.01, 1000) mm"),
     (["--pre-shear", "60", "--skew", "40"], "--pre-shear and --skew", "(-90, 90)"),
     (["--tolerance", "1e9"], "--tolerance", "(0, 1]"),
     (["--pre-shear", "50", "--material", "generic_woven"], "--pre-shear", "locking angle +50 deg"),
@@ -66,6 +69,35 @@ def test_a_field_reaching_past_its_physical_range_is_refused(tmp_path, field, ke
         load_study(path)
     assert err.value.key == key
     assert_one_line_error(str(err.value), file=path, key=key, valid=valid)
+
+
+@pytest.mark.parametrize("sections, key, valid", [
+    ({"fabric": {"spacing_mm": 1e-6}}, "fabric.spacing_mm", ["0.01 <= spacing_mm < 1000"]),
+    ({"solver": {"tolerance_deg": 1e9}}, "solver.tolerance_deg", ["(0, 1] degrees"]),
+    ({"fabric": {"orientation_deg": 400.0}}, "fabric.orientation_deg", ["[-360, 360] degrees"]),
+    ({"uncertainty": {"orientation": {"dist": "normal", "mean": 0.0, "sd": 1e6}}}, "uncertainty.orientation",
+     ["[-360, 360] degrees"]),
+])
+def test_absurd_spacing_tolerance_and_orientation_are_refused_as_the_drape_command_refuses_them(
+        tmp_path, sections, key, valid):
+    path = write_study(tmp_path, **sections)
+    with pytest.raises(StudyError) as err:
+        load_study(path)
+    assert_one_line_error(str(err.value), file=path, key=key, valid=valid)
+
+
+def test_a_card_with_no_shear_resistance_is_refused_and_one_that_softens_is_kept(tmp_path):
+    """N_s = 0 everywhere cannot steer an energy drape; a falling N_s (measured softening)
+    keeps W monotone and is a valid card."""
+    zero, soft = tmp_path / "zero.csv", tmp_path / "soft.csv"
+    zero.write_text("angle_deg,ns_positive\n0,0\n20,0\n50,0\n")
+    soft.write_text("angle_deg,ns_positive\n0,0\n10,5\n20,3\n50,20\n")
+    with pytest.raises(ValueError) as err:
+        load_material(str(zero))
+    assert_one_line_error(str(err.value), file=zero, valid=["N_s is 0 at every angle"])
+    card = load_material(str(soft))
+    w = card.energy_density(np.deg2rad(np.arange(0.0, 50.0, 0.5)))
+    assert np.all(np.diff(w) > 0)
 
 
 @pytest.mark.parametrize("sections, key, valid", [

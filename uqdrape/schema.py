@@ -92,7 +92,7 @@ SOLVER_INPUTS = {i.name: i for i in (
     # upper ends: far beyond any press (1 MN) and any fabric on steel (mu 2): a typo, not a process
     SolverInput("blankholder_force", "N", "total blank-holder force", 0.0, 1e6),
     SolverInput("friction", "1", "fabric/blank-holder friction coefficient", 0.0, 2.0),
-    SolverInput("orientation", "degree", "fibre-1 plan angle from the x axis"),
+    SolverInput("orientation", "degree", "fibre-1 plan angle from the x axis", -360.0, 360.0),
     SolverInput("crossover_x", "mm", "crossover x"),
     SolverInput("crossover_y", "mm", "crossover y"),
     SolverInput("pre_shear", "degree", "shear of the flat blank", -90.0, 90.0, True),
@@ -103,6 +103,12 @@ SOLVER_INPUTS = {i.name: i for i in (
 #: about 2.4 GB of working arrays for one energy drape). What fits this machine's memory
 #: is checked before a run (``uqdrape.workflow.preflight``).
 MAX_RINGS = 1000
+#: Fibre spacing of a net (mm), [low, high): below 10 µm a net is no textile and its edge
+#: lengths drown in the rounding of mm-sized moulds; 1 m cells no mould has.
+SPACING_RANGE_MM = (0.01, 1000.0)
+#: Largest tolerance of the energy minimiser on turn angles (deg): past 1 deg its "minimum"
+#: is any turn at all.
+MAX_TOLERANCE_DEG = 1.0
 
 #: Drape modes: geodesic generator arms, or arms steered to minimise the forming energy.
 MODES = ("geodesic", "energy")

@@ -143,6 +143,9 @@ def _as_curve(branch, angles_deg, ns):
     if np.any(n < 0.0):
         k = int(np.argmax(n < 0.0))
         bad(f"N_s must be >= 0 (give the magnitude for the negative branch), got {n[k]:g} N/m at {a[k]:g} deg")
+    if not np.any(n > 0.0):
+        bad("N_s is 0 at every angle: a fabric with no shear resistance cannot steer an energy drape "
+            "(use the geodesic mode, which needs no card, or give the measured curve)")
     if np.any(n > MAX_NS):
         k = int(np.argmax(n > MAX_NS))
         bad(f"N_s must be at most {MAX_NS:g} N/m (a fabric locks near 1000 N/m), got {n[k]:g} N/m at {a[k]:g} deg")
@@ -163,6 +166,10 @@ class Material:
     each side. N_s is interpolated by a monotone cubic (PCHIP, no overshoot, so it stays
     >= 0), W is tabulated once on a fine grid (Simpson) and evaluated by a cubic Hermite
     spline whose slopes are the exact dW/dγ, so W is C1 within a branch.
+
+    N_s must be >= 0 and somewhere > 0 on each branch; it may fall with γ (an NCF's stitch
+    can soften: the EBXhd-936 card derived from its architecture peaks at 12°), since W
+    stays monotone in |γ| whatever the shape of a non-negative N_s.
 
     Locking: beyond the locking angle of a branch, W continues as a quadratic wall
     W(γ_L) + W'(γ_L)·Δ + ½·k·Δ², k = LOCK_STIFFNESS_PER_RAD · max N_s (C1 at γ_L), and

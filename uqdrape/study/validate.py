@@ -89,7 +89,8 @@ from .. import stochastic as _stochastic
 from ..experimental import read_experimental
 from ..files import REQUIRED, Document, FileFormatError, Table, fmt, inside, is_int, is_number
 from ..stochastic.sampling import EXTENDABLE_PLANS, RQMC, STUDY_PLANS, rqmc_points
-from ..schema import BLANKHOLDER_MODELS, MAX_RINGS, MODES, QOI_ATTRS, SENSITIVITY_QOIS, SOLVER_INPUTS
+from ..schema import (BLANKHOLDER_MODELS, MAX_RINGS, MAX_TOLERANCE_DEG, MODES, QOI_ATTRS, SENSITIVITY_QOIS,
+                      SOLVER_INPUTS, SPACING_RANGE_MM)
 from ..material.scatter import card_scatter
 from .spec import (CARD, DESIGN_OBJECTIVES, DESIGN_STATISTICS, DESIGN_VARIABLES, DIST_KEYS, FACTOR_SETTINGS, FIELD_KEYS,
                    FIELDS, SECTIONS, SENSITIVITY_METHODS, TARGET_STATISTICS, Design, Fabric, Geometry, Process,
@@ -228,8 +229,10 @@ def _fabric(src: _Source, doc: dict, mould) -> Fabric:
         card = _material.load_material(material)
     except ValueError as err:
         t.invalid("material", str(err))
-    spacing = t.number("spacing_mm", gt=0)
+    spacing = t.number("spacing_mm", ge=SPACING_RANGE_MM[0], lt=SPACING_RANGE_MM[1])
     orientation = t.number("orientation_deg", 0.0)
+    if not SOLVER_INPUTS["orientation"].admits(orientation):
+        t.invalid("orientation_deg", f"orientation_deg {SOLVER_INPUTS['orientation'].describe_range()}")
     pre_shear = t.number("pre_shear_deg", 0.0, gt=-90, lt=90)
     skew = t.number("skew_deg", 0.0, gt=-90, lt=90)
     if abs(pre_shear + skew) >= 90:
@@ -288,6 +291,9 @@ def _solver(src: _Source, doc: dict) -> Solver:
                            f"{(2 * MAX_RINGS + 1) ** 2:,} at most")
     if solver.failure_budget > 1:
         t.invalid("failure_budget", "failure_budget is a fraction of the nodes, in [0, 1]")
+    if solver.tolerance_deg > MAX_TOLERANCE_DEG:
+        t.invalid("tolerance_deg", f"the minimiser's tolerance on turn angles must lie in (0, {MAX_TOLERANCE_DEG:g}] "
+                                   "degrees")
     return solver
 
 

@@ -22,7 +22,7 @@ from ..material.cards import card_material, card_text
 from ..material.plot import plot_architecture, plot_sheartest
 from ..material.sheartest import fit_card, read_rig
 from ..report import plot_lines, plot_net
-from ..schema import MAX_RINGS, SOLVER_INPUTS
+from ..schema import MAX_RINGS, MAX_TOLERANCE_DEG, SOLVER_INPUTS, SPACING_RANGE_MM
 from .preflight import WORKING_BYTES_PER_NODE, memory_bytes
 
 
@@ -65,8 +65,9 @@ def check_drape_inputs(spacing: float, rings: int, options: dict, material: str 
     (``uqdrape.schema``: the solver's scalar inputs, MAX_RINGS; a pre-shear short of the
     card ``material``'s locking angle) or whose net would need more than half this
     machine's memory; ParameterError names the drape argument."""
-    if not (isinstance(spacing, (int, float)) and math.isfinite(spacing) and spacing > 0):
-        raise ParameterError("spacing", f"spacing must be a positive length in mm, got {spacing!r}")
+    low, high = SPACING_RANGE_MM
+    if not (isinstance(spacing, (int, float)) and math.isfinite(spacing) and low <= spacing < high):
+        raise ParameterError("spacing", f"spacing must be a length in [{low:g}, {high:g}) mm, got {spacing!r}")
     if not 1 <= rings <= MAX_RINGS:
         raise ParameterError("rings", f"rings must be an integer in [1, {MAX_RINGS}], got {rings!r}")
     nodes = (2 * rings + 1) ** 2
@@ -86,9 +87,9 @@ def check_drape_inputs(spacing: float, rings: int, options: dict, material: str 
     if locked:
         raise ParameterError("pre_shear", f"a blank pre-sheared {options.get('pre_shear', 0.0):g} deg is {locked}")
     tolerance = options.get("tolerance", 1e-3)
-    if not (math.isfinite(tolerance) and 0 < tolerance <= 1.0):
+    if not (math.isfinite(tolerance) and 0 < tolerance <= MAX_TOLERANCE_DEG):
         raise ParameterError("tolerance", f"tolerance = {tolerance:g} is invalid: the minimiser's tolerance on "
-                                          "turn angles must lie in (0, 1] degrees")
+                                          f"turn angles must lie in (0, {MAX_TOLERANCE_DEG:g}] degrees")
 
 
 def material_list() -> list[tuple[str, str]]:
