@@ -58,3 +58,47 @@ def test_sd_dof_with_rqmc_or_a_bad_value_is_one_line(tmp_path, capsys):
                            uncertainty={"zero_angle": {"sd_deg": 2.0, **field}}, sampling=sampling)
         assert main(["validate", str(path)]) != 0
         assert_one_line_error(capsys.readouterr().err, file=path.name, key=key)
+
+
+# -- the posterior sample (emcee) ---------------------------------------------------------
+
+
+def test_posterior_of_table_5_1_is_the_chi_square_interval(tmp_path):
+    """iid with p(σ) ∝ 1/σ: σ² | y is scaled-inverse-χ²_37, so the sample's 90 % interval is
+    the profile's (closed-form) one to Monte Carlo error (about 1 % here), and sd_dof from
+    it is near 37."""
+    pytest.importorskip("emcee")
+    cal = calibrate_points(read_points(table_5_1_points(tmp_path)), family="iid", posterior=True)
+    post, est = cal.posterior, cal.fit.estimates["sd_deg"]
+    assert post.interval("sd_deg", 0.9) == pytest.approx((est.lower, est.upper), rel=0.02)
+    assert 0.2 < post.acceptance < 0.95
+    assert study_block(cal)["uncertainty"]["zero_angle"]["sd_dof"] == pytest.approx(37, rel=0.15)
+
+
+def test_posterior_agrees_with_the_profile_intervals_of_a_correlated_field(tmp_path):
+    """A squared-exponential 8 x 8 grid: each posterior 90 % interval end within 10 % of
+    the profile likelihood's (measured: within 3 %)."""
+    pytest.importorskip("emcee")
+    from test_calibration import _grid_csv
+
+    cal = calibrate_points(read_points(_grid_csv(tmp_path, "squared_exponential")), family="squared_exponential",
+                           posterior=True)
+    for name in ("sd_deg", "length_1_mm", "length_2_mm"):
+        est = cal.fit.estimates[name]
+        assert cal.posterior.interval(name, 0.9) == pytest.approx((est.lower, est.upper), rel=0.1), name
+
+
+def test_calibrate_posterior_flag_writes_its_intervals(tmp_path, capsys):
+    pytest.importorskip("emcee")
+    out = tmp_path / "z.toml"
+    assert main(["calibrate", str(table_5_1_points(tmp_path)), "--out", str(out), "--posterior", "-q"]) == 0
+    text = out.read_text(encoding="utf-8")
+    assert "posterior (emcee" in text and "sd_dof = " in text and "posterior interval" in text
+
+
+def test_posterior_without_emcee_is_one_line(tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(__import__("sys").modules, "emcee", None)  # import emcee raises ImportError
+    out = tmp_path / "z.toml"
+    assert main(["calibrate", str(table_5_1_points(tmp_path)), "--out", str(out), "--posterior", "-q"]) != 0
+    assert_one_line_error(capsys.readouterr().err, valid=("uqdrape[calibrate]",))
+    assert not out.exists()

@@ -38,12 +38,23 @@ def _declared(requirements, with_their_requirements=False) -> set[str]:
     return names
 
 
-def _imported(folder: Path) -> dict[str, str]:
+def _lazy(tree) -> set[int]:
+    """ids of the import nodes inside a function of ``tree`` (run only when it is called)."""
+    return {id(node) for fn in ast.walk(tree) if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef))
+            for node in ast.walk(fn) if isinstance(node, (ast.Import, ast.ImportFrom))}
+
+
+def _imported(folder: Path, lazy: bool | None = None) -> dict[str, str]:
     """Third-party top-level modules imported by the .py files under ``folder`` (not the
-    standard library's, not the checkout's own), each with a file that imports it."""
+    standard library's, not the checkout's own), each with a file that imports it; with
+    ``lazy`` True only the imports inside functions, False only the others."""
     found = {}
     for path in sorted(folder.rglob("*.py")):
-        for node in ast.walk(ast.parse(path.read_bytes(), str(path))):
+        tree = ast.parse(path.read_bytes(), str(path))
+        inside = _lazy(tree) if lazy is not None else set()
+        for node in ast.walk(tree):
+            if lazy is not None and (id(node) in inside) != lazy:
+                continue
             if isinstance(node, ast.Import):
                 modules = [alias.name for alias in node.names]
             elif isinstance(node, ast.ImportFrom) and not node.level:
@@ -65,7 +76,12 @@ def _undeclared(imports: dict[str, str], declared: set[str]) -> list[str]:
 
 
 def test_every_package_the_code_imports_is_a_declared_dependency():
-    assert _undeclared(_imported(ROOT / "uqdrape"), _declared(PROJECT["dependencies"])) == []
+    """At import time only the dependencies; inside a function (an optional feature, e.g.
+    emcee for ``calibrate --posterior``) also an optional extra's."""
+    core = _declared(PROJECT["dependencies"])
+    extras = set().union(*(_declared(v) for k, v in PROJECT["optional-dependencies"].items() if k != "test"))
+    assert _undeclared(_imported(ROOT / "uqdrape", lazy=False), core) == []
+    assert _undeclared(_imported(ROOT / "uqdrape", lazy=True), core | extras) == []
 
 
 def test_every_package_the_tests_import_is_declared_for_the_tests():

@@ -162,7 +162,7 @@ def cmd_calibrate(args) -> int:
     from .workflow import calibrate_fibre_angles
 
     print(calibrate_fibre_angles(args.points, args.out, args.plot, family=args.family, criterion=args.criterion,
-                                 level=args.level, fibre1_deg=args.fibre1_deg,
+                                 level=args.level, fibre1_deg=args.fibre1_deg, posterior=args.posterior,
                                  command="uqdrape " + shlex.join(args.argv)))
     return 0
 
@@ -375,6 +375,9 @@ def build_parser() -> argparse.ArgumentParser:
     cal.add_argument("--level", type=float, default=0.9, help="the intervals' confidence level (default 0.9)")
     cal.add_argument("--fibre1-deg", type=float, default=45.0,
                      help="nominal plan direction of fibre 1, deg from x (default 45; fibre 2 at +90)")
+    cal.add_argument("--posterior", action="store_true",
+                     help="also sample the parameters' posterior with emcee (pip install 'uqdrape[calibrate]'); "
+                          "the block's sd_dof then comes from it")
 
     p.add_argument("--version", action=_Version)
     p.set_defaults(verbosity=1)

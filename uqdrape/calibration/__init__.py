@@ -9,10 +9,14 @@ family chosen by AIC or BIC and every parameter given a profile-likelihood inter
 (:mod:`.block`) with a figure (:mod:`.figure`). :mod:`.synthetic` draws measurement sets
 from known fields to check a fit.
 
+With emcee (optional extra ``calibrate``) :mod:`.posterior` samples the parameters'
+posterior; the block's ``sd_dof`` (a hierarchical ensemble drawing each realisation's sd,
+``uqdrape.ensemble.inputs``) is then matched to the posterior's sd interval instead of
+the profile's.
+
 Not here yet (issue 25's second half): an orientation field measured from a photograph
-(structure tensor), calibration from measured drapes through an emulator, a posterior
-sample of the parameters, and a hierarchical ensemble drawing sd and lengths per
-realisation from the calibration's uncertainty.
+(structure tensor), calibration from measured drapes through an emulator, and
+correlation lengths drawn per realisation (only the sd is).
 """
 
 from __future__ import annotations
@@ -43,12 +47,19 @@ class PointsCalibration:
     b_mm: np.ndarray
     fibre1_deg: float
     fit: FieldFit
+    posterior: object = None
 
 
 def calibrate_points(points: AnglePoints, *, fibre1_deg: float = 45.0, family: str = "auto",
-                     criterion: str = "aic", level: float = 0.9) -> PointsCalibration:
-    """Fit the γ0 field of measured ``points`` (see the package docstring)."""
+                     criterion: str = "aic", level: float = 0.9, posterior: bool = False) -> PointsCalibration:
+    """Fit the γ0 field of measured ``points`` (see the package docstring); ``posterior``:
+    also sample the chosen family's posterior (:mod:`.posterior`, needs emcee)."""
     gamma0 = zero_angle_deg(points, fibre1_deg)
     a, b = fibre_coordinates(points.x_mm, points.y_mm, fibre1_deg)
     fit = fit_field(a, b, gamma0, points.sd_deg, family=family, criterion=criterion, level=level)
-    return PointsCalibration(points, gamma0, a, b, fibre1_deg, fit)
+    sample = None
+    if posterior:
+        from .posterior import posterior_sample
+
+        sample = posterior_sample(fit)
+    return PointsCalibration(points, gamma0, a, b, fibre1_deg, fit, sample)

@@ -36,6 +36,16 @@ def _interval(estimate) -> str:
     return f"[{lower}, {upper}]"
 
 
+def _sd_interval(calibration):
+    """The sd's estimate with the interval sd_dof is matched to: the posterior's if
+    sampled, else the profile's."""
+    est = calibration.fit.estimates["sd_deg"]
+    if calibration.posterior is None:
+        return est
+    lower, upper = calibration.posterior.interval("sd_deg", calibration.fit.level)
+    return type(est)(est.value, lower, upper)
+
+
 def sd_dof(estimate, level: float) -> float | None:
     """The degrees of freedom m whose scaled-inverse-χ² sd, σ̂ √(m / χ²_m), has an
     equal-tailed ``level`` interval as wide (in log σ) as ``estimate``'s; None if an end
@@ -63,7 +73,7 @@ def study_block(calibration) -> dict:
              "correlation": fit.family}
     if fit.family != "iid":
         table["length_mm"] = [_round(est["length_1_mm"].value), _round(est["length_2_mm"].value)]
-    m = sd_dof(est["sd_deg"], fit.level)
+    m = sd_dof(_sd_interval(calibration), fit.level)
     if m is not None:
         table["sd_dof"] = _round(m)
     return {"uncertainty": {"zero_angle": table}}
@@ -92,8 +102,15 @@ def block_text(calibration, command: str = "uqdrape calibrate") -> str:
                          "not part of the study's field)")
         else:
             lines.append(f"  {name:12s} {estimate.value:8.4g}  {_interval(estimate)}")
-    m = sd_dof(fit.estimates["sd_deg"], fit.level)
-    lines.append(f"sd_dof = {m:.4g}: the sd's interval as a scaled-inverse-chi-square posterior; a run draws each "
+    post = calibration.posterior
+    if post is not None:
+        lines.append(f"posterior (emcee, {len(post.samples['sd_deg'])} draws, acceptance {post.acceptance:.2f}, "
+                     f"{post.seconds:.1f} s), {100 * fit.level:g} % equal-tailed intervals (uqdrape.calibration.posterior):")
+        lines += [f"  {name:12s} [{lo:.4g}, {hi:.4g}]  autocorrelation {post.autocorrelation[name]:.0f} steps"
+                  for name in post.samples for lo, hi in [post.interval(name, fit.level)]]
+    m = sd_dof(_sd_interval(calibration), fit.level)
+    source = "posterior" if post is not None else "profile"
+    lines.append(f"sd_dof = {m:.4g}: the sd's {source} interval as a scaled-inverse-chi-square one; a run draws each "
                  "realisation's sd from it (delete sd_dof for a fixed sd; correlation lengths stay fixed)"
                  if m is not None else "no sd_dof: the sd's interval is open, the data do not bound it")
     if points.sd_deg.any():

@@ -10,15 +10,17 @@ from ..files import write_text_atomic
 
 
 def calibrate_fibre_angles(points_csv, out, plot=None, *, family: str = "auto", criterion: str = "aic",
-                           level: float = 0.9, fibre1_deg: float = 45.0, command: str = "uqdrape calibrate") -> str:
+                           level: float = 0.9, fibre1_deg: float = 45.0, command: str = "uqdrape calibrate",
+                           posterior: bool = False) -> str:
     """Fit the γ0 field of the points in ``points_csv`` and write the study block ``out``
     (.toml), with the calibration figure if ``plot`` (True: beside the block, or a PNG
-    path); the figure first, so a failed one leaves no block. Returns the summary."""
+    path); the figure first, so a failed one leaves no block; ``posterior``: an emcee
+    sample too (its intervals in the comments, sd_dof from it). Returns the summary."""
     out = Path(out)
     if out.suffix.lower() != ".toml":
         raise ValueError(f"--out must name the study block to write, a .toml path; got {str(out)!r}")
     calibration = calibrate_points(read_points(points_csv), fibre1_deg=fibre1_deg, family=family,
-                                   criterion=criterion, level=level)
+                                   criterion=criterion, level=level, posterior=posterior)
     png = None
     if plot:
         from ..calibration.figure import plot_calibration
