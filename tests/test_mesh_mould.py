@@ -309,6 +309,50 @@ def test_units_and_press_direction_bring_a_cad_tool_into_the_solver_frame(tmp_pa
     assert np.nanmax(np.abs(_positions(a) - _positions(b))) < 1e-3
 
 
+def test_exports_of_a_turned_tool_come_out_in_its_own_frame(tmp_path):
+    """The wall box in its CAD orientation, top facing +x (vertices (z, y, -x), in mm): its
+    VTK export holds the upright box's drape turned by the same rotation to 1e-9 mm, every
+    exported node and mould vertex lies on the file's mesh as written, the fibres are
+    tangent to it there, and the result file states its frame and the rotation back."""
+    import meshio
+
+    from uqdrape.drape import drape
+    from uqdrape.export import export_vtk, levels, open_result
+
+    box = trimesh.creation.box(extents=(101.0, 101.0, 60.0))
+    box.apply_translation((0.0, 0.0, -30.0))
+    v = np.asarray(box.vertices)
+    cad = trimesh.Trimesh(np.stack([v[:, 2], v[:, 1], -v[:, 0]], 1), box.faces, process=False)
+    cad_path = _save(cad, tmp_path / "cad.stl")
+    turned = MeshSurface(cad_path, press_direction=(1.0, 0.0, 0.0))
+    plain = MeshSurface(_save(box, tmp_path / "box.stl"))
+    as_written = MeshSurface(cad_path)  # the file's frame: no turn
+    assert plain.tool_rotation is None and as_written.tool_rotation is None
+    R = turned.tool_rotation
+    np.testing.assert_allclose(R @ [1.0, 0.0, 0.0], [0.0, 0.0, 1.0], atol=1e-15)
+    ds = drape(turned, S, 11)
+    assert ds.attrs["frame"].startswith("solver") and np.asarray(ds.attrs["tool_rotation"]).size == 9
+    ds.to_netcdf(tmp_path / "cad.nc")
+    result, ensemble = open_result(tmp_path / "cad.nc")
+    (tmp_path / "out").mkdir()
+    export_vtk(levels(result, ensemble), result, tmp_path / "out" / "cad")
+    net = meshio.read(tmp_path / "out" / "cad.vtu")
+    P = _positions(drape(plain, S, 11))[0].reshape(-1, 3)
+    P = P[np.isfinite(P).all(1)]
+    assert len(net.points) == len(P) > 200
+    expected = P @ R  # tool = R^T solver, row by row
+    assert np.abs(net.points - expected).max() < 1e-9
+    # the same without R: the CAD map (x, y, z) -> (z, y, -x), the wall nodes at tool z = -+50.5
+    assert np.abs(net.points - np.stack([P[:, 2], P[:, 1], -P[:, 0]], 1)).max() < 1e-9
+    assert np.abs(net.points[:, 2]).max() == pytest.approx(50.5)
+    assert as_written.distance(net.points).max() < 1e-9
+    n = as_written.normal_at(net.points)
+    for name in ("fibre1", "fibre2"):
+        assert np.abs((net.point_data[name] * n).sum(1)).max() < 1e-12, name
+    mould = meshio.read(tmp_path / "out" / "cad-mould.vtu")
+    assert as_written.distance(mould.points).max() < 1e-9
+
+
 def test_a_c_spar_drapes_without_shear_along_its_axis():
     """The shipped C-spar (studies/meshes/cspar.stl: web, 10 mm fillets, 90 deg flanges, a
     developable) with the net along the spar: every node placed, the shear round-off, the

@@ -306,5 +306,16 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
                "locking_angle_neg_deg": float(getattr(material, "locking_angle_neg_deg", np.nan) or np.nan),
                "geometry_json": json.dumps({"kind": prob.surface.name, **prob.surface.params()}),
                "status_codes": Status.describe(), "uqdrape_version": __version__,
-               "Conventions": "CF-1.8"},
+               "Conventions": "CF-1.8", **_frame_attrs(prob.surface)},
     )
+
+
+def _frame_attrs(surface) -> dict:
+    """A mesh mould turned by its press_direction: the dataset's frame and the rotation back
+    to the tool's (node coordinates stay in the solver's, so chunks and resumes are the
+    solver's own numbers; the VTK and FE exports turn them)."""
+    R = surface.tool_rotation
+    if R is None:
+        return {}
+    return {"frame": "solver: the tool turned so its press_direction is +z; tool = tool_rotation^T solver (mm)",
+            "tool_rotation": [float(v) for v in R.ravel()]}

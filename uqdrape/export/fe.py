@@ -233,7 +233,8 @@ def fe_files(levels: list[Level], ds, mesh_path, stem, tolerance_mm: float | Non
     area_ratio, [theta1_q05 ...]) and of each of ``flavours`` (``cards.FLAVOURS``:
     ``STEM[-LEVEL]-orientations.inp``, ``-lsdyna.k``, ``-nastran.bdf``). ``tolerance_mm``
     (default: the fibre spacing) is how far from the mould an element may lie; a mesh
-    whose median element lies farther (wrong units or placement) is an error. Returns
+    whose median element lies farther (wrong units or placement) is an error. The mesh is
+    in the tool's frame (a mesh mould's file frame, mm) and so are the vectors written. Returns
     (writers, map_status of each level)."""
     unknown = [f for f in flavours if f not in FLAVOURS]
     if unknown or not flavours:
@@ -245,9 +246,11 @@ def fe_files(levels: list[Level], ds, mesh_path, stem, tolerance_mm: float | Non
         raise ValueError(f"tolerance must be a distance > 0 mm, got {tolerance_mm!r}")
     mesh, blocks = read_surface_mesh(mesh_path)
     labels = element_labels(mesh_path, mesh, blocks)
-    c = centroids(mesh, blocks)
+    # the FE mesh is in the tool's frame; mapping runs in the solver's, results go back
+    c = surface.to_solver(centroids(mesh, blocks))
     corners = corner_nodes(blocks)
     frame = element_frames(mesh.points, corners)
+    solver_frame = tuple(surface.to_solver(e) for e in frame)
     foot = onto_mould(surface, c)
     normal = foot_normal(surface, foot)
     writers, statuses = {}, []
@@ -258,10 +261,12 @@ def fe_files(levels: list[Level], ds, mesh_path, stem, tolerance_mm: float | Non
             raise ValueError(f"{mesh_path}: its elements lie {far:.4g} mm (median) from the mould along its "
                              f"normal, more than the tolerance {tol:g} mm: is the mesh in mm and in the mould's "
                              "coordinates?")
-        values.update(yarn_angles(values["fibre1"], values["fibre2"], normal, frame))
+        values.update(yarn_angles(values["fibre1"], values["fibre2"], normal, solver_frame))
         values["area_ratio"] = np.cos(np.radians(values["shear"]))
         if level.is_ensemble:
-            values.update(_ensemble_angles(level, surface, foot, tol, frame, values))
+            values.update(_ensemble_angles(level, surface, foot, tol, solver_frame, values))
+        for name in ("fibre1", "fibre2", "yarn1", "yarn2"):
+            values[name] = surface.to_tool(values[name])
         base = f"{stem.name}-{level.label}" if level.label else stem.name
         writers[stem.with_name(f"{base}-fe.vtu")] = partial(_vtu, mesh=mesh, blocks=blocks, values=values)
         source = f"{ds.attrs.get('geometry', 'a drape')}{' at ' + level.label if level.label else ''}"

@@ -4,7 +4,9 @@ The net is one quad per cell whose four nodes are placed; its point data are the
 level's fields (``Level.fields``), the fibre directions ``fibre1``, ``fibre2`` (unit),
 ``fibre_deviation`` (deg, from the nominal fibre-1 direction) and the node indices
 ``i``, ``j``. The mould is a quad grid of its height field with its unit ``normal`` (a
-mesh mould: its own triangles near the net, with its vertex normals).
+mesh mould: its own triangles near the net, with its vertex normals). Points and vectors
+are in the tool's frame: a mesh mould with a ``press_direction`` is turned back from the
+solver's (``Surface.to_tool``).
 """
 
 from __future__ import annotations
@@ -36,10 +38,11 @@ def net_mesh(level: Level, surface) -> meshio.Mesh:
     n = (N - 1) // 2
     ii, jj = np.meshgrid(np.arange(-n, n + 1), np.arange(-n, n + 1), indexing="ij")
     data = {name: np.asarray(v).ravel()[kept] for name, v in level.fields.items()}
-    data.update(fibre1=d1.reshape(-1, 3)[kept], fibre2=d2.reshape(-1, 3)[kept],
+    tool = surface.to_tool
+    data.update(fibre1=tool(d1.reshape(-1, 3)[kept]), fibre2=tool(d2.reshape(-1, 3)[kept]),
                 fibre_deviation=fibre_deviation(d1, normal, level.orientation).ravel()[kept],
                 i=ii.ravel()[kept].astype(np.int32), j=jj.ravel()[kept].astype(np.int32))
-    return meshio.Mesh(P.reshape(-1, 3)[kept], [("quad", quads)], point_data=data)
+    return meshio.Mesh(tool(P.reshape(-1, 3)[kept]), [("quad", quads)], point_data=data)
 
 
 def mould_mesh(surface, positions: np.ndarray) -> meshio.Mesh:
@@ -76,7 +79,8 @@ def _mesh_mould(surface, positions: np.ndarray) -> meshio.Mesh:
     used = np.unique(f)
     index = np.full(len(v), -1)
     index[used] = np.arange(used.size)
-    return meshio.Mesh(v[used], [("triangle", index[f])], point_data={"normal": vn[used]})
+    return meshio.Mesh(surface.to_tool(v[used]), [("triangle", index[f])],
+                       point_data={"normal": surface.to_tool(vn[used])})
 
 
 def _write(mesh: meshio.Mesh, tmp: Path) -> None:

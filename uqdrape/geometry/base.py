@@ -27,6 +27,20 @@ class Surface:
     name: str = "surface"
     size: float = 100.0
     kernel: tuple
+    #: The rotation R (3, 3) from the tool's CAD frame into the solver's (solver = R @ tool,
+    #: both in mm); None where they are the same frame (every analytic mould).
+    tool_rotation: np.ndarray | None = None
+
+    def to_tool(self, a):
+        """Points or vectors ``a`` (..., 3) of the solver frame in the tool's frame (mm);
+        ``a`` itself where the frames are the same."""
+        R = self.tool_rotation
+        return a if R is None else np.asarray(a, float) @ R
+
+    def to_solver(self, a):
+        """Points or vectors ``a`` (..., 3) of the tool's frame in the solver's (mm)."""
+        R = self.tool_rotation
+        return a if R is None else np.asarray(a, float) @ R.T
 
     def height(self, x, y):
         """Surface height z (mm) at plan position (x, y) (mm)."""

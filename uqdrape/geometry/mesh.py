@@ -266,7 +266,9 @@ class MeshSurface(Surface):
     ``units``           the file's length unit: "mm", "m" or "in"
     ``press_direction`` the direction (in the file's frame) that becomes +z: the tool's "up",
                         towards the incoming blank; the mesh is turned by the shortest arc
-                        onto it, and drapes, exports and reports are in this solver frame
+                        onto it. The solver, its result files and the report's plots work in
+                        this frame; VTK and FE exports are turned back into the file's
+                        frame (``to_tool``; mm, whatever ``units``)
     ``edge_blend_mm``   half-width (mm) of the band either side of a sharp edge (faces meeting
                         beyond CREASE_DEG) where a node's tangent plane turns from one face's
                         to the other's, as over a rounded edge; nodes stay on the sharp mesh.
@@ -303,7 +305,9 @@ class MeshSurface(Surface):
             raise ParameterError("edge_blend_mm", f"edge_blend_mm must be a length >= 0 in mm, got {edge_blend_mm!r}")
         self.edge_blend_mm = blend
         vertices, faces = _read(self.path)
-        vertices = vertices * UNITS[units] @ _rotation_to_z(d / np.linalg.norm(d)).T
+        R = _rotation_to_z(d / np.linalg.norm(d))
+        self.tool_rotation = None if (R == np.eye(3)).all() else R
+        vertices = vertices * UNITS[units] @ R.T
         extent = float(np.ptp(vertices, 0).max())
         if not extent <= MAX_LENGTH_MM:
             raise MeshError(f"path: {name!r} is {extent:.3g} mm across in {units}, more than "
