@@ -14,8 +14,11 @@ posterior; the block's ``sd_dof`` (a hierarchical ensemble drawing each realisat
 ``uqdrape.ensemble.inputs``) is then matched to the posterior's sd interval instead of
 the profile's.
 
-Not here yet (issue 25's second half): an orientation field measured from a photograph
-(structure tensor), calibration from measured drapes through an emulator, and
+:mod:`.image` reads fibre angles off an image of the fabric (scikit-image's structure
+tensor, optional extra ``calibrate``) as points for the same fit (Python only; no
+command option yet).
+
+Not here yet (issue 25's second half): calibration from measured drapes through an emulator, and
 correlation lengths drawn per realisation (only the sd is).
 """
 
