@@ -17,10 +17,11 @@ import trimesh
 TOP_X, TOP_Y, DEPTH, RADIUS = 120.0, 80.0, 40.0, 8.0
 
 
-def pan() -> trimesh.Trimesh:
+def pan(max_edge: float = 3.0) -> trimesh.Trimesh:
+    """The pan of the module doc, its box triangulated to edges of at most ``max_edge`` mm."""
     box = trimesh.creation.box(extents=(TOP_X, TOP_Y, DEPTH))
     box.apply_translation((0.0, 0.0, -DEPTH / 2))
-    vertices, faces = trimesh.remesh.subdivide_to_size(box.vertices, box.faces, max_edge=3.0)
+    vertices, faces = trimesh.remesh.subdivide_to_size(box.vertices, box.faces, max_edge=max_edge)
     keep = ~(vertices[faces][:, :, 2] <= -DEPTH + 1e-9).all(1)  # the foot stays open
     lo = np.array([-TOP_X / 2 + RADIUS, -TOP_Y / 2 + RADIUS, -DEPTH])
     hi = np.array([TOP_X / 2 - RADIUS, TOP_Y / 2 - RADIUS, -RADIUS])
