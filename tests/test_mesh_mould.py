@@ -578,3 +578,40 @@ def test_the_pan_corners_shear_as_double_curvature_does_on_two_refinements(tmp_p
     assert np.abs(g - g_fine)[octant].max() < 0.5
     short = both & (np.abs(g) < 30.0)
     assert np.abs(g - g_fine)[short].max() < 1.0
+
+
+def test_fe_export_of_a_turned_tool_is_in_its_own_frame(tmp_path):
+    """The box and its part mesh both in the CAD orientation of the turned-tool test (top
+    facing +x): the FE export maps the same elements as the upright box's, with the same
+    yarn angles in each element's frame and the fibre and yarn vectors turned by the tool's
+    rotation (tool = R^T solver)."""
+    import meshio
+
+    from uqdrape.drape import drape
+    from uqdrape.export import export_fe, levels, open_result
+
+    box = trimesh.creation.box(extents=(100.0, 100.0, 60.0))
+    box.apply_translation((0.0, 0.0, -30.0))
+    part = box.subdivide().subdivide().subdivide()
+
+    def cad(m):
+        v = np.asarray(m.vertices)
+        return trimesh.Trimesh(np.stack([v[:, 2], v[:, 1], -v[:, 0]], 1), m.faces, process=False)
+
+    out = {}
+    for name, tool, fe, press in (("plain", box, part, (0.0, 0.0, 1.0)), ("cad", cad(box), cad(part), (1.0, 0.0, 0.0))):
+        surface = MeshSurface(_save(tool, tmp_path / f"{name}.stl"), press_direction=press)
+        drape(surface, S, 16).to_netcdf(tmp_path / f"{name}.nc")
+        result, ensemble = open_result(tmp_path / f"{name}.nc")
+        export_fe(levels(result, ensemble), result, _save(fe, tmp_path / f"{name}-part.stl"), tmp_path / name)
+        out[name] = (surface, meshio.read(tmp_path / f"{name}-fe.vtu").cell_data)
+    (_, a), (turned, b) = out["plain"], out["cad"]
+    R = turned.tool_rotation
+    status = a["map_status"][0]
+    np.testing.assert_array_equal(status, b["map_status"][0])
+    on = np.isfinite(a["theta1"][0])
+    assert on.sum() >= 100
+    for name in ("theta1", "theta2"):
+        assert np.abs(a[name][0][on] - b[name][0][on]).max() < 1e-9, name
+    for name in ("fibre1", "fibre2", "yarn1", "yarn2"):
+        assert np.abs(a[name][0][on] @ R - b[name][0][on]).max() < 1e-12, name
