@@ -72,3 +72,24 @@ def test_bad_image_input_is_refused():
         image_points(np.zeros((40, 40)), 0.0)
     with pytest.raises(ValueError, match="no sample of the image has a dominant fibre direction"):
         image_points(np.ones((60, 60)), 0.1)
+
+
+def test_calibrate_command_reads_an_image(tmp_path, capsys):
+    from PIL import Image
+
+    from conftest import assert_one_line_error
+    from uqdrape.cli import main
+
+    image, true = _stripes(400)
+    png = tmp_path / "tows.png"
+    Image.fromarray(np.uint8(np.rint(255 * image))).save(png)
+    out = tmp_path / "z.toml"
+    assert main(["calibrate", str(png), "--mm-per-px", "0.1", "--family", "iid", "--out", str(out), "-q"]) == 0
+    said = capsys.readouterr().out
+    assert "iid field" in said and "from tows.png" in out.read_text(encoding="utf-8")
+    assert main(["calibrate", str(png), "--out", str(out), "-q"]) != 0
+    assert_one_line_error(capsys.readouterr().err, file=png, valid=("--mm-per-px",))
+    bad = tmp_path / "bad.png"
+    bad.write_bytes(b"not an image")
+    assert main(["calibrate", str(bad), "--mm-per-px", "0.1", "--out", str(out), "-q"]) != 0
+    assert_one_line_error(capsys.readouterr().err, file=bad, valid=(".png",))

@@ -163,6 +163,7 @@ def cmd_calibrate(args) -> int:
 
     print(calibrate_fibre_angles(args.points, args.out, args.plot, family=args.family, criterion=args.criterion,
                                  level=args.level, fibre1_deg=args.fibre1_deg, posterior=args.posterior,
+                                 mm_per_px=args.mm_per_px, window_px=args.window_px, fibre_set=args.fibre_set,
                                  command="uqdrape " + shlex.join(args.argv)))
     return 0
 
@@ -378,6 +379,12 @@ def build_parser() -> argparse.ArgumentParser:
     cal.add_argument("--posterior", action="store_true",
                      help="also sample the parameters' posterior with emcee (pip install 'uqdrape[calibrate]'); "
                           "the block's sd_dof then comes from it")
+    cal.add_argument("--mm-per-px", type=float, metavar="MM",
+                     help="POINTS is an image of one fibre set's tows (.png, .jpg, .tif, .bmp): its scale, mm per "
+                          "pixel; angles are read by the structure tensor (needs uqdrape[calibrate])")
+    cal.add_argument("--window-px", type=float, default=8.0,
+                     help="image: the structure tensor's Gaussian window sd, pixels (default 8; a sample every 2)")
+    cal.add_argument("--fibre-set", type=int, choices=(1, 2), default=1, help="image: which fibre set it shows")
 
     p.add_argument("--version", action=_Version)
     p.set_defaults(verbosity=1)

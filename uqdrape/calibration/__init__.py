@@ -15,8 +15,8 @@ posterior; the block's ``sd_dof`` (a hierarchical ensemble drawing each realisat
 the profile's.
 
 :mod:`.image` reads fibre angles off an image of the fabric (scikit-image's structure
-tensor, optional extra ``calibrate``) as points for the same fit (Python only; no
-command option yet).
+tensor, optional extra ``calibrate``) as points for the same fit (``uqdrape calibrate
+IMAGE --mm-per-px``).
 
 Not here yet (issue 25's second half): calibration from measured drapes through an emulator, and
 correlation lengths drawn per realisation (only the sd is).

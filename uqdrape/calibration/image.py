@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .points import AnglePoints
+from .points import AnglePoints, PointsError
 
 
 def _skimage_feature():
@@ -59,6 +59,23 @@ def orientation_field(image, window_px: float = 4.0, derivative_px: float = 0.0)
     flat = total <= 1e-10 * max(float(np.ptp(image)), np.finfo(float).tiny) ** 2
     coherence = np.divide(root, total, out=np.zeros_like(total), where=~flat)
     return theta, coherence
+
+
+#: Image file suffixes ``uqdrape calibrate`` reads as an image (anything else: a points CSV).
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
+
+
+def read_image(path) -> np.ndarray:
+    """The grey levels (0-1) of the image file ``path``; an unreadable one raises
+    PointsError naming it."""
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(path) as im:
+            return np.asarray(im.convert("L"), dtype=float) / 255.0
+    except (UnidentifiedImageError, OSError, Image.DecompressionBombError) as err:
+        raise PointsError(f"{path}: not a readable image ({type(err).__name__}); valid: "
+                          f"{', '.join(IMAGE_SUFFIXES)} files of grey or colour pixels", str(path)) from None
 
 
 def image_points(image, mm_per_px: float, *, window_px: float = 4.0, derivative_px: float = 0.0,
