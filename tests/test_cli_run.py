@@ -126,3 +126,39 @@ def test_a_short_drape_off_a_terminal_leaves_stderr_to_errors(tmp_path, capsys):
     after the drape is still one line on stderr."""
     assert main(["drape", "--rings", "3", "--out", str(tmp_path / "d")]) == 0
     assert capsys.readouterr().err == ""
+
+
+def test_a_resumed_run_says_what_it_kept_and_a_log_sees_the_start(study, tmp_path, capsys):
+    """A fresh run counts the chunks it drew, a resume the chunks it kept; off a terminal
+    the first progress line (0 or the kept count) is written before any drape finishes."""
+    out = tmp_path / "r"
+    argv = ["run", str(study), "--out", str(out), "--scheduler", "synchronous", "--no-report"]
+    assert main(argv) == 0
+    std = capsys.readouterr()
+    assert f"ensemble written to {out.absolute()}: 2 chunks drawn" in std.out
+    assert std.err.splitlines()[0].startswith("tiny:") and "0/6" in std.err.splitlines()[0]
+    (out / "chunks" / "r0000003-0000005.nc").unlink()
+    assert main(argv) == 0
+    std = capsys.readouterr()
+    assert f"resumed: 1 of 2 chunks kept, 1 drawn; ensemble in {out.absolute()}" in std.out
+    assert "ensemble written" not in std.out and "3/6" in std.err.splitlines()[1]
+
+
+def test_run_help_has_examples_and_exit_codes(capsys):
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    text = capsys.readouterr().out
+    assert "examples:\n  uqdrape run studies/nosecone-zero-angle.toml" in text and "--no-resume" in text
+    assert all(f"\n  {code}  " in text for code in ("0", "2", "3", "130"))
+
+
+def test_messages_name_flags_not_python_keywords(study, tmp_path, capsys):
+    out = tmp_path / "k"
+    argv = ["run", str(study), "--out", str(out), "--scheduler", "synchronous", "--no-report", "-q"]
+    assert main(argv) == 0
+    assert main(argv + ["--chunk-size", "2"]) == 2
+    err = capsys.readouterr().err
+    assert "--chunk-size 3" in err and "--no-resume" in err and "=False" not in err and "chunk_size" not in err
+    assert main(["drape", "--mode", "energy", "--rings", "3", "--out", str(tmp_path / "d")]) in (0, 2)
+    err = capsys.readouterr().err
+    assert "load_material" not in err

@@ -108,7 +108,7 @@ def _engine_study(args):
 
 
 def cmd_run(args) -> int:
-    from .workflow import run_report, run_study
+    from .workflow import run_outcome, run_report, run_study
 
     study = _engine_study(args)
     if study.design is not None:
@@ -118,12 +118,33 @@ def cmd_run(args) -> int:
     out = run_study(study, scheduler=args.scheduler, workers=args.workers, chunk_size=args.chunk_size,
                     resume=not args.no_resume, progress=args.verbosity > 0, verbose=args.verbosity > 1,
                     method=args.method)
-    print(f"ensemble written to {out}")
+    print(run_outcome(out))
     if not args.no_report:
         if args.verbosity > 0:
             print(f"{study.name}: writing the report (statistics, figures, HTML)", file=sys.stderr, flush=True)
         print(f"report: {run_report(out)}")
     return 0
+
+
+_RUN_EPILOG = """\
+examples:
+  uqdrape run studies/nosecone-zero-angle.toml                 run (resuming finished chunks) and report
+  uqdrape run studies/nosecone-zero-angle.toml --no-resume     draw every chunk again
+  uqdrape run STUDY.toml --out results/mine --workers 2 -q     another folder, 2 processes, no progress
+  uqdrape run STUDY.toml --method morris --no-report           a cheap screening run, report later
+  uqdrape run STUDY.toml --scheduler tcp://host:8786           on a dask.distributed cluster
+
+exit codes:
+  0  done (ensemble and report written)
+  2  a user error: a bad study key or flag, a folder holding another study (one line on stderr)
+  3  an I/O failure: unreadable or damaged files, a full disk, an unreachable scheduler, a busy folder
+  130  interrupted (Ctrl-C); run the same command again to resume
+"""
+
+_EXIT_CODES = """\
+exit codes: 0 done, 2 a user error (one line on stderr naming the key, flag or path),
+3 an I/O failure (unreadable or damaged files, a full disk), 130 interrupted
+"""
 
 
 def cmd_design(args) -> int:
@@ -238,10 +259,10 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--tolerance", type=float, default=1e-3, help="minimiser tolerance on turn angles, deg")
     d.add_argument("--out", default="results/drape/drape", help="output path stem (default results/drape/drape)")
 
-    r = _command(sub, "run", cmd_run, help="run a study file: ensemble (netCDF chunks) + report",
-                 description="Sample the study's uncertain inputs, drape every realisation in parallel with "
-                             "dask, store chunks under the study's output folder (resuming finished chunks) "
-                             "and write the report.")
+    r = _command(sub, "run", cmd_run, help="run a study file: ensemble (netCDF chunks) + report", epilog=_RUN_EPILOG,
+                 raw=True, description="Sample the study's uncertain inputs, drape every realisation in parallel "
+                                       "with dask,\nstore chunks under the study's output folder (resuming finished "
+                                       "chunks) and write the report.")
     r.add_argument("study", help="study file (TOML), e.g. studies/nosecone-zero-angle.toml")
     _engine_options(r)
     r.add_argument("--chunk-size", type=int, help="realisations per chunk (default: the study's)")
@@ -261,7 +282,9 @@ def build_parser() -> argparse.ArgumentParser:
     dsg.add_argument("study", help="study file (TOML) with a [design] section, e.g. studies/design-nosecone-symmetrise.toml")
     _engine_options(dsg)
 
-    rep = _command(sub, "report", cmd_report, help="write the report of a finished run")
+    rep = _command(sub, "report", cmd_report, help="write the report of a finished run", raw=True,
+                   epilog="example:\n  uqdrape report results/nosecone-zero-angle --out results/nosecone-report\n\n"
+                          + _EXIT_CODES)
     rep.add_argument("results", help="a run's output folder, e.g. results/nosecone-zero-angle")
     rep.add_argument("--out", help="report folder (default RESULTS/report)")
 

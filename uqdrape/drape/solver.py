@@ -113,7 +113,7 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     if not isinstance(rings, numbers.Integral) or rings < 1:
         raise ValueError(f"rings must be an integer >= 1, got {rings!r}")
     if mode == "energy" and material is None:
-        raise ValueError("mode='energy' needs a material (e.g. load_material('generic_woven'))")
+        raise ValueError("--mode energy needs a material card: --material NAME (uqdrape materials lists them)")
     materials = _materials(material)
     if not isinstance(max_iterations, numbers.Integral) or max_iterations < 1:
         raise ValueError(f"max_iterations must be an integer >= 1, got {max_iterations!r}")

@@ -1,7 +1,7 @@
 """Progress of a run counted in realisations (or a single drape's rings), with an ETA.
 
 On a terminal a tqdm bar; anywhere else (a log file, CI) a plain line in tqdm's format
-every ``PLAIN_EVERY`` seconds and at the end, so logs hold no carriage returns.
+at the start, every ``PLAIN_EVERY`` seconds and at the end, so logs hold no carriage returns.
 """
 
 from __future__ import annotations
@@ -32,6 +32,8 @@ class Progress:
         self.start = self.last = time.monotonic()
         self.bar = tqdm(total=total, initial=done, desc=desc, unit=unit, file=self.file, mininterval=0.5,
                         disable=not (enabled and self.tty))
+        if enabled and not self.tty and last_line:  # a log sees the run start at once, not after PLAIN_EVERY s
+            print(tqdm.format_meter(done, total, 0.0, prefix=desc, unit=unit, initial=done), file=self.file, flush=True)
 
     def update(self, n: int, name: str | None = None) -> None:
         self.n += n

@@ -105,16 +105,16 @@ def _kept_chunks(out: Path, provenance: dict, study: Study, chunk_size: int, n: 
         return []  # nothing to keep; another study's folder is refused by _prepare
     if old["chunk_size"] != chunk_size:
         raise ValueError(
-            f"{out} was run with chunk_size={old['chunk_size']}; resume with chunk_size={old['chunk_size']} "
-            "or run with resume=False (--no-resume)")
+            f"{out} was run with --chunk-size {old['chunk_size']}; resume with --chunk-size {old['chunk_size']} "
+            "or run again with --no-resume")
     held = max((int(_RANGE.search(name).group(2)) + 1 for name in old["chunks"]), default=0)
     if n < held:
         raise ValueError(f"{out} holds {held} realisations, more than the {n} asked for: set "
-                         f"study.realizations >= {held}, or run with resume=False (--no-resume)")
+                         f"realizations >= {held} in [study], or run again with --no-resume")
     why = extension_problem(study.sampling, held, n) if n > held else None
     if why:
         raise ValueError(f"{out} holds {held} realisations and cannot be extended to {n}: {why}; "
-                         "run with resume=False (--no-resume)")
+                         "run again with --no-resume")
     return old["chunks"]
 
 
@@ -177,7 +177,7 @@ def _prepare(out: Path, manifest: dict, resume: bool) -> None:
     elif old is None:
         if any(folder.glob("*.nc")):
             raise ValueError(f"{folder} holds chunk files but {out} has no run manifest; "
-                             "they cannot be checked against this study: run with resume=False (--no-resume)")
+                             "they cannot be checked against this study: run again with --no-resume")
     else:
         before, now = identity(old["study"]), identity(manifest["study"])
         if before != now:
@@ -186,7 +186,7 @@ def _prepare(out: Path, manifest: dict, resume: bool) -> None:
                              if before.get(section, {}).get(key) != now.get(section, {}).get(key))
             raise ValueError(
                 f"{out} holds a run of a different study definition (changed: {', '.join(changed)}); "
-                "run with resume=False (--no-resume) to replace it, or set another [output] directory")
+                "run again with --no-resume to replace it, or set another [output] directory")
     folder.mkdir(parents=True, exist_ok=True)
     write_manifest(out, manifest)
 
@@ -310,7 +310,8 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
                 part.unlink(missing_ok=True)
         # for the report's provenance: the time of the finished calls that made this run (an
         # interrupted call records nothing)
-        write_manifest(out, {**manifest, "wall_time_s": round(earlier + time.perf_counter() - start, 1)})
+        write_manifest(out, {**manifest, "wall_time_s": round(earlier + time.perf_counter() - start, 1),
+                             "last_call": {"chunks": len(chunks), "drawn": len(todo), "damaged": len(damaged)}})
     return out
 
 

@@ -218,3 +218,15 @@ def run_report(output_dir, out_dir=None) -> Path:
                         wall_time_s=manifest.get("wall_time_s"),
                         replicates=study.sampling.randomizations if study.sampling.plan == "rqmc" else None,
                         **({} if sensitivity is None else dict(zip(("sensitivity", "sensitivity_maps"), sensitivity))))
+
+
+def run_outcome(out: Path) -> str:
+    """What ``uqdrape run`` did to ``out``: chunks drawn, or how many of them a resume kept."""
+    call = (read_manifest(out) or {}).get("last_call")
+    if not isinstance(call, dict):  # a target study's rounds or a sensitivity run without the record
+        return f"ensemble written to {out}"
+    total, drawn, damaged = call.get("chunks", 0), call.get("drawn", 0), call.get("damaged", 0)
+    if drawn == total:
+        return f"ensemble written to {out}: {total} chunks drawn"
+    again = f" ({damaged} of them damaged, drawn again)" if damaged else ""
+    return f"resumed: {total - drawn} of {total} chunks kept, {drawn} drawn{again}; ensemble in {out}"
