@@ -52,6 +52,7 @@ def test_sampled_sd_per_realisation_is_the_stated_distribution(tmp_path, plan):
 
 def test_sd_dof_with_rqmc_or_a_bad_value_is_one_line(tmp_path, capsys):
     for field, sampling, key in (({"sd_dof": 0}, {}, "uncertainty.zero_angle.sd_dof"),
+                                 ({"sd_dof": 1.4}, {}, "uncertainty.zero_angle.sd_dof"),  # 99.9 %: sd 29 deg
                                  ({"sd_dof": 37}, {"plan": "rqmc", "randomizations": 4},
                                   "uncertainty.zero_angle.sd_dof")):
         path = write_study(tmp_path, "bad", study={"realizations": 64},

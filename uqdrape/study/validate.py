@@ -81,7 +81,7 @@ import re
 from pathlib import Path
 
 import numpy as np
-from scipy.stats import qmc
+from scipy.stats import chi2, qmc
 
 from .. import geometry as _geometry
 from .. import material as _material
@@ -329,6 +329,13 @@ def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, materia
         length = t.numbers("length_mm", length=2, hint="length_mm must be two numbers [L1, L2] in mm, > 0")
     retained = t.number("kl_retained", 0.95)
     sd_dof = t.number("sd_dof", gt=0) if t.has("sd_dof") else None
+    if sd_dof is not None and name == "zero_angle":
+        # the sd a realisation may draw (its 99.9 % quantile) must keep the field's reach inside (-90, 90)
+        top = params["sd_deg"] * math.sqrt(sd_dof / chi2.ppf(1e-3, sd_dof))
+        if abs(params["mean_deg"]) + REACH_SD * top >= 90:
+            t.invalid("sd_dof", f"a realisation's sd reaches {top:.3g} deg (99.9 % quantile of sd_deg sqrt(m / chi2_m)), "
+                                f"and |mean_deg| + {REACH_SD:g} x that passes 90 deg: the measurement bounds the sd too "
+                                "loosely for a hierarchical run; use a larger sd_dof (more points) or remove it")
     _reach(src, name, t, params)
     spec = RandomField(name, params, correlation, length, retained,
                        material if name == "stitch_prestrain" else None, sd_dof)
