@@ -279,6 +279,12 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
         workers = positive_int("workers", workers)
         if scheduler is not None and scheduler not in LOCAL_SCHEDULERS:
             raise ValueError(f"workers={workers} sets local processes; the cluster at {scheduler} has its own workers")
+    from .zarrstore import is_url, run_store
+
+    if is_url(output_dir):  # one zarr store by fsspec URL (issue 28); preflight checks are a folder's
+        return run_store(study, output_dir, design_rows=design_rows, provenance=provenance, attrs=attrs,
+                         scheduler=scheduler, workers=workers, chunk_size=chunk_size, resume=resume,
+                         progress=progress)
     out = Path(study.output_dir if output_dir is None else output_dir).absolute()
     provenance = study.to_dict() if provenance is None else provenance
     n = study.realizations if design_rows is None else len(design_rows)

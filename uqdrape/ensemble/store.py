@@ -83,6 +83,10 @@ def open_ensemble(output_dir) -> xr.Dataset:
     them: resume the run to compute them), ValueError for a run written before the force
     was always a dimension.
     """
+    from .zarrstore import is_url, open_store
+
+    if is_url(output_dir):  # a zarr store by fsspec URL (uqdrape.ensemble.zarrstore)
+        return open_store(output_dir)
     output_dir = Path(output_dir)
     manifest = read_manifest(output_dir)
     if manifest is None:
