@@ -96,3 +96,24 @@ def test_a_card_factor_without_what_it_needs_is_refused(tmp_path, sections, vali
         load_study(path)
     assert err.value.key == "uncertainty.card"
     assert_one_line_error(str(err.value), file=path, key="uncertainty.card", valid=valid)
+
+
+def test_a_woven_cards_scatter_does_not_move_a_hemisphere_drape():
+    """On a symmetric (woven) card the hemisphere's ring turns are zero by symmetry, so no
+    card scales them; an NCF's two branches break the symmetry and the card moves the drape
+    (README: what card scatter does to the shear)."""
+    from uqdrape.drape import drape
+    from uqdrape.geometry import build
+    from uqdrape.material.model import Material
+
+    surf, angles = build("hemisphere", radius=100.0), np.arange(0.0, 61.0, 2.0)
+    ns = 34.0 * angles / 8.0
+    woven = Material("woven", angles, ns, locking_angle_deg=55.0)
+    ncf = Material("ncf", angles, ns, angles, 0.3 * ns, locking_angle_deg=55.0, locking_angle_neg_deg=55.0)
+    sd = {}
+    for card in (woven, ncf):
+        cards = [scattered(card, {"positive": 0.15 * ns, "negative": 0.0 * ns}, z) for z in (-1.5, 1.5)]
+        ds = drape(surf, 5.0, 6, mode="energy", material=cards, blankholder_force=np.full(2, 300.0), friction=0.2)
+        shear = ds["shear"].values
+        sd[card.name] = np.nanmax(np.abs(shear[1] - shear[0]))
+    assert sd["woven"] < 1e-9 and sd["ncf"] > 1e-3, sd
