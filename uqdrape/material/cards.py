@@ -39,6 +39,8 @@ from __future__ import annotations
 from importlib import resources
 from pathlib import Path
 
+import numpy as np
+
 from ..files import Document, Table, csv_number, csv_rows, parse_toml, read_text, toml_text
 from .model import Material, MaterialError
 
@@ -188,7 +190,13 @@ def _build(source, props, top: Table | None = None) -> Material:
     file, or the Document of a TOML card (``top`` its top level) naming the key at fault
     (``shear.csv`` for curves read from a CSV)."""
     try:
-        return Material.from_curves(**props)
+        material = Material.from_curves(**props)
+        for branch in ("positive", "negative"):
+            if not np.any(material.curve(branch)[1] > 0.0):
+                raise MaterialError(f"shear.{branch}", f"{branch} shear curve: N_s is 0 at every angle: a fabric "
+                                    "with no shear resistance cannot steer an energy drape (use the geodesic "
+                                    "mode, which needs no card, or give the measured curve)")
+        return material
     except MaterialError as err:
         if isinstance(source, str):
             raise ValueError(f"{source}: {err}") from None

@@ -143,9 +143,6 @@ def _as_curve(branch, angles_deg, ns):
     if np.any(n < 0.0):
         k = int(np.argmax(n < 0.0))
         bad(f"N_s must be >= 0 (give the magnitude for the negative branch), got {n[k]:g} N/m at {a[k]:g} deg")
-    if not np.any(n > 0.0):
-        bad("N_s is 0 at every angle: a fabric with no shear resistance cannot steer an energy drape "
-            "(use the geodesic mode, which needs no card, or give the measured curve)")
     if np.any(n > MAX_NS):
         k = int(np.argmax(n > MAX_NS))
         bad(f"N_s must be at most {MAX_NS:g} N/m (a fabric locks near 1000 N/m), got {n[k]:g} N/m at {a[k]:g} deg")
@@ -167,7 +164,8 @@ class Material:
     >= 0), W is tabulated once on a fine grid (Simpson) and evaluated by a cubic Hermite
     spline whose slopes are the exact dW/dγ, so W is C1 within a branch.
 
-    N_s must be >= 0 and somewhere > 0 on each branch; it may fall with γ (an NCF's stitch
+    N_s must be >= 0 (a card read from a file also somewhere > 0 on each branch:
+    ``cards.load_material``; a scattered realisation's curve may clip to 0); it may fall with γ (an NCF's stitch
     can soften: the EBXhd-936 card derived from its architecture peaks at 12°), since W
     stays monotone in |γ| whatever the shape of a non-negative N_s.
 
