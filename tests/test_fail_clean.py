@@ -92,7 +92,8 @@ def test_a_full_disk_is_one_line_leaves_no_part_file_and_resumes_equal(tmp_path,
 
     monkeypatch.setattr(xr.Dataset, "to_netcdf", fills_the_disk)
     monkeypatch.setattr(shutil, "disk_usage", lambda p: SimpleNamespace(free=0) if None in written else usage(p))
-    assert cli(["run", str(path), "--no-report", "--scheduler", "synchronous"]) == 3
+    # -q: stderr holds only the error (without it, the first progress line comes first)
+    assert cli(["run", str(path), "--no-report", "--scheduler", "synchronous", "-q"]) == 3
     err = capsys.readouterr().err
     assert_one_line_error(err)
     assert re.search(r"tiny/chunks/r\d{7}-\d{7}\.nc: the disk is full$", err.strip()), err
