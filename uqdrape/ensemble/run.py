@@ -208,7 +208,8 @@ def compute_tasks(tasks: list, sizes: list, scheduler: str | None, workers: int 
     """Run dask tasks locally or on a dask.distributed cluster, counting each finished
     task's realisations (``sizes``) in ``progress``; return their results in task order and
     re-raise a failure. ``scheduler`` and ``workers`` as for :func:`run_ensemble`; ``pool``
-    (a ``hygiene.local_pool``) keeps local workers alive across calls."""
+    (a ``hygiene.local_pool``) keeps local workers alive across calls. A cluster address must
+    have passed :func:`reach_scheduler` (a design calls this once per batch: one handshake a run)."""
     if not tasks:
         return []
     count = {task.key: size for task, size in zip(tasks, sizes)}
@@ -226,8 +227,7 @@ def compute_tasks(tasks: list, sizes: list, scheduler: str | None, workers: int 
                 return list(dask.compute(*tasks, scheduler="processes", pool=pool, chunksize=1))
     from distributed import Client, as_completed
 
-    reach_scheduler(scheduler)
-    try:
+    try:  # the caller has run reach_scheduler before touching its folder (run_ensemble, run_design)
         client = Client(scheduler, timeout=SCHEDULER_TIMEOUT)
     except (OSError, TimeoutError) as err:
         raise OSError(errno.EHOSTUNREACH, f"cannot reach the dask scheduler within {SCHEDULER_TIMEOUT} s "
