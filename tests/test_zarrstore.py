@@ -7,7 +7,6 @@ of every variable, coordinate and variable attribute. S3 runs against moto's ser
 """
 
 import errno
-import socket
 
 import numpy as np
 import pytest
@@ -92,33 +91,6 @@ def test_bad_url_is_one_line_oserror(reference):
 
 
 # -- S3 against moto's server on 127.0.0.1 ---------------------------------------------
-
-@pytest.fixture(scope="module")
-def s3(monkeypatch_module):
-    moto_server = pytest.importorskip("moto.server")
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        port = sock.getsockname()[1]
-    server = moto_server.ThreadedMotoServer(ip_address="127.0.0.1", port=port)
-    server.start()
-    endpoint = f"http://127.0.0.1:{port}"
-    for key, value in {"AWS_ENDPOINT_URL": endpoint, "AWS_ACCESS_KEY_ID": "testing",
-                       "AWS_SECRET_ACCESS_KEY": "testing", "AWS_DEFAULT_REGION": "us-east-1"}.items():
-        monkeypatch_module.setenv(key, value)
-    import s3fs
-
-    s3fs.S3FileSystem.clear_instance_cache()
-    fs = s3fs.S3FileSystem(client_kwargs={"endpoint_url": endpoint})
-    fs.mkdir("runs")
-    yield fs
-    server.stop()
-
-
-@pytest.fixture(scope="module")
-def monkeypatch_module():
-    with pytest.MonkeyPatch.context() as mp:
-        yield mp
-
 
 def test_s3_store_equals_folder(reference, s3):
     study, ref = reference

@@ -30,6 +30,7 @@ from pathlib import Path
 
 import xarray as xr
 
+from ..files import is_url
 from ..design import DESIGN_FILE, Evaluator, drape_design, optimise, problem, result_dataset
 from ..ensemble import (Progress, design_variables, local_pool, open_ensemble, read_manifest, reach_scheduler,
                         run_ensemble, run_lock, write_atomic)
@@ -71,7 +72,7 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
     out = study.output_dir
     provenance = study.to_dict()
     if method != study.sensitivity.method:
-        out = out.with_name(f"{out.name}-{method}")
+        out = f"{out}-{method}" if is_url(out) else out.with_name(f"{out.name}-{method}")
         provenance["sensitivity"]["method"] = method
         provenance["sensitivity"].pop("base_samples", None)
     attrs = {}
@@ -172,7 +173,11 @@ def run_design(study, *, output_dir=None, scheduler: str | None = None, workers:
     if study.design is None:
         raise ValueError(f"study {study.name!r} ({study.path}) has no [design] section; run it with `uqdrape run`")
     prob = problem(study)
-    out = Path(study.output_dir if output_dir is None else output_dir)
+    out = study.output_dir if output_dir is None else output_dir
+    if is_url(out):
+        raise ValueError(f"{out}: a [design] study writes design.nc and its records into a folder, not a store; "
+                         "set --out to a folder path")
+    out = Path(out)
     check_resources(study, out, 0)  # a design's records are per-drape numbers and node sums, not nets
     check_placement(study, quiet=not progress)
     reach_scheduler(scheduler)
