@@ -106,7 +106,7 @@ def assert_one_line_error(text: str, *, file=None, key=None, value=None, valid=(
 
 #: Bytes the bucket "full" of the ``s3`` server takes before it answers every further
 #: upload as a Ceph gateway over its bucket quota (HTTP 403, QuotaExceeded).
-FULL_BUCKET_BYTES = 4000
+FULL_BUCKET_BYTES = 200_000
 _QUOTA_EXCEEDED = (b'<?xml version="1.0" encoding="UTF-8"?><Error><Code>QuotaExceeded</Code>'
                    b'<Message>bucket quota exceeded</Message></Error>')
 

@@ -31,6 +31,7 @@ from the study file.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import json
 import os
@@ -75,6 +76,7 @@ def _fs(url: str):
     except (ValueError, ImportError) as err:
         raise OSError(errno.EINVAL, f"not a store URL fsspec can open ({err}); use file:///path, memory://name "
                                     "or s3://bucket/prefix", url) from None
+    fs.invalidate_cache()  # fsspec instances are shared and cache listings; other processes write the store
     return fs, root.rstrip("/")
 
 
@@ -111,11 +113,9 @@ def check_store(url: str) -> None:
     if url.startswith("file://"):
         return
     probe = f"{root}/.uqdrape-probe-{os.getpid()}"
-    try:
+    with _writing(url, "a probe object"):
         fs.pipe_file(probe, b"probe\n")
         fs.rm(probe)
-    except OSError as err:
-        raise _write_error(err, url, "a probe object") from None
 
 
 def read_store_manifest(url: str) -> dict | None:
@@ -206,20 +206,23 @@ def _region_task(study: Study, url: str, name: str, start: int, stop: int, level
     region = {FORCE: slice(level, level + 1), REALIZATION: slice(start, stop)}
     ds = ds.drop_vars([v for v, var in ds.variables.items() if not set(region) & set(var.dims)])
     ds.attrs = {}
-    try:
+    with _writing(url, f"region {name}"):
         ds.to_zarr(f"{url}/{DATA}", region=region, mode="r+", zarr_format=ZARR_FORMAT, consolidated=False,
                    storage_options=_options(url))
         fs, root = _fs(url)
         fs.pipe_file(f"{root}/{DONE}/{name}", b"done\n")  # after the data: a marker means the region is whole
-    except OSError as err:
-        raise _write_error(err, url, name) from None
     return name
 
 
-def _write_error(err: OSError, url: str, what: str) -> OSError:
-    """``err`` (raised writing ``what`` to the store at ``url``) as one line naming both."""
-    cause = " ".join(str(err.strerror or err).split())
-    return OSError(err.errno or errno.EIO, f"cannot write {what} ({type(err).__name__}: {cause})", url)
+@contextlib.contextmanager
+def _writing(url: str, what: str):
+    """An OSError raised writing ``what`` to the store at ``url`` (a read-only or full
+    bucket, a lost connection) as one line naming both."""
+    try:
+        yield
+    except OSError as err:
+        cause = " ".join(str(err.strerror or err).split())
+        raise OSError(err.errno or errno.EIO, f"cannot write {what} ({type(err).__name__}: {cause})", url) from None
 
 
 def done_regions(url: str) -> set[str]:
@@ -288,17 +291,18 @@ def run_store(study: Study, url: str, *, design_rows=None, provenance: dict | No
         old, done = _kept_regions(url, study, provenance, chunk_size, n, chunks, resume)  # as it is now
         manifest = {"study": provenance, "chunk_size": chunk_size, "chunks": [c.name for c in chunks],
                     "realizations": n, "zarr_format": ZARR_FORMAT, "uqdrape_version": __version__}
-        if old is None:
-            if fs.exists(f"{root}/{DONE}"):
-                fs.rm(f"{root}/{DONE}", recursive=True)
-            _write_template(study, url, chunks, n, chunk_size, attrs_all, title, design_rows)
-            write_store_manifest(url, manifest)
-        else:
-            for name in done_regions(url) - done:  # regions of the earlier plan that this one cuts anew
-                fs.rm(f"{root}/{DONE}/{name}")
-            # the manifest first: a store killed while it grows reads as incomplete, not as the smaller run
-            write_store_manifest(url, {**manifest, "wall_time_s": old.get("wall_time_s", 0.0)})
-            _resize(url, n, {**attrs_all, "title": title})
+        with _writing(url, "the store's template"):
+            if old is None:
+                if fs.exists(f"{root}/{DONE}"):
+                    fs.rm(f"{root}/{DONE}", recursive=True)
+                _write_template(study, url, chunks, n, chunk_size, attrs_all, title, design_rows)
+                write_store_manifest(url, manifest)
+            else:
+                for name in done_regions(url) - done:  # regions of the earlier plan that this one cuts anew
+                    fs.rm(f"{root}/{DONE}/{name}")
+                # the manifest first: a store killed while it grows reads as incomplete, not as the smaller run
+                write_store_manifest(url, {**manifest, "wall_time_s": old.get("wall_time_s", 0.0)})
+                _resize(url, n, {**attrs_all, "title": title})
         todo = [c for c in chunks if c.name not in done]
         if progress and done:
             print(f"{study.name}: {len(chunks) - len(todo)} of {len(chunks)} regions already done in {url}",
