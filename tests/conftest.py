@@ -135,6 +135,7 @@ def s3():
     s3fs filesystem on it."""
     import json
     import threading
+    import urllib.request
 
     pytest.importorskip("moto.server")
     from moto.server import DomainDispatcherApplication, MotoRequestHandler, create_backend_app
@@ -144,6 +145,8 @@ def s3():
                          request_handler=MotoRequestHandler)
     threading.Thread(target=server.serve_forever, daemon=True).start()
     endpoint = f"http://127.0.0.1:{server.server_port}"
+    urllib.request.urlopen(urllib.request.Request(f"{endpoint}/moto-api/reset", method="POST")).close()  # moto's
+    # state is per process, not per server: start each module with no buckets
     with pytest.MonkeyPatch.context() as env:
         for key, value in {"AWS_ENDPOINT_URL": endpoint, "AWS_ACCESS_KEY_ID": "testing",
                            "AWS_SECRET_ACCESS_KEY": "testing", "AWS_DEFAULT_REGION": "us-east-1"}.items():
