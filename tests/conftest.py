@@ -163,3 +163,18 @@ def s3():
         yield fs
         s3fs.S3FileSystem.clear_instance_cache()
     server.shutdown()
+
+
+@pytest.fixture()
+def no_aws_credentials(s3, monkeypatch):
+    """The ``s3`` server's environment without credentials anywhere botocore looks."""
+    import s3fs
+
+    for key in ("AWS_ACCESS_KEY_ID", "AWS_SECRET_ACCESS_KEY"):
+        monkeypatch.delenv(key)
+    for key in ("AWS_SHARED_CREDENTIALS_FILE", "AWS_CONFIG_FILE"):
+        monkeypatch.setenv(key, "/nonexistent")
+    monkeypatch.setenv("AWS_EC2_METADATA_DISABLED", "true")
+    s3fs.S3FileSystem.clear_instance_cache()
+    yield
+    s3fs.S3FileSystem.clear_instance_cache()

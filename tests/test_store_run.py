@@ -175,18 +175,7 @@ def test_store_faults_are_one_line_exit_3(tmp_path, s3, capsys, command, url, va
     assert not s3.exists("readonly/x")
 
 
-def test_no_credentials_is_one_line_exit_3(tmp_path, s3, monkeypatch, capsys):
-    import s3fs
-
-    for key in ("AWS_ACCESS_KEY_ID", "AWS_SECRET_ACCESS_KEY"):
-        monkeypatch.delenv(key)
-    for key in ("AWS_SHARED_CREDENTIALS_FILE", "AWS_CONFIG_FILE"):
-        monkeypatch.setenv(key, "/nonexistent")
-    monkeypatch.setenv("AWS_EC2_METADATA_DISABLED", "true")
-    s3fs.S3FileSystem.clear_instance_cache()
-    try:
-        assert main(["run", str(sweep_file(tmp_path / "s", 20, "s3://runs/nocreds")), "--no-report", "-q"]) == 3
-    finally:
-        s3fs.S3FileSystem.clear_instance_cache()
+def test_no_credentials_is_one_line_exit_3(tmp_path, no_aws_credentials, capsys):
+    assert main(["run", str(sweep_file(tmp_path / "s", 20, "s3://runs/nocreds")), "--no-report", "-q"]) == 3
     assert_one_line_error(capsys.readouterr().err, file="s3://runs/nocreds",
                           valid=["Unable to locate credentials", "AWS_ENDPOINT_URL"])

@@ -103,19 +103,27 @@ def _kept_chunks(out: Path, provenance: dict, study: Study, chunk_size: int, n: 
     old = read_manifest(out) if resume else None
     if old is None or identity(old["study"]) != identity(provenance):
         return []  # nothing to keep; another study's folder is refused by _prepare
-    if old["chunk_size"] != chunk_size:
-        raise ValueError(
-            f"{out} was run with --chunk-size {old['chunk_size']}; resume with --chunk-size {old['chunk_size']} "
-            "or run again with --no-resume")
     held = max((int(_RANGE.search(name).group(2)) + 1 for name in old["chunks"]), default=0)
+    check_growth(out, study, old["chunk_size"], held, chunk_size, n)
+    return old["chunks"]
+
+
+def check_growth(where, study: Study, old_chunk_size: int, held: int, chunk_size: int, n: int) -> None:
+    """Raise ValueError (naming ``where``, a folder or a store) unless a run of ``held``
+    realisations in chunks of ``old_chunk_size`` can be resumed as ``n`` in chunks of
+    ``chunk_size``: the same chunk size, no fewer realisations, more only under a plan
+    that extends."""
+    if old_chunk_size != chunk_size:
+        raise ValueError(
+            f"{where} was run with --chunk-size {old_chunk_size}; resume with --chunk-size {old_chunk_size} "
+            "or run again with --no-resume")
     if n < held:
-        raise ValueError(f"{out} holds {held} realisations, more than the {n} asked for: set "
+        raise ValueError(f"{where} holds {held} realisations, more than the {n} asked for: set "
                          f"realizations >= {held} in [study], or run again with --no-resume")
     why = extension_problem(study.sampling, held, n) if n > held else None
     if why:
-        raise ValueError(f"{out} holds {held} realisations and cannot be extended to {n}: {why}; "
+        raise ValueError(f"{where} holds {held} realisations and cannot be extended to {n}: {why}; "
                          "run again with --no-resume")
-    return old["chunks"]
 
 
 def _run_chunk(study: Study, chunk: Chunk, folder: str, attrs: dict, design_rows=None) -> str:

@@ -49,7 +49,6 @@ from ..files import read_text
 from ..schema import FORCE, REALIZATION, at_level
 from ..study import Study, identity
 from ..stochastic.inputs import positive_int
-from ..stochastic.sampling import extension_problem
 from .chunk import drape_inputs
 from .hygiene import lock_owner, lock_record, stale
 from .inputs import inputs_from_design, sampled_inputs
@@ -238,25 +237,16 @@ def _kept_regions(url: str, study: Study, provenance: dict, chunk_size: int, n: 
                   resume: bool) -> tuple[dict | None, set[str]]:
     """(manifest, done region names) of an earlier run at ``url`` of the same study that
     this one keeps: (None, empty) without one or with resume False. Raises ValueError for
-    another study, another chunk size, fewer realisations than the store holds, or more
-    under a plan that does not extend (as ``run._kept_chunks`` for a folder)."""
+    another study, or as ``run.check_growth``."""
     old = read_store_manifest(url) if resume else None
     if old is None:
         return None, set()
     if identity(old["study"]) != identity(provenance):
         raise ValueError(f"{url} holds a run of a different study definition; run again with --no-resume to "
                          "replace it, or set another --out")
-    if old["chunk_size"] != chunk_size:
-        raise ValueError(f"{url} was run with --chunk-size {old['chunk_size']}; resume with --chunk-size "
-                         f"{old['chunk_size']} or run again with --no-resume")
-    held = old["realizations"]
-    if n < held:
-        raise ValueError(f"{url} holds {held} realisations, more than the {n} asked for: set "
-                         f"realizations >= {held} in [study], or run again with --no-resume")
-    why = extension_problem(study.sampling, held, n) if n > held else None
-    if why:
-        raise ValueError(f"{url} holds {held} realisations and cannot be extended to {n}: {why}; "
-                         "run again with --no-resume")
+    from .run import check_growth
+
+    check_growth(url, study, old["chunk_size"], old["realizations"], chunk_size, n)
     return old, done_regions(url) & {c.name for c in chunks}
 
 
