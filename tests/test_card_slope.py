@@ -92,3 +92,14 @@ def test_the_linearised_balance_is_the_solvers_own_derivative(tmp_path, force):
     assert cs.rms(response["shear"]) == pytest.approx(cs.rms(shear), rel=2e-3)
     assert np.nanmax(np.abs(response["shear"] - shear)) <= 5e-3 * np.nanmax(np.abs(shear))
     assert np.abs(response["turn"] - turn).max() <= 0.03 * np.abs(turn).max()
+
+
+def test_placing_every_ring_at_the_searched_turns_rebuilds_the_searched_net(tmp_path):
+    """``EnergyRings.place_at`` (ring k at given turns, not searched) on the turns the ring
+    search chose gives back its net bitwise: the nets the linearisation differentiates are
+    the solver's. (From a drape Dataset the turns come back through degrees, an ulp off.)"""
+    lin = cs.Linearised(cs.write_card(tmp_path, 1.0), 100.0)
+    searched, _, turns, *_ = lin.rings([lin.card[0.0]], 100.0).run()
+    placed = lin.nets(lin.rings([lin.card[0.0]], 100.0), turns)
+    assert np.isfinite(placed).all() and np.abs(turns).max() > 1e-4
+    np.testing.assert_array_equal(placed, searched)
