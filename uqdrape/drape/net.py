@@ -179,6 +179,13 @@ class EnergyRings:
         X, Xs, corner = self.corners(P, k, S, [(0, 0)])
         return arm[:, 0].sum(-1) + corner[:, 0].sum(-1), S[:, 0], St[:, 0], X[:, 0], Xs[:, 0]
 
+    def place_at(self, P, status, k, turn):
+        """Place ring k of every realisation at the given turn angles (R, 4) rad, not searched:
+        P (R, N, N, 3) and status (R, N, N), with rings < k placed, are filled in place."""
+        _, S, St, X, Xs = self.step_energy(P, k, turn)
+        for r in range(self.prob.R):
+            ring.put_ring(self.prob.n, k, P[r], status[r], S[r], St[r], X[r], Xs[r])
+
     def run(self, progress=None):
         """Drape ring by ring (one compiled call per ring for the whole block, the block's
         realisations shared among ``threads`` threads; ``progress``,

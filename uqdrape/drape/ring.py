@@ -369,16 +369,24 @@ def drape_ring(surf, tol, n, k, P, status, blank, seg_i, seg_j, s1, s2, g0, cent
             corners(surf, tol, n, k, *args, mat, bh, S_best, np.zeros((1, 2), np.int64), X_best, Xs_best,
                     np.empty((1, 4)))
         turns[r, k - 1] = turn
-        for a in range(4):
-            di, dj = ARMS[a]
-            for side in range(2):
-                sgn = 1 - 2 * side
-                ei, ej = (0, sgn) if di != 0 else (sgn, 0)
-                for m in range(k):
-                    i, j = n + k * di + m * ei, n + k * dj + m * ej
-                    P[r, i, j] = S_best[0, a, side, m]
-                    status[r, i, j] = St_best[0, a, side, m]
-        for q in range(4):
-            si, sj = CORNERS[q][4], CORNERS[q][5]
-            P[r, n + si * k, n + sj * k] = X_best[0, q]
-            status[r, n + si * k, n + sj * k] = Xs_best[0, q]
+        put_ring(n, k, P[r], status[r], S_best[0], St_best[0], X_best[0], Xs_best[0])
+
+
+@jit
+def put_ring(n, k, P, status, S, St, X, Xs):
+    """Write ring k of one realisation into its net P (N, N, 3) and status (N, N): the chain
+    nodes S (4, 2, >= k, 3) with status St and the corner nodes X (4, 3) with status Xs of
+    one candidate of ``sides`` and ``corners``."""
+    for a in range(4):
+        di, dj = ARMS[a]
+        for side in range(2):
+            sgn = 1 - 2 * side
+            ei, ej = (0, sgn) if di != 0 else (sgn, 0)
+            for m in range(k):
+                i, j = n + k * di + m * ei, n + k * dj + m * ej
+                P[i, j] = S[a, side, m]
+                status[i, j] = St[a, side, m]
+    for q in range(4):
+        si, sj = CORNERS[q][4], CORNERS[q][5]
+        P[n + si * k, n + sj * k] = X[q]
+        status[n + si * k, n + sj * k] = Xs[q]
