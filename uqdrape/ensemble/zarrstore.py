@@ -178,6 +178,26 @@ def done_regions(url: str) -> set[str]:
         return set()
 
 
+def fetch(url: str, name: str, local) -> bool:
+    """Copy the file ``name`` under the store at ``url`` to the local path ``local``;
+    False if the store has no such file."""
+    fs, root = _fs(url)
+    try:
+        fs.get_file(f"{root}/{name}", str(local))
+    except FileNotFoundError:
+        return False
+    return True
+
+
+def publish(local, url: str, name: str) -> None:
+    """Put the local file ``local`` under the store at ``url`` as ``name``, whole: it is
+    uploaded as ``name.part`` and then moved (a rename on a local disk, a server-side
+    copy on S3), so a reader never sees it half-written."""
+    fs, root = _fs(url)
+    fs.put_file(str(local), f"{root}/{name}.part")
+    fs.mv(f"{root}/{name}.part", f"{root}/{name}")
+
+
 def run_store(study: Study, url: str, *, design_rows=None, provenance: dict | None = None, attrs: dict | None = None,
               scheduler: str | None = None, workers: int | None = None, chunk_size: int | None = None,
               resume: bool = True, progress: bool = True) -> str:
