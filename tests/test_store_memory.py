@@ -40,7 +40,8 @@ def peak_bytes(func):
 def test_store_statistics_memory_does_not_grow_with_the_ensemble(tmp_path):
     study = load_study(write_study(
         tmp_path, "big", study={"seed": 3, "realizations": REALIZATIONS, "chunk_size": CHUNK},
-        solver={"mode": "geodesic", "rings": 5}, uncertainty={"orientation": {"dist": "normal", "mean": 0.0, "sd": 2.0}}))
+        solver={"mode": "geodesic", "rings": 5},
+        uncertainty={"orientation": {"dist": "normal", "mean": 0.0, "sd": 2.0}}))
     url = f"file://{tmp_path}/store"
     run_ensemble(study, output_dir=url, workers=2, progress=False)
     full = open_ensemble(url)

@@ -173,3 +173,22 @@ def test_sensitivity_of_a_store_equals_the_folders(runs, morris, kind):
     same(ind_f, ind_s)
     same(maps_f, maps_s)
     assert ind_s.attrs["run_key"] == ind_f.attrs["run_key"] and np.isfinite(ind_s["mu_star"]).all()
+
+
+def test_a_store_out_of_reach_is_one_line_exit_3_for_every_reader(runs, monkeypatch, capsys):
+    import s3fs
+
+    for key in ("AWS_ACCESS_KEY_ID", "AWS_SECRET_ACCESS_KEY"):
+        monkeypatch.delenv(key)
+    for key in ("AWS_SHARED_CREDENTIALS_FILE", "AWS_CONFIG_FILE"):
+        monkeypatch.setenv(key, "/nonexistent")
+    monkeypatch.setenv("AWS_EC2_METADATA_DISABLED", "true")
+    s3fs.S3FileSystem.clear_instance_cache()
+    try:
+        for command in (["report", "s3://runs/readers"], ["export", "s3://runs/readers", "--to", "netcdf"]):
+            assert main(command) == 3
+            err = capsys.readouterr().err
+            assert err.startswith(f"uqdrape {command[0]}: error: s3://runs/readers: cannot reach the store (NoCredentials")
+            assert err.count("\n") == 1 and "AWS_ENDPOINT_URL" in err
+    finally:
+        s3fs.S3FileSystem.clear_instance_cache()

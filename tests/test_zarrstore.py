@@ -109,7 +109,7 @@ def s3(monkeypatch_module):
 
     s3fs.S3FileSystem.clear_instance_cache()
     fs = s3fs.S3FileSystem(client_kwargs={"endpoint_url": endpoint})
-    fs.mkdir("runs")
+    fs.makedirs("runs", exist_ok=True)  # moto keeps its buckets per process: another module may have made it
     yield fs
     server.stop()
 

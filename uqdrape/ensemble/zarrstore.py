@@ -1,8 +1,9 @@
-"""An ensemble as one chunked zarr store on any fsspec URL (issue 28, first pass).
+"""An ensemble as one chunked zarr store on any fsspec URL (issue 28).
 
 Selected by a URL (anything with ``://``: ``file:///abs/path``, ``memory://name``,
-``s3://bucket/prefix``); a plain path stays a run folder (``uqdrape.ensemble.store``).
-Layout under the URL::
+``s3://bucket/prefix``). Decided: a plain path stays a run folder of netCDF chunks
+(``uqdrape.ensemble.store``), the default, and old run folders are read, not refused:
+every reader takes either (``uqdrape.ensemble.location``). Layout under the URL::
 
     run.json        the manifest: study record, chunk size, chunk names, realisations
     run.lock        one writer at a time: created with exclusive create ("xb": on S3 a
@@ -11,6 +12,8 @@ Layout under the URL::
                     ``open_ensemble``: (blankholder_force, realization, ...), zarr
                     chunks of (1, chunk_size, full node grid)
     done/<chunk>    a region's "done" marker, written after its data
+    sensitivity.nc, sensitivity_maps.nc, report/, export/
+                    as in a run folder, each file put whole (:func:`publish`)
 
 The template (every variable's shape, dtype and attributes, no data) is written once
 with ``compute=False``; each dask task drapes its chunk and writes its region of
@@ -93,8 +96,10 @@ def _check_reachable(fs, root: str, url: str) -> None:
 
 
 def read_store_manifest(url: str) -> dict | None:
-    """The manifest of the store at ``url``, or None if there is none."""
+    """The manifest of the store at ``url``, or None if there is none; OSError (one line)
+    for a missing bucket or an unreachable store (``_check_reachable``)."""
     fs, root = _fs(url)
+    _check_reachable(fs, root, url)
     try:
         with fs.open(f"{root}/{MANIFEST}", "rb") as f:
             text = f.read()
@@ -182,6 +187,7 @@ def fetch(url: str, name: str, local) -> bool:
     """Copy the file ``name`` under the store at ``url`` to the local path ``local``;
     False if the store has no such file."""
     fs, root = _fs(url)
+    _check_reachable(fs, root, url)
     try:
         fs.get_file(f"{root}/{name}", str(local))
     except FileNotFoundError:

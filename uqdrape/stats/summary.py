@@ -155,15 +155,17 @@ def blockwise_quantiles(da: xr.DataArray, quantiles: Sequence[float], confidence
     every realisation of at most dask's ``array.chunk-size`` bytes of nodes (one node at
     least). Memory is then a block and the chunks being read, not the ensemble: one
     rechunk of a whole variable to columns would hold every piece of it at once. A
-    dask-backed ensemble is read once per block. Returns in-memory data, the same numbers."""
+    dask-backed ensemble is read once per block. Returns the same numbers: lazily if
+    one block holds every node (so that one pass computes it with the moments), else
+    computed."""
     template = quantile_statistics(da, quantiles, confidence, dim)
-    if da.chunks is None:
-        return template
     limit = dask.utils.parse_bytes(dask.config.get("array.chunk-size"))
     block = {d: n for d, n in da.sizes.items() if d != dim}
     while math.prod(block.values()) * da.sizes[dim] * da.dtype.itemsize > limit and max(block.values()) > 1:
         widest = max(block, key=block.get)
         block[widest] = -(-block[widest] // 2)
+    if da.chunks is None or block == {d: n for d, n in da.sizes.items() if d != dim}:
+        return template
     out = {name: np.empty(var.shape, var.dtype) for name, var in template.data_vars.items()}
     for starts in itertools.product(*(range(0, da.sizes[d], size) for d, size in block.items())):
         where = {d: slice(a, a + block[d]) for d, a in zip(block, starts)}
