@@ -29,6 +29,7 @@ from __future__ import annotations
 import errno
 import json
 import sys
+from pathlib import Path
 
 import dask
 import dask.array
@@ -142,6 +143,14 @@ class _StoreLock:
         self.fs.rm(self.path)
 
 
+def store_lock(url: str) -> _StoreLock:
+    """The run lock of the store at ``url`` (a context manager; OSError EBUSY if another
+    run holds it), for runs that write there other than ``run_store`` (a design)."""
+    fs, root = _fs(url)
+    _check_reachable(fs, root, url)
+    return _StoreLock(fs, root, url)
+
+
 def _encoded(ds: xr.Dataset, study: Study, title: str) -> xr.Dataset:
     """``ds`` with its CF attributes and the zarr-valid part of ``cf_encode``'s encoding."""
     ds, encoding = cf_encode(ds, title=title, history=f"uqdrape run {study.path.name}", float32=study.float32)
@@ -188,6 +197,7 @@ def fetch(url: str, name: str, local) -> bool:
     False if the store has no such file."""
     fs, root = _fs(url)
     _check_reachable(fs, root, url)
+    Path(local).parent.mkdir(parents=True, exist_ok=True)  # else a missing folder here reads as no such file
     try:
         fs.get_file(f"{root}/{name}", str(local))
     except FileNotFoundError:

@@ -31,8 +31,8 @@ from pathlib import Path
 import xarray as xr
 
 from ..design import DESIGN_FILE, Evaluator, drape_design, optimise, problem, result_dataset
-from ..ensemble import (Progress, design_variables, local_pool, made_from, open_ensemble, read_dataset, read_manifest,
-                        reach_scheduler, run_ensemble, run_lock, run_name, write_dataset)
+from ..ensemble import (Progress, design_variables, is_url, local_pool, made_from, open_ensemble, read_dataset,
+                        read_manifest, reach_scheduler, run_ensemble, run_lock, run_name, store_lock, write_dataset)
 from ..report import write_design_report, write_report
 from ..sensitivity import map_indices, qoi_indices, study_design
 from ..stats import SENSITIVITY_QOIS, realization_qois
@@ -162,24 +162,26 @@ def open_sensitivity(output_dir) -> tuple[xr.Dataset, xr.Dataset] | None:
 def run_design(study, *, output_dir=None, scheduler: str | None = None, workers: int | None = None,
                progress: bool = True, drape=drape_design) -> Path:
     """Run the [design] of a study (a ``Study`` or a study file's path): write
-    ``design.nc`` and the per-design records into the output folder (default the
-    study's; resumes from the records of an earlier run of the same study) and return the
-    folder. ``drape`` is the task that drapes one chunk of one design (a test passes a
+    ``design.nc`` and the per-design records into the output folder or store URL (default
+    the study's; resumes from the records of an earlier run of the same study) and return
+    it. ``drape`` is the task that drapes one chunk of one design (a test passes a
     synthetic one through the same pipeline)."""
     start = time.perf_counter()
     study = study if isinstance(study, Study) else load_study(study)
     if study.design is None:
         raise ValueError(f"study {study.name!r} ({study.path}) has no [design] section; run it with `uqdrape run`")
     prob = problem(study)
-    out = Path(study.output_dir if output_dir is None else output_dir)
-    check_resources(study, out, 0)  # a design's records are per-drape numbers and node sums, not nets
+    out = study.output_dir if output_dir is None else output_dir
+    out = out if is_url(out) else Path(out)
+    if not is_url(out):  # a store's space is the object store's business
+        check_resources(study, out, 0)  # a design's records are per-drape numbers and node sums, not nets
     check_placement(study, quiet=not progress)
     reach_scheduler(scheduler)
-    out.mkdir(parents=True, exist_ok=True)
     local = scheduler in (None, "processes")
     # one pool for the whole run: a design is many small batches, and starting worker
     # processes for each would cost more than draping it; one run at a time in the folder
-    with run_lock(out), local_pool(workers) if local else contextlib.nullcontext() as pool:
+    lock = store_lock(out) if is_url(out) else run_lock(out)
+    with lock, local_pool(workers) if local else contextlib.nullcontext() as pool:
         evaluate = Evaluator(prob, out, scheduler=scheduler, workers=workers, progress=progress, drape=drape,
                              pool=pool)
         result = optimise(prob, evaluate)
