@@ -29,7 +29,7 @@ from uqdrape.workflow.run import analysed
 
 from conftest import write_study
 from test_export import hemisphere_mesh
-from test_zarrstore import monkeypatch_module, s3, tiny  # noqa: F401 (fixtures: moto's S3 server)
+from test_zarrstore import monkeypatch_module, no_s3_credentials, s3, tiny  # noqa: F401 (fixtures: moto's S3 server)
 
 STORES = ("file", "s3")
 
@@ -175,20 +175,9 @@ def test_sensitivity_of_a_store_equals_the_folders(runs, morris, kind):
     assert ind_s.attrs["run_key"] == ind_f.attrs["run_key"] and np.isfinite(ind_s["mu_star"]).all()
 
 
-def test_a_store_out_of_reach_is_one_line_exit_3_for_every_reader(runs, monkeypatch, capsys):
-    import s3fs
-
-    for key in ("AWS_ACCESS_KEY_ID", "AWS_SECRET_ACCESS_KEY"):
-        monkeypatch.delenv(key)
-    for key in ("AWS_SHARED_CREDENTIALS_FILE", "AWS_CONFIG_FILE"):
-        monkeypatch.setenv(key, "/nonexistent")
-    monkeypatch.setenv("AWS_EC2_METADATA_DISABLED", "true")
-    s3fs.S3FileSystem.clear_instance_cache()
-    try:
-        for command in (["report", "s3://runs/readers"], ["export", "s3://runs/readers", "--to", "netcdf"]):
-            assert main(command) == 3
-            err = capsys.readouterr().err
-            assert err.startswith(f"uqdrape {command[0]}: error: s3://runs/readers: cannot reach the store (NoCredentials")
-            assert err.count("\n") == 1 and "AWS_ENDPOINT_URL" in err
-    finally:
-        s3fs.S3FileSystem.clear_instance_cache()
+def test_a_store_out_of_reach_is_one_line_exit_3_for_every_reader(runs, no_s3_credentials, capsys):  # noqa: F811
+    for command in (["report", "s3://runs/readers"], ["export", "s3://runs/readers", "--to", "netcdf"]):
+        assert main(command) == 3
+        err = capsys.readouterr().err
+        assert err.startswith(f"uqdrape {command[0]}: error: s3://runs/readers: cannot reach the store (NoCredentials")
+        assert err.count("\n") == 1 and "AWS_ENDPOINT_URL" in err
