@@ -109,7 +109,7 @@ def s3(monkeypatch_module):
 
     s3fs.S3FileSystem.clear_instance_cache()
     fs = s3fs.S3FileSystem(client_kwargs={"endpoint_url": endpoint})
-    fs.mkdir("runs")
+    fs.makedirs("runs", exist_ok=True)  # moto keeps its buckets per process: another module may have made it
     yield fs
     server.stop()
 
@@ -144,19 +144,23 @@ def test_s3_missing_bucket(reference, s3):
     assert "\n" not in str(err.value)
 
 
-def test_s3_no_credentials(reference, s3, monkeypatch):
+@pytest.fixture
+def no_s3_credentials(s3, monkeypatch):
+    """No AWS credentials anywhere (environment, files, instance metadata), fresh s3fs instances."""
     import s3fs
 
-    study, _ = reference
     for key in ("AWS_ACCESS_KEY_ID", "AWS_SECRET_ACCESS_KEY"):
         monkeypatch.delenv(key)
     for key in ("AWS_SHARED_CREDENTIALS_FILE", "AWS_CONFIG_FILE"):
         monkeypatch.setenv(key, "/nonexistent")
     monkeypatch.setenv("AWS_EC2_METADATA_DISABLED", "true")
     s3fs.S3FileSystem.clear_instance_cache()
-    try:
-        with pytest.raises(OSError, match="Unable to locate credentials.*credentials in the environment") as err:
-            run_store(study, "s3://runs/nocreds", scheduler="synchronous", progress=False)
-    finally:
-        s3fs.S3FileSystem.clear_instance_cache()
+    yield
+    s3fs.S3FileSystem.clear_instance_cache()
+
+
+def test_s3_no_credentials(reference, no_s3_credentials):
+    study, _ = reference
+    with pytest.raises(OSError, match="Unable to locate credentials.*credentials in the environment") as err:
+        run_store(study, "s3://runs/nocreds", scheduler="synchronous", progress=False)
     assert err.value.errno == errno.EIO and "\n" not in str(err.value)

@@ -285,8 +285,9 @@ def build_parser() -> argparse.ArgumentParser:
     rep = _command(sub, "report", cmd_report, help="write the report of a finished run", raw=True,
                    epilog="example:\n  uqdrape report results/nosecone-zero-angle --out results/nosecone-report\n\n"
                           + _EXIT_CODES)
-    rep.add_argument("results", help="a run's output folder, e.g. results/nosecone-zero-angle")
-    rep.add_argument("--out", help="report folder (default RESULTS/report)")
+    rep.add_argument("results", help="a run's output folder or store URL, e.g. results/nosecone-zero-angle or "
+                                     "s3://bucket/runs/nosecone")
+    rep.add_argument("--out", help="report folder (default RESULTS/report; under a store's URL for a store)")
 
     v = _command(sub, "validate", cmd_validate, help="check study files without running them")
     v.add_argument("files", nargs="+", help="study files (TOML)")
@@ -294,7 +295,7 @@ def build_parser() -> argparse.ArgumentParser:
     e = _command(
         sub, "export", cmd_export, raw=True,
         help="write a drape or an ensemble as VTK, FE-mesh orientations, a flat pattern or a cutting pattern",
-        description="Export a result: a drape file (uqdrape drape --out) or a run folder\n"
+        description="Export a result: a drape file (uqdrape drape --out), or a run folder or store URL\n"
                     "(uqdrape run; its per-node statistics). One file set per force level of a sweep;\n"
                     "every file of a call is written, or none.\n\n"
                     "  vtk   STEM.vtu (net: shear, status, locked or ensemble statistics, fibre directions,\n"
@@ -306,13 +307,17 @@ def build_parser() -> argparse.ArgumentParser:
                     "        needs --mesh\n"
                     "  flat  STEM-flat-nodes.csv, STEM-flat-outline.csv, STEM-flat.dxf (flat blank, mm)\n"
                     "  cut   STEM-cut.dxf (layers CUT, ENVELOPE, FIBRE, SEED, LABEL) and STEM-cut.csv: the\n"
-                    "        part's edge (--trim, or the mould's outline) in the flat blank, fabric axes\n\n"
+                    "        part's edge (--trim, or the mould's outline) in the flat blank, fabric axes\n"
+                    "  netcdf  STEM.nc (or --out FILE.nc): the whole result as one CF netCDF file, a run's\n"
+                    "        ensemble streamed chunk by chunk from its folder or store\n\n"
                     "Examples:\n"
                     "  uqdrape export results/drape/nosecone.nc --to vtk flat\n"
                     "  uqdrape export results/drape/nosecone.nc --to cut --trim edge.csv --ply P1\n"
-                    "  uqdrape export results/nosecone-zero-angle --to fe --mesh part.inp --flavour abaqus lsdyna")
-    e.add_argument("result", help="a drape netCDF file or a run folder")
-    e.add_argument("--to", nargs="+", required=True, choices=("vtk", "fe", "flat", "cut"), help="what to write")
+                    "  uqdrape export results/nosecone-zero-angle --to fe --mesh part.inp --flavour abaqus lsdyna\n"
+                    "  uqdrape export s3://bucket/runs/nosecone --to netcdf --out results/nosecone.nc")
+    e.add_argument("result", help="a drape netCDF file, a run folder or a store URL")
+    e.add_argument("--to", nargs="+", required=True, choices=("vtk", "fe", "flat", "cut", "netcdf"),
+                   help="what to write")
     e.add_argument("--flavour", nargs="+", choices=("abaqus", "lsdyna", "nastran"), default=["abaqus"],
                    help="the FE solvers whose cards --to fe writes (default abaqus)")
     e.add_argument("--trim", metavar="CSV",
@@ -326,7 +331,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="plan angle of the direction fibre_deviation is measured from (default: the fabric's "
                         "orientation)")
     e.add_argument("--out", metavar="STEM",
-                   help="output path stem (default: the drape file without .nc, or RUN/export/RUN)")
+                   help="output path stem, or FILE.nc for --to netcdf (default: the drape file without .nc, or "
+                        "RUN/export/RUN, under a store's URL for a store)")
 
     srv = _command(
         sub, "serve", cmd_serve, raw=True,

@@ -8,14 +8,12 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-from pathlib import Path
-
 import dask
 import numpy as np
 import xarray as xr
 
 from ..drape import max_shear_lines
-from ..ensemble import Progress, compute_tasks, drape_inputs, sampled_inputs, write_atomic
+from ..ensemble import Progress, compute_tasks, drape_inputs, read_dataset, sampled_inputs, write_dataset
 from ..stats import realization_qois
 from ..study import identity
 from .estimators import per_realization, statistics
@@ -62,14 +60,15 @@ def _merge(parts: list) -> xr.Dataset:
 class Evaluator:
     """Drapes batches of designs on the design or the validation sample, each design once:
     records are cached in ``folder`` (None: in memory only) under a key of the study, the
-    sample and the design vector. ``drape`` is the task that drapes one chunk
+    sample and the design vector, in the run folder or store URL ``folder``'s
+    ``evaluations/`` (``uqdrape.ensemble.location``). ``drape`` is the task that drapes one chunk
     (:func:`drape_design`; a test passes a synthetic one through the same pipeline)."""
 
     def __init__(self, prob: Problem, folder=None, *, scheduler=None, workers=None, progress=True,
                  drape=drape_design, pool=None):
         self.prob, self.scheduler, self.workers, self.progress = prob, scheduler, workers, progress
         self.pool = pool
-        self.folder = None if folder is None else Path(folder) / EVALUATIONS
+        self.folder = folder
         self.drape = drape
         self.records: dict[str, xr.Dataset] = {}
         self.order: list[tuple[str, str, tuple[float, ...]]] = []  # (sample, key, x) as first asked for
@@ -111,9 +110,9 @@ class Evaluator:
                 self.order.append((sample, key, x))
             if key in self.records or key in todo:
                 continue
-            path = None if self.folder is None else self.folder / f"{key}.nc"
-            if path is not None and path.is_file():
-                self.records[key] = xr.load_dataset(path)
+            record = None if self.folder is None else read_dataset(self.folder, f"{EVALUATIONS}/{key}.nc")
+            if record is not None:
+                self.records[key] = record
             else:
                 todo[key] = x
         if todo:
@@ -142,6 +141,5 @@ class Evaluator:
             record = _merge([p for p, owner in zip(parts, owners) if owner == key])
             record.attrs.update(sample=sample, seed=study.seed, x=list(x), names=list(self.prob.names))
             if self.folder is not None:
-                self.folder.mkdir(parents=True, exist_ok=True)
-                write_atomic(record, self.folder / f"{key}.nc")
+                write_dataset(self.folder, f"{EVALUATIONS}/{key}.nc", record)
             self.records[key] = record

@@ -38,7 +38,12 @@ def read_manifest(output_dir) -> dict | None:
     """The run manifest of ``output_dir``, or None if there is none. A manifest that is not
     one uqdrape wrote (hand-edited, truncated, another program's) raises OSError naming the
     file and what is wrong: its chunk names are paths uqdrape will open, so they must be
-    plain chunk file names inside ``chunks/``."""
+    plain chunk file names inside ``chunks/``. A store URL reads the store's manifest
+    (``uqdrape.ensemble.zarrstore``)."""
+    from .zarrstore import is_url, read_store_manifest
+
+    if is_url(output_dir):
+        return read_store_manifest(output_dir)
     path = Path(output_dir) / MANIFEST
     if not path.is_file():
         return None

@@ -31,8 +31,8 @@ from pathlib import Path
 import xarray as xr
 
 from ..design import DESIGN_FILE, Evaluator, drape_design, optimise, problem, result_dataset
-from ..ensemble import (Progress, design_variables, local_pool, open_ensemble, read_manifest, reach_scheduler,
-                        run_ensemble, run_lock, write_atomic)
+from ..ensemble import (Progress, design_variables, is_url, local_pool, made_from, open_ensemble, read_dataset,
+                        read_manifest, reach_scheduler, run_ensemble, run_lock, run_name, store_lock, write_dataset)
 from ..report import write_design_report, write_report
 from ..sensitivity import map_indices, qoi_indices, study_design
 from ..stats import SENSITIVITY_QOIS, realization_qois
@@ -112,31 +112,32 @@ def _run_key(output_dir) -> str:
 
 
 def analysed(output_dir) -> bool:
-    """Whether ``output_dir`` holds the sensitivity files of its own finished run (both
-    files, written for the run its manifest describes), so a resume need not redo them."""
-    out = Path(output_dir)
+    """Whether ``output_dir`` (a run folder or store URL) holds the sensitivity files of
+    its own finished run (both files, written for the run its manifest describes), so a
+    resume need not redo them."""
     keys = []
     for name in (INDICES_FILE, MAPS_FILE):
         try:
-            with xr.open_dataset(out / name) as ds:
-                keys.append(ds.attrs.get("run_key"))
+            ds = read_dataset(output_dir, name)
         except (OSError, ValueError):
             return False
-    return keys[0] == keys[1] == _run_key(out)
+        keys.append(None if ds is None else ds.attrs.get("run_key"))
+    return keys[0] is not None and keys[0] == keys[1] == _run_key(output_dir)
 
 
-def write_sensitivity(output_dir, design, *, qoi=None, seed: int, progress: bool = False) -> tuple[Path, Path]:
-    """Analyse a finished sensitivity run in ``output_dir`` (its realisations are the
+def write_sensitivity(output_dir, design, *, qoi=None, seed: int,
+                      progress: bool = False) -> tuple[Path | str, Path | str]:
+    """Analyse a finished sensitivity run in ``output_dir`` (a run folder or store URL; its realisations are the
     design's rows): QoI indices to ``sensitivity.nc``, node-shear index maps to
     ``sensitivity_maps.nc`` (both written whole, then renamed, with the attribute
     ``run_key`` naming the run they are of: see :func:`analysed`). ``qoi``: names (default
     ``SENSITIVITY_QOIS``); ``progress``: count the analysed nodes on stderr. Returns the
-    two paths."""
-    out = Path(output_dir)
+    two paths (URLs in a store)."""
+    out = output_dir
     with open_ensemble(out) as ds:
         qois = realization_qois(ds, SENSITIVITY_QOIS if qoi is None else qoi)
         shear = ds["shear"].load()
-        study_name = ds.attrs.get("study_name", out.name)
+        study_name = ds.attrs.get("study_name", run_name(out))
     indices = qoi_indices(design, qois, seed=seed)
     nodes = shear.isel({dim: 0 for dim in shear.dims if dim not in ("i", "j")}).size
     bar = Progress(nodes * shear.sizes.get("blankholder_force", 1), enabled=progress, desc="index maps", unit="node")
@@ -148,62 +149,67 @@ def write_sensitivity(output_dir, design, *, qoi=None, seed: int, progress: bool
         result.attrs.update(study_name=study_name, run_key=_run_key(out))
     if "k_max" in qois.attrs:
         indices.attrs["line_k_max"] = qois.attrs["k_max"]
-    return write_atomic(indices, out / INDICES_FILE), write_atomic(maps, out / MAPS_FILE)
+    return write_dataset(out, INDICES_FILE, indices), write_dataset(out, MAPS_FILE, maps)
 
 
 def open_sensitivity(output_dir) -> tuple[xr.Dataset, xr.Dataset] | None:
-    """(QoI indices, node-shear index maps) of a sensitivity run in ``output_dir``, loaded;
-    None if the folder holds no sensitivity results."""
-    out = Path(output_dir)
-    if not (out / INDICES_FILE).is_file():
-        return None
-    return xr.load_dataset(out / INDICES_FILE), xr.load_dataset(out / MAPS_FILE)
+    """(QoI indices, node-shear index maps) of a sensitivity run in ``output_dir`` (a run
+    folder or store URL), loaded; None if the run holds no sensitivity results."""
+    indices = read_dataset(output_dir, INDICES_FILE)
+    return None if indices is None else (indices, read_dataset(output_dir, MAPS_FILE))
 
 
 def run_design(study, *, output_dir=None, scheduler: str | None = None, workers: int | None = None,
                progress: bool = True, drape=drape_design) -> Path:
     """Run the [design] of a study (a ``Study`` or a study file's path): write
-    ``design.nc`` and the per-design records into the output folder (default the
-    study's; resumes from the records of an earlier run of the same study) and return the
-    folder. ``drape`` is the task that drapes one chunk of one design (a test passes a
+    ``design.nc`` and the per-design records into the output folder or store URL (default
+    the study's; resumes from the records of an earlier run of the same study) and return
+    it. ``drape`` is the task that drapes one chunk of one design (a test passes a
     synthetic one through the same pipeline)."""
     start = time.perf_counter()
     study = study if isinstance(study, Study) else load_study(study)
     if study.design is None:
         raise ValueError(f"study {study.name!r} ({study.path}) has no [design] section; run it with `uqdrape run`")
     prob = problem(study)
-    out = Path(study.output_dir if output_dir is None else output_dir)
-    check_resources(study, out, 0)  # a design's records are per-drape numbers and node sums, not nets
+    out = study.output_dir if output_dir is None else output_dir
+    out = out if is_url(out) else Path(out)
+    if not is_url(out):  # a store's space is the object store's business
+        check_resources(study, out, 0)  # a design's records are per-drape numbers and node sums, not nets
     check_placement(study, quiet=not progress)
     reach_scheduler(scheduler)
-    out.mkdir(parents=True, exist_ok=True)
     local = scheduler in (None, "processes")
     # one pool for the whole run: a design is many small batches, and starting worker
     # processes for each would cost more than draping it; one run at a time in the folder
-    with run_lock(out), local_pool(workers) if local else contextlib.nullcontext() as pool:
+    lock = store_lock(out) if is_url(out) else run_lock(out)
+    with lock, local_pool(workers) if local else contextlib.nullcontext() as pool:
         evaluate = Evaluator(prob, out, scheduler=scheduler, workers=workers, progress=progress, drape=drape,
                              pool=pool)
         result = optimise(prob, evaluate)
         ds = result_dataset(result, evaluate)
         # this run's own time: a resumed run replays earlier designs from their records
         ds.attrs["wall_time_s"] = round(time.perf_counter() - start, 1)
-        write_atomic(ds, out / DESIGN_FILE)
+        write_dataset(out, DESIGN_FILE, ds)
     if progress:
         print(f"{study.name}: {ds.attrs['summary']}", file=sys.stderr)
     return out
 
 
-def run_report(output_dir, out_dir=None) -> Path:
-    """Report of a finished run: the ensemble under ``output_dir`` with the title
+def run_report(output_dir, out_dir=None) -> Path | str:
+    """Report of a finished run (a run folder or a store URL): the ensemble with the title
     (the study's name), description, study text, histogram nodes and experimental CSV of
     the study stored in its attributes, the wall time from its manifest, and its
     sensitivity results if it has them; of a design run, its design page. Writes into
-    ``out_dir`` (default ``output_dir/report``); returns the index.html path."""
-    design = Path(output_dir) / DESIGN_FILE
-    ds = xr.load_dataset(design) if design.is_file() else open_ensemble(output_dir)
-    study = from_dict(json.loads(ds.attrs["study_json"]), Path(output_dir))
-    report = Path(out_dir) if out_dir else Path(output_dir) / "report"
-    if design.is_file():
+    the local folder ``out_dir`` (default: the run's ``report/``, in a store put under its
+    URL); returns the index.html path (a URL in a store)."""
+    if out_dir is None:
+        with made_from(output_dir, "report") as made:
+            index = run_report(output_dir, made.folder)
+        return made.where(index)
+    design = read_dataset(output_dir, DESIGN_FILE)
+    ds = open_ensemble(output_dir) if design is None else design
+    study = from_dict(json.loads(ds.attrs["study_json"]), Path(run_name(output_dir)))
+    report = Path(out_dir)
+    if design is not None:
         return write_design_report(ds, report, surface=study.geometry.build_mould())
     sensitivity = open_sensitivity(output_dir)
     manifest = read_manifest(output_dir)
