@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import os
 import re
+import resource
 import shlex
 import shutil
 import subprocess
@@ -124,15 +125,18 @@ def test_every_readme_command_runs_verbatim_on_a_fresh_clone(tmp_path):
     commands = user_commands((clone / "README.md").read_text(encoding="utf-8"))
     (tmp_path / "readme.sh").write_text(script(commands), encoding="utf-8")
     log_path = tmp_path / "readme.log"
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     with open(log_path, "w", encoding="utf-8") as log:
         done = subprocess.run(["bash", str(tmp_path / "readme.sh")], cwd=clone, env=fresh_environment(),
                               stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
     log = log_path.read_text(encoding="utf-8", errors="replace")
     times = timings(log)
     print(f"README commands of {head[:7]} in {clone}:")
     for (number, command), (_, seconds) in zip(commands, times):
         print(f"  {seconds:6.1f} s  README.md:{number}  {command[:100]}")
-    print(f"  {sum(t for _, t in times):6.1f} s  in all")
+    print(f"  {sum(t for _, t in times):6.1f} s  in all, {cpu:.1f} s of CPU (the machine's load aside)")
     if done.returncode != 0:
         number, command = commands[len(times) - 1] if times else commands[0]
         tail = "\n".join(log.splitlines()[-25:])
