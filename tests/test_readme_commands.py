@@ -136,7 +136,7 @@ def test_every_readme_command_runs_verbatim_on_a_fresh_clone(tmp_path):
     print(f"README commands of {head[:7]} in {clone}:")
     for (number, command), (_, seconds) in zip(commands, times):
         print(f"  {seconds:6.1f} s  README.md:{number}  {command[:100]}")
-    print(f"  {sum(t for _, t in times):6.1f} s  in all, {cpu:.1f} s of CPU (the machine's load aside)")
+    print(f"  {sum(t for _, t in times):6.1f} s  in all, {cpu:.1f} s of CPU (user + sys of the processes the shell waited for)")
     if done.returncode != 0:
         number, command = commands[len(times) - 1] if times else commands[0]
         tail = "\n".join(log.splitlines()[-25:])
