@@ -108,7 +108,7 @@ def test_the_test_suite_lines_are_what_ci_runs():
     commands = bash_commands(README.read_text(encoding="utf-8"))
     suite = [c for _, c in commands if TEST_SUITE.search(c)]
     ci = {line.strip() for line in (ROOT / ".ci" / "run").read_text(encoding="utf-8").splitlines()}
-    assert len(suite) == 2 and all(c in ci for c in suite), suite
+    assert suite and all(c in ci for c in suite), suite
     assert len(commands) - len(suite) >= 10  # the README's own examples are left to run
 
 
