@@ -103,6 +103,17 @@ def test_bash_blocks_are_read_as_the_readme_says():
                                    (18, "uqdrape c")]
 
 
+def test_the_script_stops_at_the_first_failing_command(tmp_path):
+    """A failure inside an && list (which ``set -e`` would let pass) stops the run there,
+    and the log shows which README line it was; a later line never runs."""
+    commands = [(3, "echo one > a.txt   # a comment"), (7, "true && false && echo never"), (9, "touch b.txt")]
+    (tmp_path / "s.sh").write_text(script(commands))
+    done = subprocess.run(["bash", "s.sh"], cwd=tmp_path, capture_output=True, text=True)
+    assert done.returncode == 1 and (tmp_path / "a.txt").read_text() == "one\n"
+    assert not (tmp_path / "b.txt").exists() and "never" not in done.stdout.splitlines()
+    assert [n for n, _ in timings(done.stdout)] == [3, 7] and "<<< README.md:7 1 " in done.stdout
+
+
 def test_the_test_suite_lines_are_what_ci_runs():
     """The README lines this file does not run are run by CI: each is a line of .ci/run."""
     commands = bash_commands(README.read_text(encoding="utf-8"))
