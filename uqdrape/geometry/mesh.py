@@ -36,8 +36,10 @@ CREASE_DEG = 30.0
 #: A node is on the mesh within this fraction of the mould's size (mm per mm).
 ON_TOLERANCE = 1e-7
 #: A query's memo reach (``meshquery``) as a fraction of the median edge length: a query
-#: searches this far beyond its closest face to prove its answer for nearby points.
-MEMO_REACH = 0.5
+#: searches this far beyond its closest face to prove its answer for nearby points (0.1:
+#: on the bench hemisphere 77 % of an energy drape's queries are answered from the memo,
+#: 68 % at 0.5, whose searches test twice the faces).
+MEMO_REACH = 0.1
 #: Formats read by trimesh; others go to meshio.
 _TRIMESH_FORMATS = {".stl", ".obj", ".ply", ".off", ".glb", ".gltf"}
 

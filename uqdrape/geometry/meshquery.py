@@ -26,13 +26,13 @@ mould, as past an analytic mould's domain).
 
 The closest face is the one of least squared distance, ties to the lower face index, so the
 answer does not depend on the order of the search. A node solve queries points that lie
-close together (its Newton steps, the energy minimiser's stencil candidates), so a query may
-take a ``memo`` (``new_memo``): a table, hashed by a point's cell of size REACH, of earlier
-answers, each with a radius within which it is proven to be the answer: the search went on
-to REACH beyond the closest face and found no other face nearer than 2 rho beyond it, so
-for a point moved by less than rho the same face is still strictly closest, and the
-query only recomputes the point on that face. The memoised answer is the cold one to the
-last bit (tests/test_mesh_query.py); an empty memo queries cold.
+close together (its Newton steps, the energy minimiser's stencil candidates), so a query
+takes a ``memo`` (``new_memo``, one per thread): a table, hashed by a point's cell of size
+REACH, of earlier answers, each with a radius rho within which it is proven to be the
+answer: the search went on to REACH beyond the closest face and found no other face nearer
+than 2 rho beyond it, so for a point moved by less than rho the same face is still strictly
+closest, and the query only recomputes the point on that face. A memoised query equals a
+query with a fresh memo to the last bit (tests/test_mesh_query.py).
 """
 
 from __future__ import annotations
@@ -53,6 +53,8 @@ MEMO_SLOTS = 4096
 LEAF = 4
 #: Bound on the BVH depth (a complete tree of up to 2**40 leaves).
 _STACK = 96
+#: Where a memo keeps the search's stack, after its table.
+_STACK_AT = 5 * MEMO_SLOTS
 
 
 @jit
@@ -142,8 +144,9 @@ def _box_distance2(p, node, q):
 
 @jit
 def new_memo():
-    """An empty query memo (``closest``): no entry matches (NaN radii)."""
-    return np.full(5 * MEMO_SLOTS, math.nan)
+    """An empty query memo (``closest``): its table (no entry matches: NaN radii) and the
+    search's stack."""
+    return np.full(_STACK_AT + 2 * _STACK, math.nan)
 
 
 @jit
@@ -156,46 +159,47 @@ def _slot(p, q):
 
 
 @jit
+def _distance2(p, f, q):
+    """(point, barycentric weights, region, squared distance) of face f's closest point to q."""
+    a, b, c = _face(p, f)
+    pt, w, region = _closest_on_triangle(q, a, b, c)
+    d = _sub(q, pt)
+    return pt, w, region, _dot(d, d)
+
+
+@jit
 def closest(p, x, y, z, memo):
     """Closest point of the mesh to (x, y, z): (face, point, barycentric weights, region,
     squared distance), the face of least squared distance (ties to the lower index); face -1
-    for a non-finite point. ``memo`` (``new_memo``, or empty for none) answers a point within
-    a proven radius of an earlier one, and keeps this answer, as the module docstring says."""
+    for a non-finite point. ``memo`` (``new_memo``) answers a point within a proven radius
+    of an earlier one, and keeps this answer, as the module docstring says."""
     if not math.isfinite(x + y + z):
         return -1, (math.nan, math.nan, math.nan), (0.0, 0.0, 0.0), 0, math.nan
     q = (x, y, z)
-    slot = -1
-    if memo.size > 0:
-        slot = _slot(p, q)
-        dx, dy, dz = x - memo[slot], y - memo[slot + 1], z - memo[slot + 2]
-        if dx * dx + dy * dy + dz * dz < memo[slot + 3] * memo[slot + 3]:
-            f = int(memo[slot + 4])
-            a, b, c = _face(p, f)
-            pt, w, region = _closest_on_triangle(q, a, b, c)
-            d = _sub(q, pt)
-            return f, pt, w, region, _dot(d, d)
-    reach = p[REACH] if slot >= 0 else 0.0
+    slot = _slot(p, q)
+    dx, dy, dz = x - memo[slot], y - memo[slot + 1], z - memo[slot + 2]
+    if dx * dx + dy * dy + dz * dz < memo[slot + 3] * memo[slot + 3]:
+        f = int(memo[slot + 4])
+        pt, w, region, d2 = _distance2(p, f, q)
+        return f, pt, w, region, d2
+    reach = p[REACH]
     eps = 1e-12 * p[SCALE]  # far above the round-off of a distance, far below any rho of use
     leaves = int(p[LEAVES])
     nf = int(p[NF])
-    stack = np.empty(_STACK, np.int64)
-    bound = np.empty(_STACK)  # squared box distance of each stacked node
-    stack[0], bound[0] = 0, 0.0
-    top = 1
     best, best_f, best_c, best_w, best_r = math.inf, -1, (math.nan, math.nan, math.nan), (0.0, 0.0, 0.0), 0
-    second, limit = math.inf, math.inf  # nearest other face; boxes beyond limit are left
+    second, limit = math.inf, math.inf  # nearest other face; boxes farther (squared) are left
+    stack, bound = _STACK_AT, _STACK_AT + _STACK  # the memo's node stack, their squared box distances
+    memo[stack], memo[bound] = 0.0, 0.0
+    top = 1
     while top > 0:
         top -= 1
-        node = stack[top]
-        if bound[top] > limit:
+        node = int(memo[stack + top])
+        if memo[bound + top] > limit:
             continue
         if node >= leaves - 1:
             first = (node - (leaves - 1)) * LEAF
             for f in range(first, min(first + LEAF, nf)):
-                a, b, c = _face(p, f)
-                pt, w, region = _closest_on_triangle(q, a, b, c)
-                d = _sub(q, pt)
-                d2 = _dot(d, d)
+                pt, w, region, d2 = _distance2(p, f, q)
                 if d2 < best or (d2 == best and f < best_f):
                     second = min(second, best)
                     best, best_f, best_c, best_w, best_r = d2, f, pt, w, region
@@ -206,17 +210,15 @@ def closest(p, x, y, z, memo):
             continue
         left, right = 2 * node + 1, 2 * node + 2
         dl, dr = _box_distance2(p, left, q), _box_distance2(p, right, q)
-        if dl <= dr:  # the nearer child is popped first
-            stack[top], bound[top], stack[top + 1], bound[top + 1] = right, dr, left, dl
-        else:
-            stack[top], bound[top], stack[top + 1], bound[top + 1] = left, dl, right, dr
+        if dl > dr:  # the nearer child is popped first
+            left, right, dl, dr = right, left, dr, dl
+        memo[stack + top], memo[bound + top], memo[stack + top + 1], memo[bound + top + 1] = right, dr, left, dl
         top += 2
-    if slot >= 0:
-        # every other face lies at least min(sqrt(second), sqrt(best) + reach) away
-        d = math.sqrt(best)
-        rho = 0.5 * (min(math.sqrt(second), d + reach) - d) - eps
-        if rho > 0:
-            memo[slot], memo[slot + 1], memo[slot + 2], memo[slot + 3], memo[slot + 4] = x, y, z, rho, best_f
+    # every other face lies at least min(sqrt(second), sqrt(best) + reach) away
+    d = math.sqrt(best)
+    rho = 0.5 * (min(math.sqrt(second), d + reach) - d) - eps
+    if rho > 0:
+        memo[slot], memo[slot + 1], memo[slot + 2], memo[slot + 3], memo[slot + 4] = x, y, z, rho, best_f
     return best_f, best_c, best_w, best_r, best
 
 
