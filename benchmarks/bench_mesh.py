@@ -51,6 +51,30 @@ def _icosphere_cap(radius: float, subdivisions: int) -> trimesh.Trimesh:
     return cap
 
 
+def _query_costs(surfaces, nodes, repeats):
+    """CPU time per query (us) of ``compiled.gap`` at the analytic net's nodes (5 mm apart,
+    so a mesh's memo never answers) and at each node followed by the same node moved
+    1e-6 mm (the memo answers the second: its cost is the difference), medians of
+    ``repeats``."""
+    from uqdrape.geometry import compiled
+
+    nodes = nodes[np.isfinite(nodes).all(1)]
+    pairs = np.repeat(nodes, 2, axis=0)
+    pairs[1::2] += 1e-6
+    for name, surface in surfaces.items():
+        cost = []
+        for points in (nodes, pairs):
+            compiled.evaluate_gap(surface.kernel, *points[:10].T)  # compile outside the timing
+            runs = []
+            for _ in range(repeats):
+                t = time.process_time()
+                compiled.evaluate_gap(surface.kernel, *points.T)
+                runs.append(time.process_time() - t)
+            cost.append(np.median(runs))
+        memo = f", memo answer {(cost[1] - cost[0]) / len(nodes) * 1e6:.3f} us" if name != "analytic" else ""
+        print(f"query {name}: {cost[0] / len(nodes) * 1e6:.3f} us{memo}")
+
+
 def drapes(repeats):
     """Drape time on two meshes of Hemisphere(100) against the closed form, the same nets,
     interleaved ``repeats`` times in one run (CPU time of one thread; medians): its height
@@ -80,6 +104,9 @@ def drapes(repeats):
     }
     for label, kw in cases.items():
         spacing, rings = kw.pop("spacing"), kw.pop("rings")
+        if label.startswith("geodesic"):
+            ds = drape(analytic, spacing, rings, threads=1, **kw)
+            _query_costs(surfaces, np.stack([ds.x.values, ds.y.values, ds.z.values], -1).reshape(-1, 3), repeats)
         times = {name: [] for name in surfaces}
         out = {}
         for surface in surfaces.values():
