@@ -21,6 +21,7 @@ import functools
 import numpy as np
 
 from .._jit import on_threads
+from ..geometry.compiled import new_memo
 from . import ring
 from .energy import MM_TO_M, bending_energy
 from .status import Status
@@ -141,8 +142,8 @@ class EnergyRings:
     def _realisation(self, P, r, k):
         """The leading arguments of the compiled ring functions at ring k, realisation r."""
         p = self.prob
-        return (p.surface.kernel, p.tol, p.n, k, np.ascontiguousarray(P[r]), p.blank[r], p.seg_i[r], p.seg_j[r],
-                p.cell_s1[r], p.cell_s2[r], p.gamma0[r], p.crossover[r], p.blankholder.force[r],
+        return (p.surface.kernel, new_memo(p.surface.kernel[0]), p.tol, p.n, k, np.ascontiguousarray(P[r]), p.blank[r],
+                p.seg_i[r], p.seg_j[r], p.cell_s1[r], p.cell_s2[r], p.gamma0[r], p.crossover[r], p.blankholder.force[r],
                 p.blankholder.friction[r])
 
     def sides(self, P, k, turn):
