@@ -64,7 +64,10 @@ def test_the_stated_cov_covers_known_probabilities_over_repeated_runs(p):
     runs = [importance_sampling(g, 100, seed=seed, cov=0.1) for seed in range(RUNS)]
     estimate = np.array([r.probability for r in runs])
     stated = np.array([r.cov for r in runs])
-    assert all(r.method == "importance" for r in runs) and stated.max() <= 0.1
+    # the agreement check refuses a few good design points by chance (a 3-sd check against a
+    # skewed 500-a-level subset estimate): 1 run in 100 at 1e-3 in the benchmark
+    importance = np.array([r.method == "importance" for r in runs])
+    assert importance.mean() >= 0.95 and stated[importance].max() <= 0.1
     # 95 % of the runs within 2 stated CoV, less 4 binomial sd; the spread as stated
     assert np.mean(np.abs(estimate / exact - 1) <= 2 * stated) >= 0.95 - 4 * np.sqrt(0.95 * 0.05 / RUNS)
     assert estimate.std(ddof=1) / exact <= 1.3 * stated.mean()

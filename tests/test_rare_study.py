@@ -118,3 +118,15 @@ def test_a_study_rare_probability_agrees_with_plain_monte_carlo(tmp_path):
     level = json.loads((tmp_path / "rare" / RARE_FILE).read_text())["levels"][0]
     assert level["method"] == "importance" and level["cov"] <= 0.1
     assert abs(level["probability"] / p_mc - 1) <= 3 * np.hypot(level["cov"], np.sqrt((1 - p_mc) / (p_mc * 20_000)))
+
+
+def test_a_threshold_no_drape_reaches_is_one_line(tmp_path, capsys, monkeypatch):
+    # subset simulation's 30 levels cut to 2: the line shear never reaches 80 deg on this dome
+    import uqdrape.workflow.rare as rare
+    real = rare.importance_sampling
+    monkeypatch.setattr(rare, "importance_sampling", lambda *a, **k: real(*a, **k, max_levels=2))
+    path = rare_file(tmp_path, {**RARE, "threshold": 80.0})
+    assert main(["run", str(path), "--scheduler", "synchronous", "--no-report", "-q"]) == 2
+    assert_one_line_error(capsys.readouterr().err, file=path, key="study.rare.threshold", value="80.0",
+                          valid=("no drape at 50 N reached it", "in 2 levels"))
+    assert not (tmp_path / "rare" / RARE_FILE).exists()

@@ -32,7 +32,7 @@ from ..material import load_material
 from ..reliability import importance_sampling
 from ..report import rare_rows
 from ..stats import realization_qois
-from ..study import identity
+from ..study import identity, study_error
 
 #: The rare-event estimates of a run, in its output folder.
 RARE_FILE = "rare.json"
@@ -95,7 +95,11 @@ def rare_probabilities(study, output_dir, *, resume: bool = True, progress: bool
     for level, force in enumerate(study.force_levels):
         g, d = drape_limit_state(study, spec.qoi, spec.threshold, force)
         seed = int(np.random.SeedSequence([study.seed, RARE_STREAM, level]).generate_state(1)[0])
-        r = importance_sampling(g, d, seed=seed, cov=spec.cov, max_calls=spec.max_drapes)
+        try:
+            r = importance_sampling(g, d, seed=seed, cov=spec.cov, max_calls=spec.max_drapes)
+        except ValueError as e:  # no failure domain reached: say it of the study's request
+            raise study_error(study.path, "study.rare.threshold", spec.threshold,
+                              f"no drape at {force:g} N reached it ({e})") from None
         levels.append({"force": force, "probability": r.probability, "cov": r.cov, "drapes": r.calls,
                        "method": r.method, "beta": r.beta, "subset_probability": r.subset.probability,
                        "subset_cov": r.subset.cov})
