@@ -77,9 +77,9 @@ class RareResult:
     subset: SubsetResult
 
 
-def design_point(g, samples, rng_calls: list) -> tuple[np.ndarray, float]:
-    """(u*, R^2): the design point from the subset levels' ``samples`` [(U, g)] (module
-    docstring, step 2); model calls of the root search appended to ``rng_calls``."""
+def design_point(g, samples) -> tuple[np.ndarray, float, int]:
+    """(u*, R^2, calls): the design point from the subset levels' ``samples`` [(U, g)]
+    (module docstring, step 2) and the model calls its root search took."""
     U = np.concatenate([u for u, _ in samples])
     y = np.concatenate([v for _, v in samples])
     U, first = np.unique(U, axis=0, return_index=True)
@@ -90,8 +90,10 @@ def design_point(g, samples, rng_calls: list) -> tuple[np.ndarray, float]:
     a0, a = coef[0], coef[1:]
     alpha = -a / np.linalg.norm(a)
 
+    calls = []
+
     def along(c):
-        rng_calls.append(1)
+        calls.append(c)
         return float(np.asarray(g(c * alpha[None, :]), dtype=float)[0])
 
     # g(0) > 0 (failure is rare); bracket the root from the fitted beta, at most 8 steps
@@ -100,9 +102,9 @@ def design_point(g, samples, rng_calls: list) -> tuple[np.ndarray, float]:
     for _ in range(8):
         if along(high) <= 0:
             beta = optimize.brentq(along, low, high, xtol=1e-3)
-            return beta * alpha, float(r2)
+            return beta * alpha, float(r2), len(calls)
         low, high = high, 1.5 * high
-    return c * alpha, float(r2)  # no root along alpha: the fitted point; sampling stays unbiased
+    return c * alpha, float(r2), len(calls)  # no root along alpha: the fitted point; sampling stays unbiased
 
 
 def agree(p: float, delta: float, sus: SubsetResult) -> bool:
@@ -122,9 +124,8 @@ def importance_sampling(g, d: int, *, seed: int, cov: float = 0.1, max_calls: in
     failure in ``max_levels``."""
     rng = np.random.default_rng(seed)
     sus, samples = subset_levels(g, d, n_per_level=n_per_level, p0=p0, rng=rng, spread=1.0, max_levels=max_levels)
-    search: list = []
-    u_star, r2 = design_point(g, samples, search)
-    spent = sus.calls + len(search)
+    u_star, r2, search = design_point(g, samples)
+    spent = sus.calls + search
     beta = float(np.linalg.norm(u_star))
     u_last, y_last = samples[-1]
     opposite = float(np.mean(u_last[y_last <= 0] @ u_star <= 0))

@@ -235,7 +235,8 @@ class Target:
 class Rare:
     """P(``qoi`` >= ``threshold``) (the QoI's unit) at every force level, estimated to
     coefficient of variation ``cov`` within ``max_drapes`` drapes a level
-    (``uqdrape.workflow.rare``)."""
+    (``uqdrape.workflow.rare``; the budget stops the importance rounds and a second subset
+    run, not the first subset run's levels of 500 drapes, about 450 more a decade of P)."""
 
     qoi: str
     threshold: float
