@@ -18,7 +18,7 @@ from pathlib import Path
 
 import xarray as xr
 
-from uqdrape.schema import FORCE, REALIZATION, by_force
+from uqdrape.schema import FORCE, QOI_ATTRS, REALIZATION, by_force
 from uqdrape.stats import (
     dominant_factors,
     headline_numbers,
@@ -71,6 +71,27 @@ def _fmt(value, digits: int = 3) -> str:
 
 def _where(site: Mapping) -> str:
     return f"node (i, j) = ({site['node'][0]}, {site['node'][1]}), F_BH = {site['blankholder_force_N']:g} N"
+
+
+#: The rare-event estimators (``uqdrape.reliability.importance_sampling``'s ``method``) in words.
+RARE_METHODS = {"importance": "importance sampling at the design point of subset levels",
+                "subset": "subset simulation (no design point carries the probability)"}
+
+
+def rare_rows(record: Mapping) -> list[tuple[str, str, str]]:
+    """(quantity, value, how) of each force level of a rare-event record
+    (``uqdrape.workflow.rare``), e.g. ("P(lock_margin >= 1) at 126 N", "1.02e-03",
+    "CoV 0.09, 2,650 drapes, importance sampling ..., 313 standard variables")."""
+    units = QOI_ATTRS[record["qoi"]]["units"]
+    unit = "" if units == "1" else " deg" if units == "degree" else f" {units}"
+    rows = []
+    for level in record["levels"]:
+        short = f" (above the target {record['cov']:g})" if level["cov"] > record["cov"] else ""
+        rows.append((f"P({record['qoi']} >= {record['threshold']:g}{unit}) at {level['force']:g} N",
+                     f"{level['probability']:.3g}",
+                     f"CoV {level['cov']:.2f}{short}, {level['drapes']:,} drapes, {RARE_METHODS[level['method']]}, "
+                     f"{record['variables']} standard variables"))
+    return rows
 
 
 def _rows(numbers: Mapping, extra: Mapping, dominant: list | None) -> list[tuple[str, str, str]]:
@@ -137,7 +158,7 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None
                  study_text: str | None = None, histogram_nodes: Sequence[Sequence[int]] | None = None,
                  experimental_csv=None, summary: Mapping | None = None, sensitivity: xr.Dataset | None = None,
                  sensitivity_maps: xr.Dataset | None = None, wall_time_s: float | None = None,
-                 replicates: int | None = None) -> Path:
+                 replicates: int | None = None, rare: Mapping | None = None) -> Path:
     """Write the figures of ensemble ``ds``'s report plan, ``summary.json`` and ``index.html``
     into ``out_dir``; returns the index.html path.
 
@@ -151,7 +172,9 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None
     ``summary``: extra headline items (name -> number/string) for the table and the JSON
     (under ``extra``). ``sensitivity`` / ``sensitivity_maps``: the QoI indices and
     node-shear index maps of a sensitivity run (``uqdrape.workflow.open_sensitivity``),
-    shown first. ``wall_time_s``: the run's wall time for the provenance line.
+    shown first. ``wall_time_s``: the run's wall time for the provenance line. ``rare``:
+    the run's rare-event record (``uqdrape.workflow.rare``), a headline row per force level
+    and ``rare`` in the JSON.
     """
     if REALIZATION not in ds.dims:
         raise ValueError(f"write_report needs an ensemble Dataset with a {REALIZATION!r} dim; dims: {dict(ds.sizes)}")
@@ -181,6 +204,8 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None
               "attrs": {k: _json_attr(v) for k, v in ds.attrs.items()},
               "figures": [item[0].name for item in sens_items + items if not isinstance(item, str)],
               "notes": [item for item in sens_items + items if isinstance(item, str)]}
+    if rare is not None:
+        record["rare"] = {k: v for k, v in rare.items() if k != "key"}
     if sensitivity is not None:
         record["sensitivity"] = {k: _json_attr(sensitivity.attrs[k])
                                  for k in ("method", "base_samples", "n_evaluations", "conf_level")}
@@ -190,7 +215,8 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None
     write_statistics(ds, node_stats, exceedance, out / STATISTICS_FILE, title)
 
     section = "" if sensitivity is None else _sensitivity_section(sensitivity, sens_items)
-    page = _page(record, ds, _rows(numbers, extra, dominant), items, study_text, summary_path.name, section)
+    rows = _rows(numbers, extra, dominant) + (rare_rows(rare) if rare is not None else [])
+    page = _page(record, ds, rows, items, study_text, summary_path.name, section)
     index = out / "index.html"
     write_text_atomic(index, page)
     return index

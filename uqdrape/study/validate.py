@@ -9,7 +9,11 @@ Sections and keys (units: mm, N, degrees)::
                    target = {qoi, statistic ("mean" | "probability"), half_width, confidence = 0.95}
                    and max_realizations (both or neither): run in rounds from ``realizations``
                    until the statistic's interval half-width is at most half_width at every
-                   force level, or max_realizations are drawn (uqdrape.workflow.target)
+                   force level, or max_realizations are drawn (uqdrape.workflow.target);
+                   rare = {qoi (RARE_QOIS), threshold, cov = 0.1, max_drapes = 20000}: P(qoi >= threshold)
+                   at every force level after the run, by importance sampling at the design point of
+                   subset levels (uqdrape.workflow.rare), in the report with its CoV and drapes;
+                   not with a [design] or a per-realisation sd (sd_dof)
     [geometry]     kind + that kind's shape parameters (see uqdrape.geometry.KINDS)
     [fabric]       material, spacing_mm, orientation_deg = 0, pre_shear_deg = 0, skew_deg = 0, crossover = [0, 0]
     [process]      blankholder_force_N (a number, or a list: a sweep), friction = 0.2, sectors,
@@ -93,8 +97,9 @@ from ..schema import (BLANKHOLDER_MODELS, MAX_RINGS, MAX_TOLERANCE_DEG, MODES, Q
                       SOLVER_INPUTS, SPACING_RANGE_MM)
 from ..material.scatter import card_scatter
 from .spec import (CARD, DESIGN_OBJECTIVES, DESIGN_STATISTICS, DESIGN_VARIABLES, DIST_KEYS, FACTOR_SETTINGS, FIELD_KEYS,
-                   FIELDS, SECTIONS, SENSITIVITY_METHODS, TARGET_STATISTICS, Design, Fabric, Geometry, Process,
-                   RandomField, Report, Sampling, Sensitivity, Solver, Study, Target, Uncertainty, prestrain_map)
+                   FIELDS, RARE_QOIS, SECTIONS, SENSITIVITY_METHODS, TARGET_STATISTICS, Design, Fabric, Geometry,
+                   Process, RandomField, Rare, Report, Sampling, Sensitivity, Solver, Study, Target, Uncertainty,
+                   prestrain_map)
 
 
 class StudyError(FileFormatError):
@@ -150,7 +155,7 @@ class _Source(Document):
 
 def _study(src: _Source, doc: dict) -> dict:
     t = Table(src, "study", doc.get("study", {}), ("name", "seed", "realizations", "chunk_size", "description",
-                                                    "target", "max_realizations"))
+                                                    "target", "max_realizations", "rare"))
     name = t.string("name", hint="name must be a non-empty string of letters, digits, '-' and '_'",
                     valid=_NAME_RE.match)
     head = {
@@ -167,6 +172,11 @@ def _study(src: _Source, doc: dict) -> dict:
     if t.has("target"):
         head["target"] = _target(t.table("target", ("qoi", "statistic", "half_width", "confidence")))
         head["max_realizations"] = t.number("max_realizations", integer=True, ge=head["realizations"])
+    if t.has("rare"):
+        r = t.table("rare", ("qoi", "threshold", "cov", "max_drapes"))
+        qoi = r.string("qoi", choices=RARE_QOIS)
+        head["rare"] = Rare(qoi, r.number("threshold"), r.number("cov", 0.1, gt=0, lt=1),
+                            r.number("max_drapes", 20_000, integer=True, ge=1000))
     return head
 
 
@@ -191,6 +201,17 @@ def _target_rules(src: _Source, head: dict, sampling: Sampling, sensitivity: Sen
         src.invalid("study.target", dataclasses.asdict(head["target"]),
                     'a [study] target is for a sample of the study (sensitivity method = "none", no [design]): '
                     'remove it')
+
+
+def _rare_rules(src: _Source, head: dict, uncertainty: Uncertainty, design) -> None:
+    """A rare probability is of the study's own inputs as standard normals: refuse it with
+    a [design] (whose force is what varies) or a sd drawn per realisation (no column)."""
+    if "rare" not in head:
+        return
+    if design is not None:
+        src.invalid("study.rare", dataclasses.asdict(head["rare"]),
+                    "a [study] rare probability is estimated for a study without [design]: remove it")
+    _fixed_sd(src, uncertainty, "a [study] rare probability")
 
 
 def _geometry_section(src: _Source, doc: dict):
@@ -656,6 +677,7 @@ def load_study(path) -> Study:
     sensitivity = _sensitivity(src, doc, uncertainty)
     design = _design(src, doc, process, uncertainty, sensitivity, head["realizations"])
     _target_rules(src, head, sampling, sensitivity, design)
+    _rare_rules(src, head, uncertainty, design)
     report = _report(src, doc, solver.rings)
     output_dir, float32 = _output(src, doc, head["name"])  # checked last, as the sections are ordered
     return Study(path=path, **head, geometry=geometry, fabric=fabric, process=process, solver=solver,

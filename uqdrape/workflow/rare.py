@@ -1,20 +1,43 @@
-"""A study's rare exceedance events as limit states in standard normal space, for
-``uqdrape.reliability``: P(QoI >= threshold) of a drape whose random inputs are the
-standard normals U.
+"""A study's rare exceedance probabilities: P(QoI >= threshold) of its drapes, as limit
+states in standard normal space for ``uqdrape.reliability``, and the estimates a
+``[study] rare`` asks for, kept in the run folder (``rare.json``) and shown in its report.
 
 U's columns are the study's design variables (``uqdrape.ensemble.design_variables``): a
 scalar factor's u = Phi(U) (then its own ``ppf``), a random field's truncated KL modes
 as they are (``kl_retained`` of its variance). A batch of rows is one batched drape.
+
+A ``[study] rare = {qoi, threshold, cov, max_drapes}`` is estimated after the run's
+sample, at every force level, by ``uqdrape.reliability.importance_sampling`` (importance
+sampling at the design point the subset levels give, or subset simulation again where
+no design point carries the probability) to CoV ``cov`` within ``max_drapes`` drapes,
+with the seed ``SeedSequence([study seed, RARE_STREAM, level])``. Its drapes are the
+estimator's own (their nets are not stored). A resumed run keeps ``rare.json`` if it was
+written for the same study and request.
 """
 
 from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import sys
+from pathlib import Path
 
 import numpy as np
 from scipy.special import ndtr
 
 from ..ensemble import design_variables, drape_inputs, inputs_from_design
+from ..files import write_text_atomic
 from ..material import load_material
+from ..reliability import importance_sampling
+from ..report import rare_rows
 from ..stats import realization_qois
+from ..study import identity, study_error
+
+#: The rare-event estimates of a run, in its output folder.
+RARE_FILE = "rare.json"
+#: The estimator's seeds are SeedSequence([study seed, RARE_STREAM, force level index]).
+RARE_STREAM = 29
 
 
 def drape_limit_state(study, qoi: str, threshold: float, force: float | None = None):
@@ -39,3 +62,50 @@ def drape_limit_state(study, qoi: str, threshold: float, force: float | None = N
         return threshold - values(U, k_max)[qoi].values
 
     return g, len(names)
+
+
+def rare_key(study) -> str:
+    """What a ``rare.json`` is of: a digest of the study's drapes (``identity``), its seed and
+    its ``[study] rare``."""
+    what = {"study": identity(study.to_dict()), "seed": study.seed, "rare": dataclasses.asdict(study.rare)}
+    return hashlib.sha256(json.dumps(what, sort_keys=True).encode()).hexdigest()
+
+
+def read_rare(study, output_dir) -> dict | None:
+    """The rare-event record in ``output_dir`` (``RARE_FILE``) if it is of ``study``'s
+    ``[study] rare`` (:func:`rare_key`), else None."""
+    path = Path(output_dir) / RARE_FILE
+    if study.rare is None or not path.is_file():
+        return None
+    record = json.loads(path.read_text(encoding="utf-8"))
+    return record if record.get("key") == rare_key(study) else None
+
+
+def rare_probabilities(study, output_dir, *, resume: bool = True, progress: bool = True) -> dict:
+    """Estimate the study's ``[study] rare`` at every force level (module docstring) and
+    write it to ``output_dir/rare.json``; a resumed run keeps a record of the same
+    :func:`rare_key`. Returns the record."""
+    spec, key = study.rare, rare_key(study)
+    kept = read_rare(study, output_dir) if resume else None
+    if kept is not None:
+        if progress:
+            print(f"{study.name}: rare probability already estimated in {output_dir}", file=sys.stderr)
+        return kept
+    levels = []
+    for level, force in enumerate(study.force_levels):
+        g, d = drape_limit_state(study, spec.qoi, spec.threshold, force)
+        seed = int(np.random.SeedSequence([study.seed, RARE_STREAM, level]).generate_state(1)[0])
+        try:
+            r = importance_sampling(g, d, seed=seed, cov=spec.cov, max_calls=spec.max_drapes)
+        except ValueError as e:  # no failure domain reached: say it of the study's request
+            raise study_error(study.path, "study.rare.threshold", spec.threshold,
+                              f"no drape at {force:g} N reached it ({e})") from None
+        levels.append({"force": force, "probability": r.probability, "cov": r.cov, "drapes": r.calls,
+                       "method": r.method, "beta": r.beta, "subset_probability": r.subset.probability,
+                       "subset_cov": r.subset.cov})
+    record = {"key": key, **dataclasses.asdict(spec), "variables": d, "levels": levels}
+    if progress:
+        for quantity, value, how in rare_rows(record):
+            print(f"{study.name}: {quantity} = {value} ({how})", file=sys.stderr)
+    write_text_atomic(Path(output_dir) / RARE_FILE, json.dumps(record, indent=2) + "\n")
+    return record

@@ -38,6 +38,7 @@ from ..sensitivity import map_indices, qoi_indices, study_design
 from ..stats import SENSITIVITY_QOIS, realization_qois
 from ..study import SENSITIVITY_METHODS, Study, from_dict, identity, load_study
 from .preflight import check_placement, check_resources, run_preflight
+from .rare import rare_probabilities, read_rare
 from .target import run_to_target
 
 #: Files a sensitivity run writes into its output folder.
@@ -84,8 +85,9 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
             return run_ensemble(sample, output_dir=out, scheduler=scheduler, workers=workers, chunk_size=chunk_size,
                                 resume=again, progress=progress, verbose=verbose,
                                 preflight=run_preflight(sample, out, chunk_size=chunk_size, quiet=not progress))
-        return run_to_target(study, run_round, chunk_size=chunk_size or study.chunk_size, resume=resume,
-                             progress=progress)
+        out = run_to_target(study, run_round, chunk_size=chunk_size or study.chunk_size, resume=resume,
+                            progress=progress)
+        return _rare(study, out, resume, progress)
     out = run_ensemble(study, design_rows=None if design is None else design.standard, output_dir=out,
                        provenance=provenance, attrs=attrs, scheduler=scheduler, workers=workers,
                        chunk_size=chunk_size, resume=resume, progress=progress, verbose=verbose,
@@ -100,6 +102,13 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
             print(f"{study.name}: analysing {design.method} indices of {design.n_evaluations} evaluations"
                   + (f" at {len(study.force_levels)} force levels" if study.is_sweep else ""), file=sys.stderr)
         write_sensitivity(out, design, qoi=study.sensitivity.qoi, seed=study.seed, progress=progress)
+    return _rare(study, out, resume, progress)
+
+
+def _rare(study, out: Path, resume: bool, progress: bool) -> Path:
+    """Estimate the study's ``[study] rare`` probability into the run folder ``out``, if it asks for one."""
+    if study.rare is not None:
+        rare_probabilities(study, out, resume=resume, progress=progress)
     return out
 
 
@@ -223,6 +232,7 @@ def run_report(output_dir, out_dir=None) -> Path | str:
                         experimental_csv=study.report.experimental_csv,
                         wall_time_s=manifest.get("wall_time_s"),
                         replicates=study.sampling.randomizations if study.sampling.plan == "rqmc" else None,
+                        rare=read_rare(from_dict(manifest["study"], Path(output_dir)), output_dir),
                         **({} if sensitivity is None else dict(zip(("sensitivity", "sensitivity_maps"), sensitivity))))
 
 
