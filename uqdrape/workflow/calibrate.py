@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -325,6 +326,7 @@ def calibrate_drapes(parts_csv, study_path, parameters, out, *, report=None, des
     posterior medians, validated where it is written), the sample beside it
     (``-posterior.nc``) and, with ``report`` (a folder), the calibration report. Returns
     the summary."""
+    clock = time.perf_counter()
     out = Path(out)
     if out.suffix.lower() != ".toml":
         raise ValueError(f"--out must name the calibrated study to write, a .toml path; got {str(out)!r}")
@@ -358,7 +360,7 @@ def calibrate_drapes(parts_csv, study_path, parameters, out, *, report=None, des
     writers = {out: write_study, sample: lambda tmp: posterior_dataset(cal, lower, upper).to_netcdf(tmp)}
     page = None
     if report is not None:
-        page = _drape_report(cal, lower, upper, fraction, Path(report), text)
+        page = _drape_report(cal, lower, upper, fraction, Path(report), text, time.perf_counter() - clock)
     write_all(writers)
     text = [f"wrote {out} and {sample}: {len(parts)} part(s), {len(cal.runs.points)} design points x "
             f"{cal.runs.shear.shape[1] // 2} drapes"]
@@ -394,7 +396,8 @@ def posterior_dataset(cal: DrapeCalibration, lower, upper) -> xr.Dataset:
         attrs={"level": cal.level, "acceptance": cal.posterior.acceptance, "sampler_seconds": cal.posterior.seconds})
 
 
-def _drape_report(cal: DrapeCalibration, lower, upper, fraction: float, folder: Path, written: str) -> Path:
+def _drape_report(cal: DrapeCalibration, lower, upper, fraction: float, folder: Path, written: str,
+                  seconds: float) -> Path:
     """The calibration report of a calibration from measured drapes (``report.calibration``)."""
     from ..calibration.figure import plot_drape_posterior, plot_drape_predictive
     from ..report.calibration import calibration_page
@@ -404,8 +407,7 @@ def _drape_report(cal: DrapeCalibration, lower, upper, fraction: float, folder: 
     posterior = plot_drape_posterior(cal.posterior.samples, data["prior_lower"].values, data["prior_upper"].values,
                                      cal.level, folder / "posterior.png")
     check = plot_drape_predictive(cal.distance_mm, cal.quadrant_sign, data["measured"].values, lower, upper,
-                                  data["design_mean"].values, cal.level, list(data["part"].values),
-                                  folder / "predictive.png")
+                                  cal.level, list(data["part"].values), folder / "predictive.png")
     rows = [("measured parts", ", ".join(str(p) for p in data["part"].values)),
             ("distinct measured points", str(len(cal.distance_mm))),
             ("measurement sd", f"{cal.likelihood.parts.measurement_sd:g} deg"),
@@ -418,14 +420,15 @@ def _drape_report(cal: DrapeCalibration, lower, upper, fraction: float, folder: 
     figures = [(posterior, f"Posterior of {', '.join(p.key for p in cal.params)}: marginals with median and "
                            f"{level:g} % interval, pairs below"),
                (check, f"Measured shear against the {level:g} % posterior-predictive band of a new part")]
-    return calibration_page(folder, "Calibration from measured drapes", rows, figures, written, cal.unidentified())
+    return calibration_page(folder, "Calibration from measured drapes", rows, figures, written, cal.unidentified(),
+                            seconds=seconds)
 
 
 def _points_report(calibration, folder: Path, written: str) -> Path:
     """The calibration report of measured fibre angles (``report.calibration``): the
     calibration figure (points, fitted field, leave-one-out predictive check, profiles)
     and, if sampled, the posterior."""
-    from ..calibration.figure import plot_calibration, plot_drape_posterior
+    from ..calibration.figure import loo_check, plot_calibration, plot_drape_posterior
     from ..calibration.posterior import prior_box
     from ..report.calibration import calibration_page
 
@@ -438,6 +441,9 @@ def _points_report(calibration, folder: Path, written: str) -> Path:
             ("family", f"{fit.family} (least {fit.criterion.upper()})"),
             *[(name, f"{e.value:.4g} [{e.lower:.4g}, {e.upper:.4g}] ({level:g} % profile)")
               for name, e in fit.estimates.items() if name != "nugget_deg"]]
+    inside = loo_check(calibration)[2]
+    rows.append(("predictive check", f"{inside.sum()} of {inside.size} points ({100 * inside.mean():.0f} %) inside the "
+                                     f"{level:g} % band predicted from the others"))
     if post is not None:
         box = prior_box(fit)
         logs = {name: np.log10(draws) for name, draws in post.samples.items()}
@@ -445,7 +451,7 @@ def _points_report(calibration, folder: Path, written: str) -> Path:
                                              [np.log10(box[n][0]) for n in logs], [np.log10(box[n][1]) for n in logs],
                                              fit.level, folder / "posterior.png"),
                         "Posterior (emcee) of the field's parameters, log10 on the prior's whole box"))
-        rows += [(name, f"[{lo:.4g}, {hi:.4g}] ({level:g} % posterior)")
+        rows += [(f"{name}, posterior", f"[{lo:.4g}, {hi:.4g}] ({level:g} %)")
                  for name in post.samples for lo, hi in [post.interval(name, fit.level)]]
     return calibration_page(folder, "Fibre-angle calibration", rows, figures, written, unidentified(calibration),
                             seconds=None if post is None else post.seconds)
