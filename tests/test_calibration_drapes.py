@@ -121,3 +121,22 @@ def test_a_part_measured_twice_at_one_point_is_refused(tmp_path, capsys):
     assert main(["calibrate", "--drapes", str(part), "--study", str(study), "--parameter", f"{SD_KEY}=1:4",
                  "--out", str(tmp_path / "c.toml")]) == 2
     assert_one_line_error(capsys.readouterr().err, file="twice.csv", valid=["measured twice"])
+
+
+def test_a_calibrated_study_that_would_not_find_its_files_is_refused_before_any_drape(tmp_path, capsys):
+    """A study naming its card relative to itself, --out in another folder: one line, no drape, no file."""
+    from pathlib import Path
+
+    import uqdrape.material
+
+    (tmp_path / "cards").mkdir()
+    card = Path(uqdrape.material.__file__).parent / "cards" / "ebxhd936_like.toml"
+    (tmp_path / "cards" / "my.toml").write_text(card.read_text())
+    study = write_study(tmp_path, **{**SMALL, "fabric": {"material": "cards/my.toml"}})
+    part = tmp_path / "p.csv"
+    part.write_text("distance_mm,shear_deg,quadrant_sign\n10,1.2,1\n")
+    out = tmp_path / "elsewhere" / "c.toml"
+    assert main(["calibrate", "--drapes", str(part), "--study", str(study), "--parameter", f"{SD_KEY}=1:4",
+                 "--out", str(out)]) == 2
+    assert_one_line_error(capsys.readouterr().err, key="fabric.material", valid=["write it beside", "tiny.toml"])
+    assert list((tmp_path / "elsewhere").iterdir()) == []

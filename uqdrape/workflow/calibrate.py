@@ -1,5 +1,7 @@
 """``uqdrape calibrate``: measured fibre angles -> a calibrated ``[uncertainty.zero_angle]``
-block (and its figure)."""
+block (its figure and report); measured drapes -> the posterior of chosen study parameters
+and the study at its medians (the design's ensembles draped here, on the ensemble engine's
+schedulers; the emulator and likelihood in ``uqdrape.calibration.drapes``)."""
 
 from __future__ import annotations
 
@@ -24,7 +26,7 @@ from ..calibration.emulator import Emulator, design_points
 from ..calibration.fit import Estimate
 from ..ensemble import Progress, compute_tasks, drape_inputs, reach_scheduler, sampled_inputs
 from ..experimental import ExperimentalPoints, read_experimental
-from ..files import is_number, read_toml, toml_text, write_all, write_text_atomic
+from ..files import is_number, read_text, read_toml, toml_text, write_all, write_atomic, write_text_atomic
 from ..schema import FORCE
 from ..stats import shear_at_points
 from ..study import load_study
@@ -299,7 +301,7 @@ def _calibrated_study(study_path, cal: DrapeCalibration, command: str, fraction:
         lines.append(f"  {p.key} = {value:.4g}  [{lo:.4g}, {hi:.4g}]  prior [{p.lower:g}, {p.upper:g}]  "
                      f"autocorrelation {post.autocorrelation[p.key]:.0f} steps")
         if p.key == "uncertainty.zero_angle.sd_deg":
-            m = sd_dof(Estimate(value, lo, hi), cal.level) if not any(p.key in u for u in cal.unidentified()) else None
+            m = None if post.at_bounds(p.key, p.lower, p.upper) else sd_dof(Estimate(value, lo, hi), cal.level)
             if m is not None:
                 overrides["uncertainty.zero_angle.sd_dof"] = float(f"{m:.4g}")
                 lines.append(f"  sd_dof = {m:.4g}: the sd's interval as a scaled-inverse-chi-square one "
@@ -333,6 +335,7 @@ def calibrate_drapes(parts_csv, study_path, parameters, out, *, report=None, des
     study = load_study(study_path)
     params = parse_parameters(parameters, study)
     parts = [read_experimental(p) for p in parts_csv]
+    write_atomic(out, lambda tmp: _valid_at(tmp, read_text(study_path, "study file"), out, study_path) and False)
     force_free = "process.blankholder_force_N" not in {p.key for p in params}
     for p in parts:
         forces = p.blankholder_force_N[np.isfinite(p.blankholder_force_N)]
@@ -349,12 +352,7 @@ def calibrate_drapes(parts_csv, study_path, parameters, out, *, report=None, des
     text = toml_text(doc, comments)
 
     def write_study(tmp):
-        tmp.write_text(text, encoding="utf-8")
-        try:
-            load_study(tmp)
-        except ValueError as err:
-            raise ValueError(f"--out {out}: the calibrated study does not validate there (a study names its files "
-                             f"relative to itself: write it beside {study_path}): {err}") from None
+        _valid_at(tmp, text, out, study_path)
 
     sample = out.with_name(out.stem + "-posterior.nc")
     writers = {out: write_study, sample: lambda tmp: posterior_dataset(cal, lower, upper).to_netcdf(tmp)}
@@ -370,6 +368,18 @@ def calibrate_drapes(parts_csv, study_path, parameters, out, *, report=None, des
     text.append(f"posterior-predictive check: {100 * fraction:.0f} % of the measured points inside the "
                 f"{100 * level:g} % band")
     return "\n".join(text + ([f"wrote {page}"] if page else []))
+
+
+def _valid_at(tmp: Path, text: str, out: Path, study_path) -> bool:
+    """Write the study ``text`` to ``tmp`` (beside ``out``) and validate it there: a study
+    names its files relative to itself, so one written elsewhere may not find them."""
+    tmp.write_text(text, encoding="utf-8")
+    try:
+        load_study(tmp)
+    except ValueError as err:
+        raise ValueError(f"--out {out}: a study written there does not validate (it names its files relative to "
+                         f"itself: write it beside {study_path}): {err}") from None
+    return True
 
 
 def posterior_dataset(cal: DrapeCalibration, lower, upper) -> xr.Dataset:
