@@ -256,7 +256,7 @@ def calibrate_parts(study_path, parts, params, *, design: int | None = None, rea
         study_at(study_path, dict(zip(keys, corner)))
     points = design_points(lower, upper, n, study.seed)
     runs = None
-    for round_ in range(2):
+    for _ in range(2):
         studies = [study_at(study_path, dict(zip(keys, x)), study.seed + 1 + k + (0 if runs is None else len(runs.points)),
                             r) for k, x in enumerate(points)]
         shear = np.stack(_drape_batches(studies, r, distance, sign, scheduler=scheduler, workers=workers,
