@@ -102,6 +102,7 @@ def test_calibrate_drapes_command_writes_the_study_the_sample_and_the_report(tmp
     (["--parameter", f"{SD_KEY}=5:1"], SD_KEY, "LOW < HIGH"),
     (["--parameter", f"{SD_KEY}=-1:4"], SD_KEY, "sd_deg"),
     ([], None, "--parameter KEY=LOW:HIGH"),
+    (["--parameter", f"{SD_KEY}=1:4", "--posterior"], None, "--posterior belong(s) to a calibration from POINTS"),
 ])
 def test_calibrate_drapes_bad_parameters_are_one_line(tmp_path, capsys, args, key, valid):
     study = write_study(tmp_path, **SMALL)

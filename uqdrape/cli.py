@@ -187,6 +187,11 @@ def cmd_calibrate(args) -> int:
         raise ValueError("give either POINTS (measured fibre angles or an image) or --drapes PART.csv ... "
                          "with --study and --parameter")
     if args.drapes is not None:
+        points_only = [flag for flag, given in (("--plot", args.plot), ("--posterior", args.posterior),
+                                                ("--mm-per-px", args.mm_per_px is not None)) if given]
+        if points_only:
+            raise ValueError(f"{', '.join(points_only)} belong(s) to a calibration from POINTS, not --drapes "
+                             "(which always samples its posterior and writes its figures with --report)")
         if args.study is None:
             raise ValueError("--drapes needs --study STUDY.toml, the study whose parameters are calibrated")
         print(calibrate_drapes(args.drapes, args.study, args.parameter or [], args.out, report=args.report,
