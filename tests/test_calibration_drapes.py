@@ -3,10 +3,13 @@ the truth recovery on synthetic parts made by uqdrape, the command and its error
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import xarray as xr
 
+import uqdrape.material
 from conftest import assert_one_line_error, write_study
 from uqdrape.calibration.emulator import Emulator, design_points
 from uqdrape.cli import main
@@ -126,10 +129,6 @@ def test_a_part_measured_twice_at_one_point_is_refused(tmp_path, capsys):
 
 def test_a_calibrated_study_that_would_not_find_its_files_is_refused_before_any_drape(tmp_path, capsys):
     """A study naming its card relative to itself, --out in another folder: one line, no drape, no file."""
-    from pathlib import Path
-
-    import uqdrape.material
-
     (tmp_path / "cards").mkdir()
     card = Path(uqdrape.material.__file__).parent / "cards" / "ebxhd936_like.toml"
     (tmp_path / "cards" / "my.toml").write_text(card.read_text())
