@@ -96,14 +96,21 @@ def _field(fig, ax, calibration, lim):
     ax.set(title=f"fitted field (conditional mean)\n{note}", xlabel="x (mm)", ylabel="y (mm)", aspect="equal")
 
 
+def loo_check(calibration) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The predictive check of measured points: each point's γ0 predicted from all the
+    others (deg), the half-width of its ``level`` band (deg) and whether it lies inside."""
+    fit = calibration.fit
+    pred, sd = fit.likelihood.leave_one_out(fit.chosen.theta)
+    half = scipy.stats.norm.ppf(0.5 + fit.level / 2) * sd
+    return pred, half, np.abs(calibration.gamma0_deg - pred) <= half
+
+
 def _loo(ax, calibration):
     """Each point against its prediction from all the others, with the predictive band."""
     fit = calibration.fit
     y = calibration.gamma0_deg
-    pred, sd = fit.likelihood.leave_one_out(fit.chosen.theta)
-    z = scipy.stats.norm.ppf(0.5 + fit.level / 2)
-    inside = np.abs(y - pred) <= z * sd
-    ax.errorbar(pred, y, xerr=z * sd, fmt="none", ecolor="0.7", lw=0.8)
+    pred, half, inside = loo_check(calibration)
+    ax.errorbar(pred, y, xerr=half, fmt="none", ecolor="0.7", lw=0.8)
     ax.scatter(pred[inside], y[inside], s=12, c="C0", label="inside")
     ax.scatter(pred[~inside], y[~inside], s=14, c="C3", label="outside")
     span = [min(y.min(), pred.min()), max(y.max(), pred.max())]
@@ -158,3 +165,64 @@ def _criteria(ax, fit):
     ax.set_xticks(range(len(names)), [n.replace("_", "\n") for n in names], fontsize=8)
     ax.set(title=f"{fit.criterion.upper()} − least of the families",
            ylabel=f"Δ{fit.criterion.upper()}")
+
+
+def plot_drape_posterior(samples: dict, lower, upper, level: float, path) -> Path:
+    """A corner plot of a drape calibration's posterior ``samples`` (name -> draws) in the
+    prior box [lower, upper]: each marginal with its median and ``level`` interval, each
+    pair's draws."""
+    names = list(samples)
+    d = len(names)
+    fig = _figure(3.6 * d + 1.0, 3.2 * d + 0.6)
+    axes = np.atleast_2d(fig.subplots(d, d, squeeze=False))
+    alpha = 1.0 - level
+    for i, row in enumerate(names):
+        for j, col in enumerate(names):
+            ax = axes[i, j]
+            if j > i:
+                ax.set_visible(False)
+                continue
+            if i == j:
+                x = samples[row]
+                lo, mid, hi = np.quantile(x, [alpha / 2, 0.5, 1 - alpha / 2])
+                ax.hist(x, bins=40, range=(lower[i], upper[i]), density=True, color="0.75", edgecolor="k", lw=0.3)
+                ax.axvspan(lo, hi, color="C0", alpha=0.15)
+                ax.axvline(mid, color="C0")
+                ax.set(xlim=(lower[i], upper[i]), yticks=[],
+                       title=f"{row}\n{mid:.3g} [{lo:.3g}, {hi:.3g}] ({100 * level:g} %)")
+            else:
+                ax.plot(samples[col], samples[row], ",", color="C0", alpha=0.3)
+                ax.set(xlim=(lower[j], upper[j]), ylim=(lower[i], upper[i]))
+                if j == 0:
+                    ax.set_ylabel(row, fontsize=8)
+            if i == d - 1:
+                ax.set_xlabel(col, fontsize=8)
+    fig.suptitle("Posterior of the calibrated parameters (uniform prior on the axes' box)")
+    return write_atomic(Path(path), lambda tmp: fig.savefig(tmp, dpi=100, format="png"))
+
+
+def plot_drape_predictive(distance, sign, measured, lower, upper, level: float, parts, path) -> Path:
+    """The posterior-predictive check of a drape calibration: at each measured point (by
+    distance, mm; one panel per quadrant sign) the ``level`` band (lower, upper; deg) of a
+    new part's shear and the parts' ``measured`` shears (part, point; NaN where not
+    measured), both less the band's centre so that a band of 0.1 deg shows beside a
+    shear of 15."""
+    fig = _figure(13.0, 4.8)
+    centre = 0.5 * (lower + upper)
+    inside = (measured >= lower) & (measured <= upper)
+    counted = np.isfinite(measured)
+    for ax, s, text in zip(fig.subplots(1, 2), (1.0, -1.0), ("+ quadrants (i·j > 0)", "− quadrants (i·j < 0)")):
+        at = np.flatnonzero(sign == s)
+        order = at[np.argsort(distance[at])]
+        ax.fill_between(distance[order], (lower - centre)[order], (upper - centre)[order], color="C0", alpha=0.25,
+                        label=f"{100 * level:g} % posterior-predictive band")
+        for j, name in enumerate(parts):
+            ax.plot(distance[order], (measured[j] - centre)[order], "o", ms=5, mfc="none", color=f"C{1 + j % 9}",
+                    label=name if j < 8 else None)
+        n_in, n = int(inside[:, at].sum()), int(counted[:, at].sum())
+        ax.set(title=f"{text}: {n_in} of {n} measured points inside", xlabel="distance from the crossover (mm)",
+               ylabel="shear − the band's centre (deg)")
+        ax.legend(fontsize=7)
+    fig.suptitle(f"Posterior-predictive check: {int(inside.sum())} of {int(counted.sum())} measured points "
+                 f"({100 * inside.sum() / counted.sum():.0f} %) inside the {100 * level:g} % band")
+    return write_atomic(Path(path), lambda tmp: fig.savefig(tmp, dpi=100, format="png"))

@@ -655,11 +655,21 @@ def _output(src: _Source, doc: dict, name: str) -> tuple[Path, bool]:
 # ----------------------------------------------------------------------------- public API
 
 
-def load_study(path) -> Study:
-    """Read and validate a study file; raises StudyError (first problem found)."""
+def load_study(path, overrides: dict | None = None) -> Study:
+    """Read and validate a study file; raises StudyError (first problem found).
+    ``overrides`` maps dotted keys ("process.friction") to values set in the file's
+    document first, so each is checked as if the file held it (a calibration's design)."""
     path = Path(path)
     src = _Source(path)
     doc = src.read()
+    for key, value in (overrides or {}).items():
+        *tables, leaf = key.split(".")
+        table = doc
+        for name in tables:
+            table = table.setdefault(name, {})
+            if not isinstance(table, dict):
+                src.fail(f"{name} in {key} is not a table", key)
+        table[leaf] = value
     for key, value in doc.items():
         if key not in SECTIONS:
             what = f"section [{key}]" if isinstance(value, dict) else f"top-level key {key} (outside any section)"

@@ -22,19 +22,23 @@ same worker pool as an ensemble.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import hashlib
 import json
 import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import xarray as xr
 
 from ..design import DESIGN_FILE, Evaluator, drape_design, optimise, problem, result_dataset
 from ..ensemble import (Progress, design_variables, is_url, local_pool, made_from, open_ensemble, read_dataset,
                         read_manifest, reach_scheduler, run_ensemble, run_lock, run_name, store_lock, write_dataset)
+from ..ensemble.inputs import realization_sd_deg
 from ..report import write_design_report, write_report
 from ..sensitivity import map_indices, qoi_indices, study_design
+from ..schema import REALIZATION
 from ..stats import SENSITIVITY_QOIS, realization_qois
 from ..study import SENSITIVITY_METHODS, Study, from_dict, identity, load_study
 from .preflight import check_placement, check_resources, run_preflight
@@ -226,7 +230,7 @@ def run_report(output_dir, out_dir=None) -> Path | str:
     ds.attrs.update({f"target_{k}": v for k, v in target.items() if k not in ("forces", "rounds")})
     if target:
         ds.attrs["target_rounds"] = [r["realizations"] for r in target["rounds"]]
-    return write_report(ds, report, title=study.name,
+    return write_report(ds, report, title=study.name, summary=hierarchical_summary(study, ds[REALIZATION].values),
                         description=study.description or None, study_text=ds.attrs.get("study_toml"),
                         histogram_nodes=list(study.report.histogram_nodes) or None,
                         experimental_csv=study.report.experimental_csv,
@@ -234,6 +238,26 @@ def run_report(output_dir, out_dir=None) -> Path | str:
                         replicates=study.sampling.randomizations if study.sampling.plan == "rqmc" else None,
                         rare=read_rare(from_dict(manifest["study"], Path(output_dir)), output_dir),
                         **({} if sensitivity is None else dict(zip(("sensitivity", "sensitivity_maps"), sensitivity))))
+
+
+def hierarchical_summary(study, realizations) -> dict | None:
+    """The report's statement of how much of a hierarchical ensemble's scatter is the
+    measurement's: this run's drawn zero-angle sds (``[uncertainty.zero_angle] sd_dof``)
+    against the estimate. A response linear in the sd (a small zero-angle scatter) has its
+    sd wider than the fixed-sd run's by rms(sd_r) / sd - 1, and 1 - sd² / mean(sd_r²) of
+    its variance comes from the sd's estimation uncertainty, the rest from the fabric."""
+    field = study.uncertainty.fields.get("zero_angle")
+    if field is None or field.sd_dof is None:
+        return None
+    sd = field.params["sd_deg"]
+    r = np.asarray(realizations, dtype=int)
+    drawn = realization_sd_deg(dataclasses.replace(study, realizations=max(study.realizations, int(r.max()) + 1)), r)
+    rms = float(np.sqrt(np.mean(drawn ** 2)))
+    return {"zero-angle sd drawn per realisation": f"sd_dof {field.sd_dof:g}: rms {rms:.4g} deg against the "
+            f"estimate {sd:.4g} deg",
+            "limits wider than a fixed sd's (a response linear in the sd)": f"{100 * (rms / sd - 1):.1f} %",
+            "share of the variance from the small measurement": f"{100 * (1 - sd ** 2 / rms ** 2):.1f} % "
+            "(the rest: the fabric)"}
 
 
 def run_outcome(out: Path) -> str:
