@@ -64,6 +64,29 @@ def drape_limit_state(study, qoi: str, threshold: float, force: float | None = N
     return g, len(names)
 
 
+def estimate(study, spec, seed: int, force: float, key: str) -> tuple[dict, int]:
+    """({probability, cov, drapes, method, beta, subset_probability, subset_cov}, standard
+    variables) of P(``spec.qoi`` >= ``spec.threshold``) of ``study``'s drapes at ``force``
+    (N) by ``importance_sampling`` to CoV ``spec.cov`` within ``spec.max_drapes`` drapes,
+    with ``seed``; a threshold no drape reaches is the study's error at ``key``."""
+    g, d = drape_limit_state(study, spec.qoi, spec.threshold, force)
+    try:
+        r = importance_sampling(g, d, seed=seed, cov=spec.cov, max_calls=spec.max_drapes)
+    except ValueError as e:  # no failure domain reached: say it of the study's request
+        raise study_error(study.path, key, spec.threshold, f"no drape at {force:g} N reached it ({e})") from None
+    return {"probability": r.probability, "cov": r.cov, "drapes": r.calls, "method": r.method, "beta": r.beta,
+            "subset_probability": r.subset.probability, "subset_cov": r.subset.cov}, d
+
+
+def design_rare(variant) -> dict:
+    """The ``[design] rare`` estimate of one candidate design (``variant``: the study with
+    the candidate's force, sectors and friction, and the seed of its sample): :func:`estimate`
+    with the seed ``SeedSequence([sample seed, RARE_STREAM])``, the same for every candidate
+    of a sample (common random numbers, as its drapes), so a resumed design is bitwise the same."""
+    seed = int(np.random.SeedSequence([variant.seed, RARE_STREAM]).generate_state(1)[0])
+    return estimate(variant, variant.design.rare, seed, variant.force_levels[0], "design.rare.threshold")[0]
+
+
 def rare_key(study) -> str:
     """What a ``rare.json`` is of: a digest of the study's drapes (``identity``), its seed and
     its ``[study] rare``."""
@@ -93,16 +116,9 @@ def rare_probabilities(study, output_dir, *, resume: bool = True, progress: bool
         return kept
     levels = []
     for level, force in enumerate(study.force_levels):
-        g, d = drape_limit_state(study, spec.qoi, spec.threshold, force)
         seed = int(np.random.SeedSequence([study.seed, RARE_STREAM, level]).generate_state(1)[0])
-        try:
-            r = importance_sampling(g, d, seed=seed, cov=spec.cov, max_calls=spec.max_drapes)
-        except ValueError as e:  # no failure domain reached: say it of the study's request
-            raise study_error(study.path, "study.rare.threshold", spec.threshold,
-                              f"no drape at {force:g} N reached it ({e})") from None
-        levels.append({"force": force, "probability": r.probability, "cov": r.cov, "drapes": r.calls,
-                       "method": r.method, "beta": r.beta, "subset_probability": r.subset.probability,
-                       "subset_cov": r.subset.cov})
+        entry, d = estimate(study, spec, seed, force, "study.rare.threshold")
+        levels.append({"force": force, **entry})
     record = {"key": key, **dataclasses.asdict(spec), "variables": d, "levels": levels}
     if progress:
         for quantity, value, how in rare_rows(record):
