@@ -57,7 +57,9 @@ def _statistic_panel(ax, ds: xr.Dataset, name: str, validation_key: str):
                     elinewidth=0.8, label=f"each design: estimate, {c:.0%} limits")
     broken = d["feasible"].values[order] == 0
     if broken.any():
-        ax.plot(F[broken], est[broken], "x", color="0.3", ms=7, mew=1.5, label="breaks the draw-in limit")
+        limits = [what for what, key in (("the draw-in limit", "max_draw_in_mm"), ("the rare constraint", "rare"))
+                  if ds.attrs.get(key, "none") != "none"]
+        ax.plot(F[broken], est[broken], "x", color="0.3", ms=7, mew=1.5, label=f"breaks {' or '.join(limits)}")
     n = _n_forces(ds)
     for role, colour, marker, size in (("baseline", "tab:red", "s", 6), ("uniform", "tab:orange", "o", 6),
                                        ("optimum", "tab:green", "D", 10)):
@@ -205,8 +207,8 @@ def _rare_limit(ds: xr.Dataset) -> str:
         return "none"
     r = json.loads(ds.attrs["rare"])
     return (f"P({r['qoi']} >= {r['threshold']:g}) <= {r['max_probability']:g} on the {ds.attrs['statistic']}, "
-            f"estimated per design to CoV {r['cov']:g} within {r['max_drapes']:,} drapes (importance sampling at "
-            "the design point of subset levels)")
+            f"estimated per design to CoV {r['cov']:g} within {r['max_drapes']:,} drapes as a [study] rare is "
+            "(importance sampling at the design point of subset levels, or subset simulation; method per design below)")
 
 
 def _rare_table(ds: xr.Dataset) -> str:
@@ -215,7 +217,7 @@ def _rare_table(ds: xr.Dataset) -> str:
         return ""
     head = ("sample", "total force (N)", "P", "limits", "CoV", "drapes", "method", "feasible")
     rows = [(str(ds["sample"].values[e]), f"{ds['total_force'].values[e]:.1f}",
-             f"{ds['rare_probability'].values[e]:.3g}",
+             ("< " if ds["rare_method"].values[e] == "below" else "") + f"{ds['rare_probability'].values[e]:.3g}",
              f"[{ds['rare_lower'].values[e]:.3g}, {ds['rare_upper'].values[e]:.3g}]",
              f"{ds['rare_cov'].values[e]:.3f}", f"{int(ds['rare_drapes'].values[e]):,}",
              str(ds["rare_method"].values[e]), "yes" if ds["feasible"].values[e] else "no")
