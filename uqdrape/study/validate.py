@@ -217,7 +217,8 @@ def _rare_rules(src: _Source, head: dict, uncertainty: Uncertainty, design) -> N
         return
     if design is not None:
         src.invalid("study.rare", dataclasses.asdict(head["rare"]),
-                    "a [study] rare probability is estimated for a study without [design]: remove it")
+                    "a [study] rare probability is estimated for a study without [design]: remove it (a "
+                    "design takes one as its constraint: [design] rare)")
     _fixed_sd(src, uncertainty, "a [study] rare probability")
 
 

@@ -69,11 +69,11 @@ def drape_limit_state(study, qoi: str, threshold: float, force: float | None = N
     return g, len(names)
 
 
-def estimate(study, spec, seed: int, force: float, key: str, *, below: float | None = None) -> tuple[dict, int]:
+def estimate(study, spec, seed: int, force: float, *, below: float | None = None) -> tuple[dict, int]:
     """({probability, cov, drapes, method, beta, subset_probability, subset_cov}, standard
     variables) of P(``spec.qoi`` >= ``spec.threshold``) of ``study``'s drapes at ``force``
     (N) by ``importance_sampling`` to CoV ``spec.cov`` within ``spec.max_drapes`` drapes,
-    with ``seed``. A threshold no drape reaches is the study's error at ``key``; with
+    with ``seed``. A threshold no drape reaches is the study's error (``study.rare``); with
     ``below``, the subset levels stop at the first level of P under it (p0 = 0.1 each), and
     reaching no failure there is the record ``method = "below"``, ``probability`` that level
     (P is below it; cov 0)."""
@@ -92,7 +92,7 @@ def estimate(study, spec, seed: int, force: float, key: str, *, below: float | N
         if below is not None:
             return {"probability": P0**levels, "cov": 0.0, "drapes": sum(drapes), "method": "below",
                     "beta": math.nan, "subset_probability": math.nan, "subset_cov": math.nan}, d
-        raise study_error(study.path, key, spec.threshold, f"no drape at {force:g} N reached it ({e})") from None
+        raise study_error(study.path, "study.rare.threshold", spec.threshold, f"no drape at {force:g} N reached it ({e})") from None
     return {"probability": r.probability, "cov": r.cov, "drapes": r.calls, "method": r.method, "beta": r.beta,
             "subset_probability": r.subset.probability, "subset_cov": r.subset.cov}, d
 
@@ -106,8 +106,7 @@ def design_rare(variant) -> dict:
     whatever its P, and is not estimated further (``method = "below"``)."""
     spec = variant.design.rare
     seed = int(np.random.SeedSequence([variant.seed, RARE_STREAM]).generate_state(1)[0])
-    return estimate(variant, spec, seed, variant.force_levels[0], "design.rare.threshold",
-                    below=BELOW * spec.max_probability)[0]
+    return estimate(variant, spec, seed, variant.force_levels[0], below=BELOW * spec.max_probability)[0]
 
 
 def rare_key(study) -> str:
@@ -140,7 +139,7 @@ def rare_probabilities(study, output_dir, *, resume: bool = True, progress: bool
     levels = []
     for level, force in enumerate(study.force_levels):
         seed = int(np.random.SeedSequence([study.seed, RARE_STREAM, level]).generate_state(1)[0])
-        entry, d = estimate(study, spec, seed, force, "study.rare.threshold")
+        entry, d = estimate(study, spec, seed, force)
         levels.append({"force": force, **entry})
     record = {"key": key, **dataclasses.asdict(spec), "variables": d, "levels": levels}
     if progress:
