@@ -8,6 +8,8 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import sys
+
 import dask
 import numpy as np
 import xarray as xr
@@ -158,9 +160,14 @@ class Evaluator:
             record = _merge([p for p, owner in zip(parts, owners) if owner == key])
             record.attrs.update(sample=sample, seed=study.seed, x=list(x), names=list(self.prob.names))
             if self.rare is not None:
+                force = self.prob.settings(x)[0]
                 estimate = self.rare(variant(study, *self.prob.settings(x)))
                 record.attrs.update({f"rare_{k}": v for k, v in estimate.items()})
                 self.drapes += estimate["drapes"]
+                if self.progress:
+                    print(f"{study.name}: rare estimate at {force:.1f} N ({sample}): P = {estimate['probability']:.3g}"
+                          f" (CoV {estimate['cov']:.2f}, {estimate['drapes']:,} drapes, {estimate['method']})",
+                          file=sys.stderr)
             if self.folder is not None:
                 write_dataset(self.folder, f"{EVALUATIONS}/{key}.nc", record)
             self.records[key] = record

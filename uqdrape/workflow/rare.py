@@ -92,7 +92,8 @@ def estimate(study, spec, seed: int, force: float, *, below: float | None = None
         if below is not None:
             return {"probability": P0**levels, "cov": 0.0, "drapes": sum(drapes), "method": "below",
                     "beta": math.nan, "subset_probability": math.nan, "subset_cov": math.nan}, d
-        raise study_error(study.path, "study.rare.threshold", spec.threshold, f"no drape at {force:g} N reached it ({e})") from None
+        raise study_error(study.path, "study.rare.threshold", spec.threshold,
+                          f"no drape at {force:g} N reached it ({e})") from None
     return {"probability": r.probability, "cov": r.cov, "drapes": r.calls, "method": r.method, "beta": r.beta,
             "subset_probability": r.subset.probability, "subset_cov": r.subset.cov}, d
 
