@@ -124,7 +124,7 @@ def test_a_threshold_no_drape_reaches_is_one_line(tmp_path, capsys, monkeypatch)
     # subset simulation's 30 levels cut to 2: the line shear never reaches 80 deg on this dome
     import uqdrape.workflow.rare as rare
     real = rare.importance_sampling
-    monkeypatch.setattr(rare, "importance_sampling", lambda *a, **k: real(*a, **k, max_levels=2))
+    monkeypatch.setattr(rare, "importance_sampling", lambda *a, **k: real(*a, **{**k, "max_levels": 2}))
     path = rare_file(tmp_path, {**RARE, "threshold": 80.0})
     assert main(["run", str(path), "--scheduler", "synchronous", "--no-report", "-q"]) == 2
     assert_one_line_error(capsys.readouterr().err, file=path, key="study.rare.threshold", value="80.0",

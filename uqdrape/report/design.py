@@ -57,7 +57,9 @@ def _statistic_panel(ax, ds: xr.Dataset, name: str, validation_key: str):
                     elinewidth=0.8, label=f"each design: estimate, {c:.0%} limits")
     broken = d["feasible"].values[order] == 0
     if broken.any():
-        ax.plot(F[broken], est[broken], "x", color="0.3", ms=7, mew=1.5, label="breaks the draw-in limit")
+        limits = [what for what, key in (("the draw-in limit", "max_draw_in_mm"), ("the rare constraint", "rare"))
+                  if ds.attrs.get(key, "none") != "none"]
+        ax.plot(F[broken], est[broken], "x", color="0.3", ms=7, mew=1.5, label=f"breaks {' or '.join(limits)}")
     n = _n_forces(ds)
     for role, colour, marker, size in (("baseline", "tab:red", "s", 6), ("uniform", "tab:orange", "o", 6),
                                        ("optimum", "tab:green", "D", 10)):
@@ -199,6 +201,32 @@ def plot_risk_maps(ds: xr.Dataset, path) -> Path:
     return save(fig, path)
 
 
+def _rare_limit(ds: xr.Dataset) -> str:
+    """The ``[design] rare`` constraint in words ("none" without one)."""
+    if ds.attrs.get("rare", "none") == "none":
+        return "none"
+    r = json.loads(ds.attrs["rare"])
+    return (f"P({r['qoi']} >= {r['threshold']:g}) <= {r['max_probability']:g} on the {ds.attrs['statistic']}, "
+            f"estimated per design to CoV {r['cov']:g} within {r['max_drapes']:,} drapes as a [study] rare is "
+            "(importance sampling at the design point of subset levels, or subset simulation; method per design below)")
+
+
+def _rare_table(ds: xr.Dataset) -> str:
+    """Each evaluated design's rare estimate: force, P with its limits, CoV, drapes, feasible."""
+    if "rare_probability" not in ds:
+        return ""
+    head = ("sample", "total force (N)", "P", "limits", "CoV", "drapes", "method", "feasible")
+    rows = [(str(ds["sample"].values[e]), f"{ds['total_force'].values[e]:.1f}",
+             ("< " if ds["rare_method"].values[e] == "below" else "") + f"{ds['rare_probability'].values[e]:.3g}",
+             f"[{ds['rare_lower'].values[e]:.3g}, {ds['rare_upper'].values[e]:.3g}]",
+             f"{ds['rare_cov'].values[e]:.3f}", f"{int(ds['rare_drapes'].values[e]):,}",
+             str(ds["rare_method"].values[e]), "yes" if ds["feasible"].values[e] else "no")
+            for e in np.argsort(ds["total_force"].values, kind="stable")]
+    cells = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in row) + "</tr>" for row in rows)
+    return ("<h2>Rare constraint per design</h2>\n<table><tr>" + "".join(f"<th>{h}</th>" for h in head)
+            + f"</tr>{cells}</table>\n")
+
+
 def _table(ds: xr.Dataset) -> str:
     rows = [("study", ds.attrs["study_name"]), ("objective", f"{ds.attrs['statistic']} of {ds.attrs['objective']}"
              + (f", target {ds.attrs['target']}" if ds.attrs["target"] != "none" else "")),
@@ -207,6 +235,7 @@ def _table(ds: xr.Dataset) -> str:
             ("draw-in limit (mm)", ds.attrs["max_draw_in_mm"] if ds.attrs["max_draw_in_mm"] == "none" else
              f"{ds.attrs['max_draw_in_mm']:g} on the {ds.attrs['statistic']} of the 95 % quantile of the largest "
              "radial draw-in of the net's outermost ring"),
+            ("rare constraint", _rare_limit(ds)),
             ("optimiser", ds.attrs["optimiser"]),
             ("designs evaluated", f"{int((ds['sample'] == 'design').sum())} x {ds.attrs['design_realizations']} "
                                   f"drapes (seed {ds.attrs['design_seed']})"),
@@ -236,14 +265,19 @@ def write_design_report(ds: xr.Dataset, out_dir, *, surface) -> Path:
     summary = {k: v for k, v in ds.attrs.items() if k not in ("study_json", "wall_time_s")}
     summary["figures"] = [p.name for p, _ in figures]
     summary["provenance"] = prov = provenance(ds.attrs.get("wall_time_s"))
-    for key in ("validation", "margin", "bounds"):
-        if key in summary:
+    for key in ("validation", "margin", "bounds", "rare"):
+        if key in summary and summary[key] != "none":
             summary[key] = json.loads(summary[key])
+    if "rare_probability" in ds:  # each design's rare estimate, as the page's table
+        summary["rare_designs"] = {k: ds[k].values.tolist() for k in (
+            "sample", "total_force", "rare_probability", "rare_lower", "rare_upper", "rare_cov", "rare_drapes",
+            "rare_method", "feasible")}
     summary = json.loads(json.dumps(summary, default=lambda v: np.asarray(v).tolist()))
     write_text_atomic(out / "summary.json", json.dumps(summary, indent=1))
     body = (f"<h1>{html.escape(ds.attrs['study_name'])}: blank-holder design</h1>\n"
             f"<p class=\"note\">{html.escape(provenance_line(prov))}</p>\n"
-            f"<p><b>{html.escape(ds.attrs['summary'])}</b></p>\n{_table(ds)}\n<h2>Figures</h2>\n{figures_html(figures)}")
+            f"<p><b>{html.escape(ds.attrs['summary'])}</b></p>\n{_table(ds)}\n{_rare_table(ds)}"
+            f"<h2>Figures</h2>\n{figures_html(figures)}")
     page_html = page(f"{ds.attrs['study_name']}: blank-holder design", body)
     index = out / "index.html"
     write_text_atomic(index, page_html)

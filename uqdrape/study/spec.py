@@ -200,7 +200,9 @@ class Design:
     the friction coefficient as a variable. The design minimises ``statistic`` ("upper"
     confidence limit at ``confidence``, or the "estimate") of ``objective`` (a key of
     DESIGN_OBJECTIVES), or with ``target`` its distance from the target value, among the
-    designs whose ``q95_max_draw_in`` (same statistic) is at most ``max_draw_in_mm``. At most
+    designs whose ``q95_max_draw_in`` (same statistic) is at most ``max_draw_in_mm`` and
+    whose rare probability ``rare`` (same statistic, :class:`RareLimit`) is at most its
+    ``max_probability``. At most
     ``max_evaluations`` designs of the study's realisations each (common random numbers);
     the optimum is re-evaluated on ``validation_realizations`` fresh ones.
     """
@@ -218,6 +220,7 @@ class Design:
     tolerance_N: float = 5.0
     validation_realizations: int | None = None
     max_draw_in_mm: float | None = None
+    rare: RareLimit | None = None
 
 
 @dataclass(frozen=True)
@@ -240,6 +243,19 @@ class Rare:
 
     qoi: str
     threshold: float
+    cov: float = 0.1
+    max_drapes: int = 20_000
+
+
+@dataclass(frozen=True)
+class RareLimit:
+    """A design's constraint P(``qoi`` >= ``threshold``) <= ``max_probability``, the
+    probability estimated per candidate as a [study] :class:`Rare` is (to CoV ``cov``
+    within ``max_drapes`` drapes, ``uqdrape.workflow.rare``)."""
+
+    qoi: str
+    threshold: float
+    max_probability: float
     cov: float = 0.1
     max_drapes: int = 20_000
 
@@ -406,6 +422,7 @@ def from_dict(doc: dict, path) -> Study:
         report=section(Report, report, histogram_nodes=tuple(tuple(n) for n in report["histogram_nodes"]),
                        experimental_csv=Path(report["experimental_csv"]) if report.get("experimental_csv") else None),
         output_dir=Path(doc["output"]["directory"]),
-        design=section(Design, doc["design"]) if "design" in doc else None,
+        design=section(Design, doc["design"], rare=RareLimit(**doc["design"]["rare"]) if "rare" in doc["design"]
+                       else None) if "design" in doc else None,
         float32=doc["output"].get("float32", False),
     )

@@ -41,7 +41,10 @@ Sections and keys (units: mm, N, degrees)::
                    (the total force, or each sector's), friction_bounds = [lo, hi], budget_N (total force),
                    objective (DESIGN_OBJECTIVES), statistic = "upper" | "estimate", target, confidence = 0.95,
                    max_evaluations = 40, tolerance_N = 5, validation_realizations = study.realizations,
-                   max_draw_in_mm (a draw-in limit: the statistic of q95_max_draw_in at most this):
+                   max_draw_in_mm (a draw-in limit: the statistic of q95_max_draw_in at most this),
+                   rare = {qoi (RARE_QOIS), threshold, max_probability, cov = 0.1, max_drapes = 20000}
+                   (a constraint: the statistic of P(qoi >= threshold), estimated per candidate as a
+                   [study] rare is, at most max_probability; not with a per-realisation sd):
                    a blank-holder design (uqdrape.design); the study's own force is the baseline design
     [report]       histogram_nodes = [], experimental_csv
     [output]       directory = "results/<study name>", float32 = false (true: chunks store floats as
@@ -98,8 +101,8 @@ from ..schema import (BLANKHOLDER_MODELS, MAX_RINGS, MAX_TOLERANCE_DEG, MODES, Q
 from ..material.scatter import card_scatter
 from .spec import (CARD, DESIGN_OBJECTIVES, DESIGN_STATISTICS, DESIGN_VARIABLES, DIST_KEYS, FACTOR_SETTINGS, FIELD_KEYS,
                    FIELDS, RARE_QOIS, SECTIONS, SENSITIVITY_METHODS, TARGET_STATISTICS, Design, Fabric, Geometry,
-                   Process, RandomField, Rare, Report, Sampling, Sensitivity, Solver, Study, Target, Uncertainty,
-                   prestrain_map)
+                   Process, RandomField, Rare, RareLimit, Report, Sampling, Sensitivity, Solver, Study, Target,
+                   Uncertainty, prestrain_map)
 
 
 class StudyError(FileFormatError):
@@ -174,10 +177,14 @@ def _study(src: _Source, doc: dict) -> dict:
         head["max_realizations"] = t.number("max_realizations", integer=True, ge=head["realizations"])
     if t.has("rare"):
         r = t.table("rare", ("qoi", "threshold", "cov", "max_drapes"))
-        qoi = r.string("qoi", choices=RARE_QOIS)
-        head["rare"] = Rare(qoi, r.number("threshold"), r.number("cov", 0.1, gt=0, lt=1),
-                            r.number("max_drapes", 20_000, integer=True, ge=1000))
+        head["rare"] = Rare(*_rare(r))
     return head
+
+
+def _rare(r: Table) -> tuple:
+    """(qoi, threshold, cov, max_drapes) of a rare probability's table."""
+    return (r.string("qoi", choices=RARE_QOIS), r.number("threshold"), r.number("cov", 0.1, gt=0, lt=1),
+            r.number("max_drapes", 20_000, integer=True, ge=1000))
 
 
 def _target(t: Table) -> Target:
@@ -210,7 +217,8 @@ def _rare_rules(src: _Source, head: dict, uncertainty: Uncertainty, design) -> N
         return
     if design is not None:
         src.invalid("study.rare", dataclasses.asdict(head["rare"]),
-                    "a [study] rare probability is estimated for a study without [design]: remove it")
+                    "a [study] rare probability is estimated for a study without [design]: remove it (a "
+                    "design takes one as its constraint: [design] rare)")
     _fixed_sd(src, uncertainty, "a [study] rare probability")
 
 
@@ -578,7 +586,7 @@ def _design(src: _Source, doc: dict, process: Process, uncertainty: Uncertainty,
     t = Table(src, "design", doc["design"], ("variables", "sectors", "force_bounds_N", "friction_bounds",
                                               "budget_N", "objective", "statistic", "target", "confidence",
                                               "max_evaluations", "tolerance_N", "validation_realizations",
-                                              "max_draw_in_mm"))
+                                              "max_draw_in_mm", "rare"))
     variables = t.string("variables", choices=DESIGN_VARIABLES)
     sectors = None
     if variables == "sectors":
@@ -600,6 +608,12 @@ def _design(src: _Source, doc: dict, process: Process, uncertainty: Uncertainty,
     tolerance = t.number("tolerance_N", 5.0, gt=0)
     validation = t.number("validation_realizations", None, integer=True, ge=2)
     draw_in = t.number("max_draw_in_mm", None, gt=0)
+    rare = None
+    if t.has("rare"):
+        r = t.table("rare", ("qoi", "threshold", "max_probability", "cov", "max_drapes"))
+        qoi, threshold, cov, drapes = _rare(r)
+        rare = RareLimit(qoi, threshold, r.number("max_probability", gt=0, lt=1), cov, drapes)
+        _fixed_sd(src, uncertainty, "a [design] rare constraint")
     quantiles = DESIGN_OBJECTIVES[objective][1] == "quantile95" or draw_in is not None
     if quantiles and statistic == "upper":
         fewest = _fewest_for_quantile_limit(0.95, confidence)
@@ -618,7 +632,7 @@ def _design(src: _Source, doc: dict, process: Process, uncertainty: Uncertainty,
         src.invalid("sensitivity.method", sensitivity.method,
                     'a [design] study runs its own designs; set method = "none" or remove [design]')
     return Design(variables, (lo, hi), objective, sectors, friction, budget, statistic, target, confidence,
-                  evaluations, tolerance, validation, draw_in)
+                  evaluations, tolerance, validation, draw_in, rare)
 
 
 def _report(src: _Source, doc: dict, rings: int) -> Report:

@@ -20,6 +20,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -38,6 +39,10 @@ from ..study import identity, study_error
 RARE_FILE = "rare.json"
 #: The estimator's seeds are SeedSequence([study seed, RARE_STREAM, force level index]).
 RARE_STREAM = 29
+#: Conditional probability of the subset levels.
+P0 = 0.1
+#: A [design] rare candidate's subset levels stop at P below BELOW x its bound.
+BELOW = 0.01
 
 
 def drape_limit_state(study, qoi: str, threshold: float, force: float | None = None):
@@ -62,6 +67,47 @@ def drape_limit_state(study, qoi: str, threshold: float, force: float | None = N
         return threshold - values(U, k_max)[qoi].values
 
     return g, len(names)
+
+
+def estimate(study, spec, seed: int, force: float, *, below: float | None = None) -> tuple[dict, int]:
+    """({probability, cov, drapes, method, beta, subset_probability, subset_cov}, standard
+    variables) of P(``spec.qoi`` >= ``spec.threshold``) of ``study``'s drapes at ``force``
+    (N) by ``importance_sampling`` to CoV ``spec.cov`` within ``spec.max_drapes`` drapes,
+    with ``seed``. A threshold no drape reaches is the study's error (``study.rare``); with
+    ``below``, the subset levels stop at the first level of P under it (p0 = 0.1 each), and
+    reaching no failure there is the record ``method = "below"``, ``probability`` that level
+    (P is below it; cov 0)."""
+    g, d = drape_limit_state(study, spec.qoi, spec.threshold, force)
+    drapes = []
+
+    def counted(U):
+        drapes.append(len(U))
+        return g(U)
+
+    levels = 30 if below is None else math.ceil(round(math.log(below) / math.log(P0), 9))
+    try:
+        r = importance_sampling(counted, d, seed=seed, cov=spec.cov, max_calls=spec.max_drapes, p0=P0,
+                                max_levels=levels)
+    except ValueError as e:  # no failure domain reached: say it of the study's request
+        if below is not None:
+            return {"probability": P0**levels, "cov": 0.0, "drapes": sum(drapes), "method": "below",
+                    "beta": math.nan, "subset_probability": math.nan, "subset_cov": math.nan}, d
+        raise study_error(study.path, "study.rare.threshold", spec.threshold,
+                          f"no drape at {force:g} N reached it ({e})") from None
+    return {"probability": r.probability, "cov": r.cov, "drapes": r.calls, "method": r.method, "beta": r.beta,
+            "subset_probability": r.subset.probability, "subset_cov": r.subset.cov}, d
+
+
+def design_rare(variant) -> dict:
+    """The ``[design] rare`` estimate of one candidate design (``variant``: the study with
+    the candidate's force, sectors and friction, and the seed of its sample): :func:`estimate`
+    with the seed ``SeedSequence([sample seed, RARE_STREAM])``, the same for every candidate
+    of a sample (common random numbers, as its drapes), so a resumed design is bitwise the
+    same. Subset levels stop at P below BELOW x the bound: a design that safe is feasible
+    whatever its P, and is not estimated further (``method = "below"``)."""
+    spec = variant.design.rare
+    seed = int(np.random.SeedSequence([variant.seed, RARE_STREAM]).generate_state(1)[0])
+    return estimate(variant, spec, seed, variant.force_levels[0], below=BELOW * spec.max_probability)[0]
 
 
 def rare_key(study) -> str:
@@ -93,16 +139,9 @@ def rare_probabilities(study, output_dir, *, resume: bool = True, progress: bool
         return kept
     levels = []
     for level, force in enumerate(study.force_levels):
-        g, d = drape_limit_state(study, spec.qoi, spec.threshold, force)
         seed = int(np.random.SeedSequence([study.seed, RARE_STREAM, level]).generate_state(1)[0])
-        try:
-            r = importance_sampling(g, d, seed=seed, cov=spec.cov, max_calls=spec.max_drapes)
-        except ValueError as e:  # no failure domain reached: say it of the study's request
-            raise study_error(study.path, "study.rare.threshold", spec.threshold,
-                              f"no drape at {force:g} N reached it ({e})") from None
-        levels.append({"force": force, "probability": r.probability, "cov": r.cov, "drapes": r.calls,
-                       "method": r.method, "beta": r.beta, "subset_probability": r.subset.probability,
-                       "subset_cov": r.subset.cov})
+        entry, d = estimate(study, spec, seed, force)
+        levels.append({"force": force, **entry})
     record = {"key": key, **dataclasses.asdict(spec), "variables": d, "levels": levels}
     if progress:
         for quantity, value, how in rare_rows(record):

@@ -42,7 +42,7 @@ from ..schema import REALIZATION
 from ..stats import SENSITIVITY_QOIS, realization_qois
 from ..study import SENSITIVITY_METHODS, Study, from_dict, identity, load_study
 from .preflight import check_placement, check_resources, run_preflight
-from .rare import rare_probabilities, read_rare
+from .rare import design_rare, rare_probabilities, read_rare
 from .target import run_to_target
 
 #: Files a sensitivity run writes into its output folder.
@@ -173,12 +173,13 @@ def open_sensitivity(output_dir) -> tuple[xr.Dataset, xr.Dataset] | None:
 
 
 def run_design(study, *, output_dir=None, scheduler: str | None = None, workers: int | None = None,
-               progress: bool = True, drape=drape_design) -> Path:
+               progress: bool = True, drape=drape_design, rare=design_rare) -> Path:
     """Run the [design] of a study (a ``Study`` or a study file's path): write
     ``design.nc`` and the per-design records into the output folder or store URL (default
     the study's; resumes from the records of an earlier run of the same study) and return
-    it. ``drape`` is the task that drapes one chunk of one design (a test passes a
-    synthetic one through the same pipeline)."""
+    it. ``drape`` is the task that drapes one chunk of one design, ``rare`` estimates a
+    ``[design] rare`` constraint of one design (a test passes synthetic ones through the
+    same pipeline)."""
     start = time.perf_counter()
     study = study if isinstance(study, Study) else load_study(study)
     if study.design is None:
@@ -196,7 +197,7 @@ def run_design(study, *, output_dir=None, scheduler: str | None = None, workers:
     lock = store_lock(out) if is_url(out) else run_lock(out)
     with lock, local_pool(workers) if local else contextlib.nullcontext() as pool:
         evaluate = Evaluator(prob, out, scheduler=scheduler, workers=workers, progress=progress, drape=drape,
-                             pool=pool)
+                             pool=pool, rare=rare)
         result = optimise(prob, evaluate)
         ds = result_dataset(result, evaluate)
         # this run's own time: a resumed run replays earlier designs from their records
