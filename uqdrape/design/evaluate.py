@@ -75,6 +75,7 @@ class Evaluator:
         self.order: list[tuple[str, str, tuple[float, ...]]] = []  # (sample, key, x) as first asked for
         self.identity = json.dumps(identity(prob.study.to_dict()), sort_keys=True)
         self.drapes = 0
+        self.kept = self.draped = 0  # designs read back from an earlier run's records / draped here
         self.k_max = None  # line nodes of the asymmetry, set from the baseline design
         self.cache: dict[str, tuple[dict, dict]] = {}
 
@@ -114,10 +115,12 @@ class Evaluator:
             path = None if self.folder is None else self.folder / f"{key}.nc"
             if path is not None and path.is_file():
                 self.records[key] = xr.load_dataset(path)
+                self.kept += 1
             else:
                 todo[key] = x
         if todo:
             self._drape(study, sample, todo)
+            self.draped += len(todo)
         return [self.records[k] for k in keys]
 
     def _drape(self, study, sample: str, todo: dict) -> None:

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import xarray as xr
 
-from ..design import DESIGN_FILE, Evaluator, drape_design, optimise, problem, result_dataset
+from ..design import DESIGN_FILE, EVALUATIONS, Evaluator, drape_design, optimise, problem, result_dataset
 from ..ensemble import (Progress, design_variables, local_pool, open_ensemble, read_manifest, reach_scheduler,
                         run_ensemble, run_lock, write_atomic)
 from ..report import write_design_report, write_report
@@ -185,26 +185,28 @@ def run_design(study, *, output_dir=None, scheduler: str | None = None, workers:
                              pool=pool)
         result = optimise(prob, evaluate)
         ds = result_dataset(result, evaluate)
-        # this run's own time: a resumed run replays earlier designs from their records
+        # this run's own time and work: a resumed run replays earlier designs from their records
         ds.attrs["wall_time_s"] = round(time.perf_counter() - start, 1)
+        ds.attrs["designs_kept"], ds.attrs["designs_draped"] = evaluate.kept, evaluate.draped
         write_atomic(ds, out / DESIGN_FILE)
     if progress:
         print(f"{study.name}: {ds.attrs['summary']}", file=sys.stderr)
     return out
 
 
-def run_report(output_dir, out_dir=None) -> Path:
+def run_report(output_dir, out_dir=None, formats=()) -> Path:
     """Report of a finished run: the ensemble under ``output_dir`` with the title
     (the study's name), description, study text, histogram nodes and experimental CSV of
     the study stored in its attributes, the wall time from its manifest, and its
     sensitivity results if it has them; of a design run, its design page. Writes into
-    ``out_dir`` (default ``output_dir/report``); returns the index.html path."""
+    ``out_dir`` (default ``output_dir/report``), its figures also in the vector
+    ``formats`` (svg, pdf) beside the PNGs; returns the index.html path."""
     design = Path(output_dir) / DESIGN_FILE
     ds = xr.load_dataset(design) if design.is_file() else open_ensemble(output_dir)
     study = from_dict(json.loads(ds.attrs["study_json"]), Path(output_dir))
     report = Path(out_dir) if out_dir else Path(output_dir) / "report"
     if design.is_file():
-        return write_design_report(ds, report, surface=study.geometry.build_mould())
+        return write_design_report(ds, report, surface=study.geometry.build_mould(), formats=formats)
     sensitivity = open_sensitivity(output_dir)
     manifest = read_manifest(output_dir)
     target = manifest.get("target") or {}  # a target run: what stopped it, for the page's attributes
@@ -217,7 +219,18 @@ def run_report(output_dir, out_dir=None) -> Path:
                         experimental_csv=study.report.experimental_csv,
                         wall_time_s=manifest.get("wall_time_s"),
                         replicates=study.sampling.randomizations if study.sampling.plan == "rqmc" else None,
+                        formats=formats,
                         **({} if sensitivity is None else dict(zip(("sensitivity", "sensitivity_maps"), sensitivity))))
+
+
+def design_outcome(out: Path) -> str:
+    """What ``uqdrape design`` did to ``out``: designs draped, or how many a resume kept."""
+    with xr.open_dataset(Path(out) / DESIGN_FILE) as ds:
+        kept, draped = int(ds.attrs.get("designs_kept", 0)), int(ds.attrs.get("designs_draped", 0))
+    if not kept:
+        return f"designs written to {out}: {draped} designs draped"
+    return (f"resumed: {kept} of {kept + draped} designs kept from {EVALUATIONS}/, {draped} draped; "
+            f"designs in {out}")
 
 
 def run_outcome(out: Path) -> str:
