@@ -41,7 +41,7 @@ def calibrate_fibre_angles(points_csv, out, plot=None, *, family: str = "auto", 
                                    criterion=criterion, level=level, posterior=posterior)
     png = None
     if plot:
-        from ..calibration.figure import plot_calibration
+        from ..report.calibration_figure import plot_calibration
 
         png = plot_calibration(calibration, out.with_suffix(".png") if plot is True else Path(plot))
     write_text_atomic(out, block_text(calibration, command))
