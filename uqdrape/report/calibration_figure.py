@@ -67,7 +67,7 @@ def _points(ax, calibration, lim):
                             vmin=lim[0], vmax=lim[1], marker=m, edgecolors="k", linewidths=0.4, label=label)
     ax.figure.colorbar(sc, ax=ax, label="γ0 (deg)")
     _arrows(ax, calibration)
-    ax.set(title="measured points\nγ0 = the fibre's deviation from nominal", xlabel="x (mm)", ylabel="y (mm)", aspect="equal")
+    ax.set(title="measured points\nγ0: the fibre's deviation", xlabel="x (mm)", ylabel="y (mm)", aspect="equal")
     ax.legend(loc="lower right")
 
 
