@@ -56,7 +56,7 @@ def plot_sensitivity_bars(indices: xr.Dataset, path):
     groups = levels(indices)
     qois = [str(q) for q in indices["qoi"].values]
     factors = [str(f) for f in indices["factor"].values]
-    size = (max(3.6, 0.9 * len(factors) + 1.2), 2.9)
+    size = (max(3.6, 0.9 * len(factors) + 1.2), 3.6)
     # one level: the QoIs fill a grid of up to 3 columns; else a row per QoI, a column per level
     cols = min(3, len(qois)) if len(groups) == 1 else len(groups)
     fig, axes = panels(len(qois) * len(groups), size=size, cols=cols)
