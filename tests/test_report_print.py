@@ -4,12 +4,14 @@ words. The page's widths are read from its own CSS, the type sizes from the figu
 
 from __future__ import annotations
 
+import json
 import re
 import xml.etree.ElementTree as ET
 import zlib
 from pathlib import Path
 
 import pytest
+import xarray as xr
 from matplotlib.figure import Figure
 from matplotlib.text import Text
 from PIL import Image
@@ -17,11 +19,14 @@ from PIL import Image
 from conftest import assert_one_line_error, write_study
 from uqdrape.cli import main as cli
 from uqdrape.geometry import build
+from uqdrape.report import write_design_report
 from uqdrape.report.style import DPI, MIN_PT, WINDOW_PX
+from uqdrape.study import from_dict
 from uqdrape.workflow import run_report
 
 CSS_PX_PER_IN = 96  # CSS 2.1
-PAN = Path(__file__).resolve().parent.parent / "studies" / "meshes" / "pan.stl"
+ROOT = Path(__file__).resolve().parent.parent
+PAN = ROOT / "studies" / "meshes" / "pan.stl"
 
 
 @pytest.fixture(scope="module")
@@ -33,9 +38,9 @@ def run(tmp_path_factory):
     return folder / "tiny"
 
 
-@pytest.fixture(scope="module")
-def drawn(run):
-    """The report with its figures as drawn: [(figure width in, [text sizes pt], [texts])] in page order."""
+def drawn_report(write):
+    """``write()`` -> index.html, its figures recorded as drawn: (index, [(figure width in,
+    [text sizes pt], [texts])] in page order)."""
     saved = []
     real = Figure.savefig
 
@@ -47,8 +52,14 @@ def drawn(run):
 
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(Figure, "savefig", savefig)
-        index = run_report(run, run / "report", formats=("svg", "pdf"))
+        index = write()
     return index, saved
+
+
+@pytest.fixture(scope="module")
+def drawn(run):
+    """The run's report, with SVG and PDF copies, its figures recorded as drawn."""
+    return drawn_report(lambda: run_report(run, run / "report", formats=("svg", "pdf")))
 
 
 def _slots(page: str) -> tuple[float, float]:
@@ -61,13 +72,14 @@ def _slots(page: str) -> tuple[float, float]:
     return row, (row - gap) / 2
 
 
-def test_every_figure_has_print_resolution_and_9_pt_type_as_the_page_shows_it(drawn):
-    index, saved = drawn
+def assert_print_rule(index, saved) -> list[str]:
+    """Every figure of the page ``index`` has >= 200 px per displayed inch and no text under
+    9 pt as the page shows it (its width from the page's CSS, its type sizes as drawn);
+    returns the figures' classes ("wide" or "")."""
     page = index.read_text()
     row, column = _slots(page)
     figures = re.findall(r'<figure( class="wide")?><a href="([^"]+\.png)">', page)
-    assert len(figures) == len(saved) >= 7
-    assert any(wide for wide, _ in figures) and not all(wide for wide, _ in figures)
+    assert len(figures) == len(saved)
     for (wide, name), (width_in, sizes, texts) in zip(figures, saved):
         shown_in = (row if wide else column) / CSS_PX_PER_IN  # the figure's width on the page
         with Image.open(index.parent / name) as png:
@@ -77,6 +89,21 @@ def test_every_figure_has_print_resolution_and_9_pt_type_as_the_page_shows_it(dr
         assert 0.99 < scale < 1.01, name  # drawn at the size it is shown: its points are the page's
         smallest = min(sizes)
         assert smallest * scale >= MIN_PT >= 9, (name, smallest, texts[sizes.index(smallest)])
+    return [wide for wide, _ in figures]
+
+
+def test_every_figure_has_print_resolution_and_9_pt_type_as_the_page_shows_it(drawn):
+    wide = assert_print_rule(*drawn)
+    assert len(wide) >= 7 and any(wide) and not all(wide)  # column and row figures both checked
+
+
+def test_a_design_page_keeps_the_same_rule(tmp_path):
+    """The shipped sector design (design.nc of the gallery): its polar bars on fixed axes too."""
+    folder = ROOT / "results" / "gallery" / "design-doubledome-sectors"
+    ds = xr.load_dataset(folder / "design.nc")
+    surface = from_dict(json.loads(ds.attrs["study_json"]), ROOT).geometry.build_mould()
+    index, saved = drawn_report(lambda: write_design_report(ds, tmp_path, surface=surface))
+    assert len(assert_print_rule(index, saved)) == 4  # objective, sectors, risk maps, convergence
 
 
 def test_vector_copies_exist_parse_and_hold_text(drawn):
