@@ -141,3 +141,16 @@ def test_moulds_are_named_in_words_on_the_page_and_in_titles(drawn):
     assert build("mesh", path=PAN).describe() == "mesh pan.stl (mm, press +z)"
     assert build("mesh", path=PAN, units="in", press_direction="-1,0,0",
                  edge_blend_mm=0.5).describe() == "mesh pan.stl (in, press -x, edge blend 0.5 mm)"
+
+
+@pytest.mark.slow  # a Sobol' run and its whole page: 13 s at load 5
+def test_a_sensitivity_page_keeps_the_same_rule(tmp_path):
+    """Sobol' indices of two factors at two blank-holder levels: bars, indices against force and index maps."""
+    path = write_study(tmp_path, study={"chunk_size": 128}, process={"blankholder_force_N": [0.0, 50.0]},
+                       uncertainty={"spacing": {"cv": 0.02}, "orientation": {"dist": "uniform", "bounds": [-2.0, 2.0]}},
+                       sensitivity={"method": "sobol", "base_samples": 64})
+    assert cli(["run", str(path), "--scheduler", "synchronous", "-q", "--no-report"]) == 0
+    index, saved = drawn_report(lambda: run_report(tmp_path / "tiny"))
+    names = re.findall(r'<img src="([^"]+)\.png"', index.read_text())
+    assert names[:4] == ["sensitivity_vs_force", "sensitivity_bars", "sensitivity_map_S1", "sensitivity_map_ST"]
+    assert_print_rule(index, saved)
