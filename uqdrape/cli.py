@@ -148,11 +148,11 @@ exit codes: 0 done, 2 a user error (one line on stderr naming the key, flag or p
 
 
 def cmd_design(args) -> int:
-    from .workflow import run_design, run_report
+    from .workflow import design_outcome, run_design, run_report
 
     study = _engine_study(args)
     out = run_design(study, scheduler=args.scheduler, workers=args.workers, progress=args.verbosity > 0)
-    print(f"designs written to {out}")
+    print(design_outcome(out))
     if not args.no_report:
         print(f"report: {run_report(out)}")
     return 0
@@ -161,7 +161,7 @@ def cmd_design(args) -> int:
 def cmd_report(args) -> int:
     from .workflow import run_report
 
-    print(f"report: {run_report(args.results, args.out)}")
+    print(f"report: {run_report(args.results, args.out, formats=args.format or ())}")
     return 0
 
 
@@ -300,11 +300,15 @@ def build_parser() -> argparse.ArgumentParser:
     _engine_options(dsg)
 
     rep = _command(sub, "report", cmd_report, help="write the report of a finished run", raw=True,
-                   epilog="example:\n  uqdrape report results/nosecone-zero-angle --out results/nosecone-report\n\n"
+                   epilog="examples:\n  uqdrape report results/nosecone-zero-angle --out results/nosecone-report\n"
+                          "  uqdrape report results/nosecone-zero-angle --format svg pdf   vector figures too\n\n"
                           + _EXIT_CODES)
     rep.add_argument("results", help="a run's output folder or store URL, e.g. results/nosecone-zero-angle or "
                                      "s3://bucket/runs/nosecone")
     rep.add_argument("--out", help="report folder (default RESULTS/report; under a store's URL for a store)")
+    rep.add_argument("--format", nargs="+", metavar="FORMAT",
+                     help="also write every figure as FORMAT (svg, pdf: vector, text kept as text) beside its "
+                          "PNG, linked from the page")
 
     v = _command(sub, "validate", cmd_validate, help="check study files without running them")
     v.add_argument("files", nargs="+", help="study files (TOML)")

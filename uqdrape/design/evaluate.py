@@ -87,6 +87,7 @@ class Evaluator:
         self.order: list[tuple[str, str, tuple[float, ...]]] = []  # (sample, key, x) as first asked for
         self.identity = json.dumps(identity(prob.study.to_dict()), sort_keys=True)
         self.drapes = 0
+        self.kept = self.draped = 0  # designs read back from an earlier run's records / draped here
         self.k_max = None  # line nodes of the asymmetry, set from the baseline design
         self.cache: dict[str, tuple[dict, dict]] = {}
 
@@ -132,10 +133,12 @@ class Evaluator:
             record = None if self.folder is None else read_dataset(self.folder, f"{EVALUATIONS}/{key}.nc")
             if record is not None:
                 self.records[key] = record
+                self.kept += 1
             else:
                 todo[key] = x
         if todo:
             self._drape(study, sample, todo)
+            self.draped += len(todo)
         return [self.records[k] for k in keys]
 
     def _drape(self, study, sample: str, todo: dict) -> None:

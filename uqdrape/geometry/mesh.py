@@ -30,6 +30,8 @@ from .base import Surface
 
 #: Length units a mesh file may be in, and their size in mm.
 UNITS = {"mm": 1.0, "m": 1000.0, "in": 25.4}
+#: The default round-off (mm) of the mesh's open edges.
+EDGE_BLEND_MM = 2.0
 #: A corner whose angle-weighted vertex normal strays more than this from its face's normal
 #: (deg) keeps the face normal: a sharp edge is not rounded by the interpolated normal.
 CREASE_DEG = 30.0
@@ -213,7 +215,7 @@ def _boxes(tri: np.ndarray, leaves: int) -> np.ndarray:
         width //= 2
 
 
-def pack(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh", edge_blend_mm: float = 2.0) -> np.ndarray:
+def pack(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh", edge_blend_mm: float = EDGE_BLEND_MM) -> np.ndarray:
     """The packed array of ``meshquery`` for a checked mesh (mm, outward-wound faces):
     faces sorted into the hierarchy's order, vertices into their faces', neighbours, vertex
     normals, crease flags."""
@@ -296,7 +298,7 @@ class MeshSurface(Surface):
 
     name = "mesh"
 
-    def __init__(self, path, units: str = "mm", press_direction=(0.0, 0.0, 1.0), edge_blend_mm: float = 2.0):
+    def __init__(self, path, units: str = "mm", press_direction=(0.0, 0.0, 1.0), edge_blend_mm: float = EDGE_BLEND_MM):
         self.path = Path(path)
         name = str(self.path)
         if units not in UNITS:
@@ -344,6 +346,16 @@ class MeshSurface(Surface):
     def params(self):
         return {"path": str(self.path), "units": self.units, "press_direction": self.press_direction,
                 "edge_blend_mm": self.edge_blend_mm}
+
+    def describe(self) -> str:
+        """The mould in words: its file, units and press direction (and a blend other than
+        the default), e.g. "mesh pan.stl (mm, press +z)"."""
+        d = self.press_direction
+        axis = [k for k in range(3) if d[k] != 0]
+        press = (("+" if d[axis[0]] > 0 else "-") + "xyz"[axis[0]] if len(axis) == 1
+                 else "(" + ", ".join(f"{c:g}" for c in d) + ")")
+        blend = "" if self.edge_blend_mm == EDGE_BLEND_MM else f", edge blend {self.edge_blend_mm:g} mm"
+        return f"mesh {self.path.name} ({self.units}, press {press}{blend})"
 
     def normal_at(self, points):
         """The solver's unit normal (..., 3) at points (..., 3) mm on the mesh (NaN in, NaN out)."""

@@ -1,7 +1,7 @@
 """The calibration report: one HTML page (the shared skeleton, ``page.py``) of a
 calibration's figures, its headline numbers, its warnings and the study block or study it
 wrote, for ``uqdrape calibrate ... --report DIR``. The figures are drawn by
-``uqdrape.calibration.figure``; this module only lays them out."""
+``uqdrape.report.calibration_figure``; this module only lays them out."""
 
 from __future__ import annotations
 

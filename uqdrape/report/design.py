@@ -11,15 +11,14 @@ from __future__ import annotations
 import html
 import json
 import textwrap
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
-
 from ..files import write_text_atomic
-from .figures import panels, save, styled
+from .figures import panels, save
+from .style import NOTE_PT, canvas, check_formats, styled, vector_formats
 from .page import figures_html, page, provenance, provenance_line
 
 _LABELS = {"p_locked": "P(any node locked)", "q95_max_abs_shear": "95 % quantile of max |shear| (deg)",
@@ -96,7 +95,7 @@ def plot_objective(ds: xr.Dataset, path) -> Path:
         _statistic_panel(ax2, ds, DRAW_IN, "draw_in")
         ax2.axhline(float(limit), color="k", ls="--", lw=1,
                     label=f"draw-in limit {float(limit):g} mm (on the {ds.attrs['statistic']})")
-        ax2.legend(loc="best", fontsize=8)
+        ax2.legend(loc="best")
     return save(fig, path)
 
 
@@ -120,8 +119,7 @@ def plot_convergence(ds: xr.Dataset, path) -> Path:
     _log_if_wide(ax, f)
     ax.set_xlabel("evaluation (design sample)")
     ax.set_ylabel("objective")
-    ax.set_title("\n".join(textwrap.wrap(f"{d['objective'].attrs['long_name']}; {ds.attrs['optimiser']}", 90)),
-                 fontsize=9)
+    ax.set_title("\n".join(textwrap.wrap(f"{d['objective'].attrs['long_name']}; {ds.attrs['optimiser']}", 80)))
     ax.legend()
     ax.grid(alpha=0.3)
     return save(fig, path)
@@ -148,8 +146,7 @@ def plot_sectors(ds: xr.Dataset, path, surface) -> Path:
     width = 2 * np.pi / n
     theta = (np.arange(n) + 0.5) * width
     top = float(np.max(hi))
-    fig = Figure(figsize=(6.4, 6.4))  # fixed axes: the polar bars share the plan's centre
-    FigureCanvasAgg(fig)
+    fig = canvas(6.4, 6.4)  # fixed axes: the polar bars share the plan's centre
     rect = [0.12, 0.08, 0.8, 0.8]
     ax = fig.add_axes(rect)
     _outline(ax, surface, extent)
@@ -165,16 +162,16 @@ def plot_sectors(ds: xr.Dataset, path, surface) -> Path:
     polar.plot(np.linspace(0, 2 * np.pi, 181), np.full(181, opt.sum() / n), "--", color="tab:orange",
                label=f"uniform, same total ({opt.sum():.0f} N)")
     for t, f in zip(theta, opt):
-        polar.text(t, f + 0.06 * top, f"{f:.0f} N", ha="center", va="center", fontsize=9)
+        polar.text(t, f + 0.06 * top, f"{f:.0f} N", ha="center", va="center", fontsize=NOTE_PT)
     polar.set_ylim(0, 1.2 * top)
     polar.set_yticklabels([])
     polar.set_xticks(np.arange(n) * width)
     polar.set_xticklabels([])
     polar.grid(alpha=0.3)
-    polar.legend(loc="lower left", bbox_to_anchor=(0.0, 0.0), fontsize=8, framealpha=0.9)
+    polar.legend(loc="lower left", bbox_to_anchor=(0.0, 0.0), framealpha=0.9)
     fig.suptitle(f"{ds.attrs['study_name']}: sector forces at the optimum on the part outline\n"
                  f"(bar radius: force, 0-{1.2 * top:.0f} N; error bars: the optimum's "
-                 "resampling interval)", fontsize=9, x=0.12, ha="left")
+                 "resampling interval)", fontsize=NOTE_PT, x=0.12, ha="left")
     return save(fig, path)
 
 
@@ -188,9 +185,9 @@ def plot_risk_maps(ds: xr.Dataset, path) -> Path:
     for ax, role in zip(axes, roles):
         p = ds[f"{role}_node_p_locked"].values.ravel()
         x, y = ds[f"{role}_node_x"].values.ravel(), ds[f"{role}_node_y"].values.ravel()
-        ax.scatter(x[p == 0], y[p == 0], s=3, color="0.8", label="P = 0")
+        ax.scatter(x[p == 0], y[p == 0], s=3, color="0.8", label="P = 0", rasterized=True)
         hot = p > 0
-        im = ax.scatter(x[hot], y[hot], c=p[hot], s=10, cmap="Reds", vmin=0, vmax=1)
+        im = ax.scatter(x[hot], y[hot], c=p[hot], s=10, cmap="Reds", vmin=0, vmax=1, rasterized=True)
         if not hot.any():
             ax.legend(loc="upper right")
         ax.set_aspect("equal")
@@ -246,11 +243,18 @@ def _table(ds: xr.Dataset) -> str:
     return f"<table>{body}</table>"
 
 
-def write_design_report(ds: xr.Dataset, out_dir, *, surface) -> Path:
-    """Write the design report of ``ds`` (``design.nc``) into ``out_dir``: PNGs,
-    ``index.html`` and ``summary.json``; ``surface`` is the mould. Returns index.html."""
+def write_design_report(ds: xr.Dataset, out_dir, *, surface, formats: Sequence[str] = ()) -> Path:
+    """Write the design report of ``ds`` (``design.nc``) into ``out_dir``: PNGs (and their
+    copies in the vector ``formats``, svg or pdf), ``index.html`` and ``summary.json``;
+    ``surface`` is the mould. Returns index.html."""
+    formats = check_formats(formats)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    with vector_formats(formats):
+        return _write_design_report(ds, out, surface)
+
+
+def _write_design_report(ds: xr.Dataset, out: Path, surface) -> Path:
     figures = [(plot_objective(ds, out / "objective.png"),
                 "The objective's statistic of every design on the design sample (common random numbers) "
                 "against the total force (the band is hidden under the line where the limits are within a few "

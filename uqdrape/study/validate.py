@@ -488,7 +488,7 @@ def _describe(mould) -> str:
     bounds = getattr(mould, "bounds", None)
     if bounds is None:
         return mould.describe()
-    return f"{mould.name}, plan x in [{bounds[0]:g}, {bounds[1]:g}], y in [{bounds[2]:g}, {bounds[3]:g}] mm"
+    return f"{mould.describe()}, plan x in [{bounds[0]:g}, {bounds[1]:g}], y in [{bounds[2]:g}, {bounds[3]:g}] mm"
 
 
 def _sampling(src: _Source, doc: dict, realizations: int, seed: int, uncertainty: Uncertainty,

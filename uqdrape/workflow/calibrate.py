@@ -64,7 +64,7 @@ def calibrate_fibre_angles(points_csv, out, plot=None, *, family: str = "auto", 
                                    criterion=criterion, level=level, posterior=posterior)
     png = page = None
     if plot:
-        from ..calibration.figure import plot_calibration
+        from ..report.calibration_figure import plot_calibration
 
         png = plot_calibration(calibration, out.with_suffix(".png") if plot is True else Path(plot))
     block = block_text(calibration, command)
@@ -409,7 +409,7 @@ def posterior_dataset(cal: DrapeCalibration, lower, upper) -> xr.Dataset:
 def _drape_report(cal: DrapeCalibration, lower, upper, fraction: float, folder: Path, written: str,
                   seconds: float) -> Path:
     """The calibration report of a calibration from measured drapes (``report.calibration``)."""
-    from ..calibration.figure import plot_drape_posterior, plot_drape_predictive
+    from ..report.calibration_figure import plot_drape_posterior, plot_drape_predictive
     from ..report.calibration import calibration_page
 
     data = posterior_dataset(cal, lower, upper)
@@ -438,7 +438,7 @@ def _points_report(calibration, folder: Path, written: str) -> Path:
     """The calibration report of measured fibre angles (``report.calibration``): the
     calibration figure (points, fitted field, leave-one-out predictive check, profiles)
     and, if sampled, the posterior."""
-    from ..calibration.figure import loo_check, plot_calibration, plot_drape_posterior
+    from ..report.calibration_figure import loo_check, plot_calibration, plot_drape_posterior
     from ..calibration.posterior import prior_box
     from ..report.calibration import calibration_page
 

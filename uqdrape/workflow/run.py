@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from ..design import DESIGN_FILE, Evaluator, drape_design, optimise, problem, result_dataset
+from ..design import DESIGN_FILE, EVALUATIONS, Evaluator, drape_design, optimise, problem, result_dataset
 from ..ensemble import (Progress, design_variables, is_url, local_pool, made_from, open_ensemble, read_dataset,
                         read_manifest, reach_scheduler, run_ensemble, run_lock, run_name, store_lock, write_dataset)
 from ..ensemble.inputs import realization_sd_deg
@@ -202,29 +202,31 @@ def run_design(study, *, output_dir=None, scheduler: str | None = None, workers:
         ds = result_dataset(result, evaluate)
         # this run's own time: a resumed run replays earlier designs from their records
         ds.attrs["wall_time_s"] = round(time.perf_counter() - start, 1)
+        ds.attrs["designs_kept"], ds.attrs["designs_draped"] = evaluate.kept, evaluate.draped
         write_dataset(out, DESIGN_FILE, ds)
     if progress:
         print(f"{study.name}: {ds.attrs['summary']}", file=sys.stderr)
     return out
 
 
-def run_report(output_dir, out_dir=None) -> Path | str:
+def run_report(output_dir, out_dir=None, formats=()) -> Path | str:
     """Report of a finished run (a run folder or a store URL): the ensemble with the title
     (the study's name), description, study text, histogram nodes and experimental CSV of
     the study stored in its attributes, the wall time from its manifest, and its
     sensitivity results if it has them; of a design run, its design page. Writes into
     the local folder ``out_dir`` (default: the run's ``report/``, in a store put under its
-    URL); returns the index.html path (a URL in a store)."""
+    URL), its figures also in the vector ``formats`` (svg, pdf) beside the PNGs; returns
+    the index.html path (a URL in a store)."""
     if out_dir is None:
         with made_from(output_dir, "report") as made:
-            index = run_report(output_dir, made.folder)
+            index = run_report(output_dir, made.folder, formats)
         return made.where(index)
     design = read_dataset(output_dir, DESIGN_FILE)
     ds = open_ensemble(output_dir) if design is None else design
     study = from_dict(json.loads(ds.attrs["study_json"]), Path(run_name(output_dir)))
     report = Path(out_dir)
     if design is not None:
-        return write_design_report(ds, report, surface=study.geometry.build_mould())
+        return write_design_report(ds, report, surface=study.geometry.build_mould(), formats=formats)
     sensitivity = open_sensitivity(output_dir)
     manifest = read_manifest(output_dir)
     target = manifest.get("target") or {}  # a target run: what stopped it, for the page's attributes
@@ -237,6 +239,7 @@ def run_report(output_dir, out_dir=None) -> Path | str:
                         experimental_csv=study.report.experimental_csv,
                         wall_time_s=manifest.get("wall_time_s"),
                         replicates=study.sampling.randomizations if study.sampling.plan == "rqmc" else None,
+                        formats=formats,
                         rare=read_rare(from_dict(manifest["study"], Path(output_dir)), output_dir),
                         **({} if sensitivity is None else dict(zip(("sensitivity", "sensitivity_maps"), sensitivity))))
 
@@ -259,6 +262,17 @@ def hierarchical_summary(study, realizations) -> dict | None:
             "limits wider than a fixed sd's (a response linear in the sd)": f"{100 * (rms / sd - 1):.1f} %",
             "share of the variance from the small measurement": f"{100 * (1 - sd ** 2 / rms ** 2):.1f} % "
             "(the rest: the fabric)"}
+
+
+def design_outcome(out) -> str:
+    """What ``uqdrape design`` did to ``out`` (a folder or store URL): designs draped, or how
+    many a resume kept."""
+    attrs = read_dataset(out, DESIGN_FILE).attrs
+    kept, draped = int(attrs.get("designs_kept", 0)), int(attrs.get("designs_draped", 0))
+    if not kept:
+        return f"designs written to {out}: {draped} designs draped"
+    return (f"resumed: {kept} of {kept + draped} designs kept from {EVALUATIONS}/, {draped} draped; "
+            f"designs in {out}")
 
 
 def run_outcome(out: Path) -> str:
