@@ -1,4 +1,4 @@
-"""Answers in fewer drapes (issue 29). Run: python benchmarks/bench_fewer_drapes.py [--part rqmc|subset|drape|mlmc]
+"""Answers in fewer drapes (issue 29). Run: python benchmarks/bench_fewer_drapes.py [--part rqmc|subset|importance|drape|mlmc]
 
 (a) ``rqmc``: randomised QMC against plain Monte Carlo on shipped studies, in one run:
     the Fig 5.19 study (``studies/nosecone-zero-angle.toml``, iid zero-angle field, 3600
@@ -15,11 +15,18 @@
     against the stated CoV, and the model calls against plain MC's (1 - P) / (P CoV^2)
     for the same CoV; at 1e-4 the samples per level that give a 10 % CoV (over the runs)
     and their calls against MC's 10^6.
+(b') ``importance``: importance sampling around the design point the subset levels give
+    (``uqdrape.reliability.importance_sampling``, target CoV 10 %) on the linear limit
+    state in 100 dimensions at 1e-3, 1e-4, 1e-5 and the sphere's exterior in 200 at 1e-4:
+    mean P, CoV over repeated runs against the stated one, the share of runs whose
+    2-CoV interval covers P, the model calls against plain MC's 100 / P for 10 %, and
+    which estimate each run returned.
 (c) ``drape``: a drape exceedance at P ~ 1e-3, cross-checked against plain MC: geodesic
     drapes of a 50 mm dome (6 rings, iid spacing cv 2 %, skew sd 1 deg: 313 standard
-    variables), P(max |shear| >= t) with t the 0.999 quantile of 200,000 MC drapes (MC's
-    CoV 7 %), against 10 subset simulations of 1000 samples a level
-    (``uqdrape.workflow.rare.drape_limit_state``).
+    variables), P(max |shear| >= t) (failing at either sign of the skew: two design
+    points) and P(mean_shear_positive >= t) (one), t the 0.999 quantile of 200,000 MC
+    drapes (MC's CoV 7 %), against 10 subset simulations of 1000 samples a level and 10
+    importance samplings to 10 % CoV (``uqdrape.workflow.rare.drape_limit_state``).
 (d) ``mlmc``: is a two-level Monte Carlo over net resolution worth it? Energy drapes of
     the nose cone with three scalar factors (friction, crossover offset, misalignment:
     the same values at both resolutions, so the levels couple exactly) on the thesis net
@@ -134,6 +141,29 @@ def subset_part() -> None:
           f"{(1 - exact) / (exact * observed**2):.3g}, for 10 %: {(1 - exact) / (exact * 0.01):.3g} ({load()})")
 
 
+def importance_part() -> None:
+    from uqdrape.reliability import importance_sampling, linear_limit_state, sphere_limit_state
+
+    repeats = 100
+    print(f"\n## importance sampling at the subset levels' design point, target CoV 0.1, {repeats} runs ({load()})")
+    print("| limit state | d | P | mean estimate | CoV over runs | stated CoV (mean) | covered (2 CoV) | calls (mean) "
+          "| MC calls for 10 % | ratio | estimate used |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for limit_state, d, p, runs in ((linear_limit_state, 100, 1e-3, repeats), (linear_limit_state, 100, 1e-4, repeats),
+                                    (linear_limit_state, 100, 1e-5, repeats), (sphere_limit_state, 200, 1e-4, 20)):
+        g, exact = limit_state(d, p)
+        res = [importance_sampling(g, d, seed=s, cov=0.1) for s in range(runs)]
+        est = np.array([r.probability for r in res])
+        cov = np.array([r.cov for r in res])
+        calls = np.mean([r.calls for r in res])
+        mc = (1 - exact) / (exact * 0.01)
+        used = {m: sum(r.method == m for r in res) for m in ("importance", "subset")}
+        print(f"| {limit_state.__name__} | {d} | {exact:.0e} | {est.mean():.3g} | {est.std(ddof=1) / exact:.3f} | "
+              f"{cov.mean():.3f} | {np.mean(np.abs(est / exact - 1) <= 2 * cov):.2f} | {calls:.0f} | {mc:.3g} | "
+              f"{mc / calls:.0f} | {used} |")
+    print(f"({load()})")
+
+
 DOME_STUDY = """\
 [study]
 name = "rare-dome"
@@ -160,7 +190,7 @@ sd = 1.0
 
 
 def drape_part() -> None:
-    from uqdrape.reliability import subset_simulation
+    from uqdrape.reliability import importance_sampling, subset_simulation
     from uqdrape.workflow.rare import drape_limit_state
 
     with tempfile.TemporaryDirectory() as folder:
@@ -168,25 +198,40 @@ def drape_part() -> None:
         path.write_text(DOME_STUDY)
         study = load_study(path)
     n_mc = 200_000
-    print(f"\n## a drape exceedance at P ~ 1e-3: {n_mc} MC drapes against subset simulation ({load()})")
-    g, d = drape_limit_state(study, "max_abs_shear", 0.0)
-    rng = np.random.default_rng(11)
-    start = time.perf_counter()
-    shear = -np.concatenate([g(rng.standard_normal((2000, d))) for _ in range(n_mc // 2000)])
-    seconds = time.perf_counter() - start
-    threshold = float(np.quantile(shear, 0.999))
-    p_mc = float(np.mean(shear >= threshold))
-    print(f"MC: {n_mc} drapes in {seconds:.0f} s; t = {threshold:.3f} deg; P = {p_mc:.3g}, CoV "
-          f"{np.sqrt((1 - p_mc) / (p_mc * n_mc)):.3f}")
-    g, d = drape_limit_state(study, "max_abs_shear", threshold)
-    start = time.perf_counter()
-    runs = [subset_simulation(g, d, n_per_level=1000, seed=s) for s in range(10)]
-    seconds = time.perf_counter() - start
-    est = np.array([r.probability for r in runs])
-    print(f"subset simulation, 10 runs: mean P {est.mean():.3g} (spread CoV {est.std(ddof=1) / est.mean():.3f}, "
-          f"stated {np.mean([r.cov for r in runs]):.3f}), {np.mean([r.calls for r in runs]):.0f} drapes a run, "
-          f"{seconds / len(runs):.1f} s a run; MC drapes for the same CoV: "
-          f"{(1 - p_mc) / (p_mc * (est.std(ddof=1) / est.mean()) ** 2):.3g} ({load()})")
+    for qoi in ("max_abs_shear", "mean_shear_positive"):
+        print(f"\n## P({qoi} >= t) at P ~ 1e-3: {n_mc} MC drapes against subset simulation and importance "
+              f"sampling ({load()})")
+        g, d = drape_limit_state(study, qoi, 0.0)
+        rng = np.random.default_rng(11)
+        start = time.perf_counter()
+        value = -np.concatenate([g(rng.standard_normal((2000, d))) for _ in range(n_mc // 2000)])
+        seconds = time.perf_counter() - start
+        threshold = float(np.quantile(value, 0.999))
+        p_mc = float(np.mean(value >= threshold))
+        print(f"MC: {n_mc} drapes in {seconds:.0f} s; t = {threshold:.4f} deg; P = {p_mc:.3g}, CoV "
+              f"{np.sqrt((1 - p_mc) / (p_mc * n_mc)):.3f}")
+        g, d = drape_limit_state(study, qoi, threshold)
+        start = time.perf_counter()
+        runs = [subset_simulation(g, d, n_per_level=1000, seed=s) for s in range(10)]
+        seconds = time.perf_counter() - start
+        est = np.array([r.probability for r in runs])
+        print(f"subset simulation, 10 runs: mean P {est.mean():.3g} (spread CoV {est.std(ddof=1) / est.mean():.3f}, "
+              f"stated {np.mean([r.cov for r in runs]):.3f}), {np.mean([r.calls for r in runs]):.0f} drapes a run, "
+              f"{seconds / len(runs):.1f} s a run; MC drapes for the same CoV: "
+              f"{(1 - p_mc) / (p_mc * (est.std(ddof=1) / est.mean()) ** 2):.3g} ({load()})")
+        start = time.perf_counter()
+        res = [importance_sampling(g, d, seed=s, cov=0.1) for s in range(10)]
+        seconds = time.perf_counter() - start
+        est = np.array([r.probability for r in res])
+        calls = np.mean([r.calls for r in res])
+        print(f"importance sampling to 10 % CoV, 10 runs: mean P {est.mean():.3g} (spread CoV "
+              f"{est.std(ddof=1) / est.mean():.3f}, stated {np.mean([r.cov for r in res]):.3f}, "
+              f"{np.mean(np.abs(est / p_mc - 1) <= 2 * np.array([r.cov for r in res])):.1f} within 2 stated CoV of MC's), "
+              f"{calls:.0f} drapes a run ({np.mean([r.importance_calls for r in res]):.0f} importance), "
+              f"{seconds / len(res):.1f} s a run, beta {np.mean([r.beta for r in res]):.2f}, fit R^2 "
+              f"{np.mean([r.r2 for r in res]):.3f}, far-side share {np.mean([r.opposite for r in res]):.3f}, "
+              f"estimates used {sorted({r.method for r in res})}; MC drapes for 10 %: "
+              f"{(1 - p_mc) / (p_mc * 0.01):.3g}, ratio {(1 - p_mc) / (p_mc * 0.01) / calls:.0f} ({load()})")
 
 
 NOSECONE_FACTORS = """\
@@ -253,12 +298,14 @@ def mlmc_part(n: int = 64) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--part", choices=("rqmc", "subset", "drape", "mlmc"), action="append")
-    parts = parser.parse_args().part or ["rqmc", "subset", "drape", "mlmc"]
+    parser.add_argument("--part", choices=("rqmc", "subset", "importance", "drape", "mlmc"), action="append")
+    parts = parser.parse_args().part or ["rqmc", "subset", "importance", "drape", "mlmc"]
     if "rqmc" in parts:
         rqmc_part()
     if "subset" in parts:
         subset_part()
+    if "importance" in parts:
+        importance_part()
     if "drape" in parts:
         drape_part()
     if "mlmc" in parts:

@@ -166,7 +166,7 @@ def s3():
 
 
 @pytest.fixture()
-def no_aws_credentials(s3, monkeypatch):
+def no_s3_credentials(s3, monkeypatch):
     """The ``s3`` server's environment without credentials anywhere botocore looks."""
     import s3fs
 

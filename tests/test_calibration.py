@@ -17,6 +17,7 @@ from uqdrape.calibration import (AnglePoints, PointsError, block_text, calibrate
 from uqdrape.calibration.likelihood import Likelihood
 from uqdrape.calibration.mapping import fibre_coordinates, zero_angle_deg
 from uqdrape.cli import main
+from uqdrape.report.style import DPI, ROW_IN
 from uqdrape.study import load_study
 
 HEADER = "x_mm,y_mm,angle_deg,fibre_set"
@@ -26,6 +27,8 @@ TABLE_5_1 = dict(n=38, mean_deg=42.7, sd_deg=5.6)
 #: lattice 5 mm apart (lengths of 4 and 2 lattice steps).
 TRUTH = dict(sd_deg=4.0, length_mm=(20.0, 10.0), nugget_deg=1.0)
 TRUE_VALUES = {"sd_deg": 4.0, "length_1_mm": 20.0, "length_2_mm": 10.0}
+#: (width, height) px of the calibration figure: 17 x 9 in drawn the width of a report page's row
+CALIBRATION_PNG = (round(ROW_IN * DPI), int(9.0 * ROW_IN / 17.0 * DPI))  # matplotlib truncates
 
 
 def _csv(tmp_path, rows, header=HEADER, name="points.csv"):
@@ -308,7 +311,7 @@ def test_calibrate_command_writes_the_block_and_the_figure(tmp_path, capsys):
     assert f"wrote {out}" in said and "iid field" in said and "sd_deg 5.6 [4.715, 6.942]" in said
     assert "sd_deg = 5.6" in out.read_text(encoding="utf-8")
     with Image.open(out.with_suffix(".png")) as png:
-        assert png.size == (1700, 800) and np.unique(np.asarray(png.convert("L"))).size > 50
+        assert png.size == CALIBRATION_PNG and np.unique(np.asarray(png.convert("L"))).size > 50
 
 
 def test_calibrate_figure_of_a_correlated_field(tmp_path):
@@ -317,7 +320,7 @@ def test_calibrate_figure_of_a_correlated_field(tmp_path):
     assert main(["calibrate", str(csv), "--out", str(tmp_path / "b.toml"), "--plot", str(png),
                  "--family", "squared_exponential", "-q"]) == 0
     with Image.open(png) as image:
-        assert image.size == (1700, 800)
+        assert image.size == CALIBRATION_PNG
 
 
 def test_calibrate_command_errors_are_one_line(tmp_path, capsys):

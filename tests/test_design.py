@@ -12,7 +12,7 @@ import xarray as xr
 
 from uqdrape import design
 from uqdrape.drape import draw_in
-from uqdrape.workflow import run_design
+from uqdrape.workflow import design_outcome, run_design
 from uqdrape.cli import main as cli
 from uqdrape.study import StudyError, load_study
 
@@ -199,6 +199,11 @@ def test_interrupted_design_resumes_to_the_same_result(tmp_path):
     for name in ("x", "objective", "q95_max_abs_shear", "q95_max_abs_shear_upper", "key"):
         np.testing.assert_array_equal(resumed[name].values, clean[name].values)
     assert resumed.attrs["summary"] == clean.attrs["summary"]
+    # what each run did, as `uqdrape design` says it: the resume drew only what the first had not
+    n = int(clean.attrs["designs_draped"])
+    assert design_outcome(tmp_path / "clean") == f"designs written to {tmp_path / 'clean'}: {n} designs draped"
+    assert design_outcome(tmp_path / "resumed") == (f"resumed: 6 of {n} designs kept from evaluations/, {n - 6} "
+                                                    f"draped; designs in {tmp_path / 'resumed'}")
 
 
 FORCE = 'variables = "force"\nforce_bounds_N = [0.0, 100.0]\nobjective = "p_locked"'

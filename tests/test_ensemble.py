@@ -197,7 +197,7 @@ def test_ensemble_holds_inputs_provenance_and_units(reference):
     assert ds.attrs["study_realizations"] == N and ds.attrs["sampling_plan"] == "monte_carlo"
     assert json.loads(ds.attrs["study_json"]) == study.to_dict()
     assert ds.attrs["study_toml"] == study.path.read_text()
-    assert ds.attrs["material"] == "generic_woven" and ds.attrs["mould"].startswith("hemisphere(radius=50.0")
+    assert ds.attrs["material"] == "generic_woven" and ds.attrs["mould"].startswith("hemisphere (radius 50 mm")
     assert ds.attrs["uqdrape_version"]
     assert (ds.status == 0).all() and bool(ds.converged.all())
 

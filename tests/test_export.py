@@ -171,12 +171,14 @@ def test_fe_mapping_on_a_triangulated_hemisphere(hemi, tmp_path):
     assert np.abs(np.linalg.norm(e1, axis=-1) - 1).max() < 1e-12
     assert max(np.abs(dot(e1, n[on])).max(), np.abs(dot(e2, n[on])).max()) < 1e-9
     assert np.abs(np.degrees(np.arccos(dot(e1, e2))) - (90 - cd["shear"][on])).max() < 1e-9
-    # the Abaqus table parses back to the same numbers; unmapped elements are listed
+    # the Abaqus table (its last distribution, yarn 1's) parses back to the element-plane
+    # yarns of the VTU, a row for every element; unmapped elements are listed
     default, rows, unmapped = _read_abaqus(inp)
     assert default == [1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
-    assert sorted(rows) == list(np.flatnonzero(on) + 1)
+    assert sorted(rows) == list(range(1, n_tri + 1))
     table = np.array([rows[k] for k in sorted(rows)])
-    np.testing.assert_array_equal(table, np.column_stack([e1, e2]))
+    np.testing.assert_array_equal(table[on], np.column_stack([cd["yarn1"][on], cd["yarn2"][on]]))
+    assert np.abs(dot(table[~on, :3], table[~on, 3:])).max() < 1e-12  # the default: e1, e2
     assert unmapped == list(np.flatnonzero(~on) + 1)
 
 
@@ -416,7 +418,7 @@ def test_abaqus_table_uses_the_input_meshs_own_element_labels(hemi, tmp_path):
     (_, inp), (status,) = export_fe(levels(ds, False), ds, renumbered, tmp_path / "part")
     expected = 1001 + 3 * np.arange(len(status))
     _, rows, unmapped = _read_abaqus(inp)
-    assert sorted(rows) == list(expected[status == ON_NET]) and unmapped == list(expected[status != ON_NET])
+    assert sorted(rows) == list(expected) and unmapped == list(expected[status != ON_NET])
 
 
 def test_cli_unwritable_output_is_an_io_error(drape_file, tmp_path, capsys):

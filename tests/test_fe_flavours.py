@@ -159,29 +159,41 @@ def exported(hemi, tmp_path_factory):
     return dict(zip(("vtu", "abaqus", "lsdyna", "nastran"), paths)), status, meshio.read(mesh), surface
 
 
+def mesh_cells(mesh):
+    """The corner node lists of every cell of the meshio ``mesh``, in file order."""
+    return [list(c) for block in mesh.cells for c in block.data]
+
+
 def test_abaqus_keeps_both_yarns_as_local_1_of_two_orientations(exported):
-    paths, status, _, surface = exported
+    """Every element's row read back: both local-1 vectors in the element's plane (the
+    frame rebuilt here from meshio's nodes) to 1e-9, 90 deg - shear apart to 1e-9 deg, so
+    Abaqus's projection onto the shell and its orthogonalisation of local 2 keep both."""
+    paths, status, mesh, _ = exported
     dists, orient, unmapped = read_abaqus(paths["abaqus"])
     assert orient == {"UQDRAPE_YARN1_ORIENTATION": "UQDRAPE_YARN1", "UQDRAPE_YARN2_ORIENTATION": "UQDRAPE_YARN2"}
-    on = np.flatnonzero(status == ON_NET) + 1
-    assert sorted(dists["UQDRAPE_YARN1"][1]) == list(on) == sorted(dists["UQDRAPE_YARN2"][1])
+    cells = mesh_cells(mesh)
+    labels = list(range(1, len(cells) + 1))
+    assert sorted(dists["UQDRAPE_YARN1"][1]) == labels == sorted(dists["UQDRAPE_YARN2"][1])
     assert unmapped == list(np.flatnonzero(status != ON_NET) + 1) and unmapped
     assert dists["UQDRAPE_YARN1"][0] == [1, 0, 0, 0, 1, 0] and dists["UQDRAPE_YARN2"][0] == [0, 1, 0, -1, 0, 0]
     table = fields_table(paths["abaqus"], "**")
-    from uqdrape.export.fe import centroids, onto_mould, read_surface_mesh
-
-    m, blocks = read_surface_mesh(paths["vtu"].with_name("part.msh"))
-    xy, _, _ = onto_mould(surface, centroids(m, blocks))
-    normal = surface.normal(xy[:, 0], xy[:, 1])
-    for label in on:
+    _, shells, _ = read_lsdyna(paths["lsdyna"])
+    worst_unit = worst_plane = worst_angle = 0.0
+    for label, corners in zip(labels, cells):
         y1, b1 = np.split(np.array(dists["UQDRAPE_YARN1"][1][label]), 2)
         y2, b2 = np.split(np.array(dists["UQDRAPE_YARN2"][1][label]), 2)
         np.testing.assert_array_equal(b1, y2)  # yarn 1's local 2 towards yarn 2
         np.testing.assert_array_equal(b2, -y1)  # yarn 2's frame: the same local 3
-        n = normal[label - 1]  # tangent to the mould at the element's foot point
-        assert abs(np.dot(y1, n)) < 1e-9 and abs(np.dot(y2, n)) < 1e-9
-        assert abs(angle_deg(y1, y2) - (90 - table[label]["shear_deg"])) < 1e-9
-    shear = np.array([table[k]["shear_deg"] for k in on])
+        e1, e2, n = frame(mesh.points, corners)
+        worst_unit = max(worst_unit, abs(np.linalg.norm(y1) - 1), abs(np.linalg.norm(y2) - 1))
+        worst_plane = max(worst_plane, abs(np.dot(y1, n)), abs(np.dot(y2, n)))
+        worst_angle = max(worst_angle, abs(angle_deg(y1, y2) - (90 - table[label]["shear_deg"])))
+        beta = np.radians(shells[label - 1][3])  # the same yarn 1 as LS-DYNA's angle
+        np.testing.assert_allclose(y1, np.cos(beta) * e1 + np.sin(beta) * e2, rtol=0, atol=1e-9)
+        if status[label - 1] != ON_NET:  # the default: the element frame's e1, e2
+            np.testing.assert_allclose(np.concatenate([y1, y2]), np.concatenate([e1, e2]), rtol=0, atol=1e-12)
+    assert worst_unit < 1e-12 and worst_plane < 1e-9 and worst_angle < 1e-9
+    shear = np.array([table[k]["shear_deg"] for k in labels])
     assert np.abs(shear).max() > 15  # the test sees a sheared ply
 
 

@@ -13,6 +13,7 @@ import trimesh
 
 from uqdrape.drape import kernels
 from uqdrape.geometry import MeshSurface
+from uqdrape.geometry.compiled import new_memo
 
 
 def _save(mesh: trimesh.Trimesh, path) -> str:
@@ -35,7 +36,7 @@ def test_a_circle_through_a_thin_plate_keeps_the_crossing_on_the_net_s_side(thin
     inside) and leaves through the top at t = asin(0.75) = 48.6 deg (phi rising). Facing +t
     the nearer crossing is skipped for the top; facing -t the bottom is the root."""
     kind, par = thin_plate.kernel
-    args = (kind, par, (0.0, 0.0, -1.5), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0), 2.0, 1e-10)
+    args = (kind, par, new_memo(kind), (0.0, 0.0, -1.5), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0), 2.0, 1e-10)
     q, ok, grad, _ = kernels._solve_on_circle(*args, 1.0)
     assert ok and q == pytest.approx((2.0 * np.cos(np.arcsin(0.75)), 0.0, 0.0), abs=1e-9)
     assert grad == pytest.approx((0.0, 0.0, 1.0))
@@ -48,7 +49,7 @@ def test_a_circle_that_only_enters_the_plate_has_no_root(thin_plate):
     """Circle (0, 0, -3) + 2.5 (cos t (1, 0, 0) + sin t (0, 0, 1)) meets the plate only where it
     enters its bottom face from below (t = asin(0.8)): no root on a sheet facing +t."""
     kind, par = thin_plate.kernel
-    args = (kind, par, (0.0, 0.0, -3.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0), 2.5, 1e-10)
+    args = (kind, par, new_memo(kind), (0.0, 0.0, -3.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0), 2.5, 1e-10)
     q, ok, _, _ = kernels._solve_on_circle(*args, 1.0)
     assert not ok
     q, ok, _, _ = kernels._solve_on_circle(*args, -1.0)

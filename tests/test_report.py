@@ -38,7 +38,8 @@ from uqdrape.report import (
     read_experimental,
     write_report,
 )
-from uqdrape.report.figures import DPI, _line_panels, panels, save, suptitle
+from uqdrape.report.figures import _line_panels, panels, save, suptitle
+from uqdrape.report.style import COLUMN_IN, DPI, ROW_IN
 from uqdrape.report.html import default_histogram_nodes
 from uqdrape.report.plan import PLAN
 from uqdrape.schema import by_force
@@ -124,7 +125,8 @@ def png_shape(path, min_bytes=5000):
 
 def test_plot_net_node_and_cell_variables(ensemble, tmp_path):
     rows, cols = png_shape(plot_net(ensemble, tmp_path / "net.png"))
-    assert (rows, cols) == (round(5.6 * DPI), round(7.0 * DPI))
+    # one panel of 7.0 x 5.6 in, drawn a page column wide (style.COLUMN_IN) at the report's DPI
+    assert (rows, cols) == (round(5.6 * COLUMN_IN / 7.0 * DPI), round(COLUMN_IN * DPI))
     png_shape(plot_net(ensemble, tmp_path / "cells.png", var="cell_shear", realization=3, title="cells"))
 
 
@@ -161,10 +163,10 @@ def test_plot_net_errors(ensemble, tmp_path):
 def test_figure_titles_fit_their_figure_and_wrap_only_when_they_must():
     head, detail = "ST of node shear on the mean net (x-y plan), nose cone, ebxhd936_like, energy drape", \
         "Sobol' design, 128 base samples, 896 drapes per level"
-    wide, _ = panels(4, size=(5.4, 4.2), cols=4)  # 21.6 in: room for both on one line
+    wide = Figure(figsize=(21.6, 4.2))  # room for both on one line
     suptitle(wide, head, detail)
     assert wide._suptitle.get_text() == f"{head}: {detail}"
-    narrow, _ = panels(2, size=(2.9, 2.7), cols=2)  # 5.8 in at 13 pt: 58 characters a line
+    narrow = Figure(figsize=(5.8, 2.7))  # 5.8 in at 13 pt: 58 characters a line
     with mpl.rc_context({"figure.titlesize": 13}):
         suptitle(narrow, head, detail)
     lines = narrow._suptitle.get_text().split("\n")
@@ -175,6 +177,7 @@ def test_figure_titles_fit_their_figure_and_wrap_only_when_they_must():
 def test_save_writes_the_rendered_pixels_losslessly(tmp_path):
     fig, (ax,) = panels(1, size=(3.0, 2.0))
     ax.imshow(np.linspace(0, 1, 256)[None, :], aspect="auto", cmap="viridis")  # a smooth colour bar
+    fig.set_dpi(DPI)  # save's
     fig.canvas.draw()
     rendered = np.asarray(fig.canvas.buffer_rgba())
     path = save(fig, tmp_path / "ramp.png")
@@ -190,7 +193,9 @@ def test_plot_lines_one_panel_per_force(material, tmp_path):
     four = drape(NoseCone(), 5.0, 8, mode="energy", material=material, blankholder_force=[378.0, 0.0, 126.0, 252.0])
     single = png_shape(plot_lines(one, tmp_path / "one.png"))
     grid = png_shape(plot_lines(four, tmp_path / "four.png"))
-    assert grid == (2 * single[0], 2 * single[1])  # 2 x 2 panels of the single-panel size
+    # one panel fills a page column, 2 x 2 panels of the same shape the row
+    assert (single[1], grid[1]) == (round(COLUMN_IN * DPI), round(ROW_IN * DPI))
+    assert abs(grid[0] / grid[1] - single[0] / single[1]) < 1 / single[1]
     groups = _line_panels(by_force(four), 0)
     assert [f for f, _ in groups] == [0.0, 126.0, 252.0, 378.0]
     for force, sub in groups:

@@ -41,7 +41,7 @@ def test_the_page_describes_the_run_not_its_first_chunk(riskless):
     page = (riskless / "index.html").read_text()
     assert "uqdrape ensemble: study tiny, 6 realisations at 50 N" in page
     assert "realisations 0-1" not in page  # chunk 0's own title
-    assert "<th>mould</th><td>hemisphere(" in page and "<th>geometry</th>" not in page
+    assert "<th>mould</th><td>hemisphere (radius" in page and "<th>geometry</th>" not in page
 
 
 def test_the_per_node_statistics_are_a_cf_netcdf_file_on_the_mean_positions(riskless):

@@ -149,16 +149,6 @@ def test_a_lock_left_by_a_killed_run_on_this_host_is_taken_over(tmp_path):
     assert err.value.errno == errno.EBUSY
 
 
-def test_a_design_study_refuses_a_store(tmp_path, capsys):
-    path = write_study(tmp_path, "dsg", study={"realizations": 4, "chunk_size": 2},
-                       process={"blankholder_force_N": 50.0, "friction": 0.2},
-                       solver={"mode": "energy", "rings": 4}, fabric={"material": "ebxhd936_like"},
-                       design={"variables": "force", "force_bounds_N": [10.0, 100.0], "objective": "p_locked"})
-    assert main(["design", str(path), "--out", "memory://store-run-design", "-q"]) == 2
-    assert_one_line_error(capsys.readouterr().err, file="memory://store-run-design",
-                          valid=["a [design] study writes design.nc", "set --out to a folder path"])
-
-
 # -- store faults from the command line: one line, exit 3, nothing written --------------
 
 @pytest.mark.parametrize("command", ["run", "validate"])
@@ -175,7 +165,7 @@ def test_store_faults_are_one_line_exit_3(tmp_path, s3, capsys, command, url, va
     assert not s3.exists("readonly/x")
 
 
-def test_no_credentials_is_one_line_exit_3(tmp_path, no_aws_credentials, capsys):
+def test_no_credentials_is_one_line_exit_3(tmp_path, no_s3_credentials, capsys):
     assert main(["run", str(sweep_file(tmp_path / "s", 20, "s3://runs/nocreds")), "--no-report", "-q"]) == 3
     assert_one_line_error(capsys.readouterr().err, file="s3://runs/nocreds",
                           valid=["Unable to locate credentials", "AWS_ENDPOINT_URL"])

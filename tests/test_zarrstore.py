@@ -116,7 +116,7 @@ def test_s3_missing_bucket(reference, s3):
     assert "\n" not in str(err.value)
 
 
-def test_s3_no_credentials(reference, no_aws_credentials):
+def test_s3_no_credentials(reference, no_s3_credentials):
     study, _ = reference
     with pytest.raises(OSError, match="Unable to locate credentials.*credentials in the environment") as err:
         run_store(study, "s3://runs/nocreds", scheduler="synchronous", progress=False)

@@ -423,6 +423,9 @@ def write_readme() -> Path:
                      f"| {_cell(record['thesis_figure'])}: {_cell(record['thesis'])} | {numbers} |")
     lines += _comparison_section()
     lines += ["", "## Beyond a study file", "",
+              "- [card-slope](card-slope/card_slope.png): the same specimen sd on cards of slope 1, 1/2 and 1/4: "
+              "ring-turn and node-shear scatter against slope and blank-holder force, linearised and measured by "
+              "studies that vary only the card (`python tools/card_slope.py`).",
               "- [nosecone-profiles](nosecone-profiles/README.md): the symmetrising blank-holder force of the "
               "picture-frame-scale card over 17 nose-cone profiles, both blank-holder models "
               "(`python tools/nosecone_profiles.py`).",

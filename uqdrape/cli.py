@@ -150,11 +150,11 @@ exit codes: 0 done, 2 a user error (one line on stderr naming the key, flag or p
 
 
 def cmd_design(args) -> int:
-    from .workflow import run_design, run_report
+    from .workflow import design_outcome, run_design, run_report
 
     study = _engine_study(args)
     out = run_design(study, scheduler=args.scheduler, workers=args.workers, progress=args.verbosity > 0)
-    print(f"designs written to {out}")
+    print(design_outcome(out))
     if not args.no_report:
         print(f"report: {run_report(out)}")
     return 0
@@ -163,7 +163,7 @@ def cmd_design(args) -> int:
 def cmd_report(args) -> int:
     from .workflow import run_report
 
-    print(f"report: {run_report(args.results, args.out)}")
+    print(f"report: {run_report(args.results, args.out, formats=args.format or ())}")
     return 0
 
 
@@ -182,12 +182,29 @@ def cmd_export(args) -> int:
 
 
 def cmd_calibrate(args) -> int:
-    from .workflow import calibrate_fibre_angles
+    from .workflow import calibrate_drapes, calibrate_fibre_angles
 
+    command = "uqdrape " + shlex.join(args.argv)
+    if (args.points is None) == (args.drapes is None):
+        raise ValueError("give either POINTS (measured fibre angles or an image) or --drapes PART.csv ... "
+                         "with --study and --parameter")
+    if args.drapes is not None:
+        points_only = [flag for flag, given in (("--plot", args.plot), ("--posterior", args.posterior),
+                                                ("--mm-per-px", args.mm_per_px is not None)) if given]
+        if points_only:
+            raise ValueError(f"{', '.join(points_only)} belong(s) to a calibration from POINTS, not --drapes "
+                             "(which always samples its posterior and writes its figures with --report)")
+        if args.study is None:
+            raise ValueError("--drapes needs --study STUDY.toml, the study whose parameters are calibrated")
+        print(calibrate_drapes(args.drapes, args.study, args.parameter or [], args.out, report=args.report,
+                               design=args.design, realizations=args.realizations,
+                               measurement_sd=args.measurement_sd, level=args.level, scheduler=args.scheduler,
+                               workers=args.workers, progress=args.verbosity > 0, command=command))
+        return 0
     print(calibrate_fibre_angles(args.points, args.out, args.plot, family=args.family, criterion=args.criterion,
                                  level=args.level, fibre1_deg=args.fibre1_deg, posterior=args.posterior,
                                  mm_per_px=args.mm_per_px, window_px=args.window_px, fibre_set=args.fibre_set,
-                                 command="uqdrape " + shlex.join(args.argv)))
+                                 report=args.report, command=command))
     return 0
 
 
@@ -287,10 +304,15 @@ def build_parser() -> argparse.ArgumentParser:
     _engine_options(dsg)
 
     rep = _command(sub, "report", cmd_report, help="write the report of a finished run", raw=True,
-                   epilog="example:\n  uqdrape report results/nosecone-zero-angle --out results/nosecone-report\n\n"
+                   epilog="examples:\n  uqdrape report results/nosecone-zero-angle --out results/nosecone-report\n"
+                          "  uqdrape report results/nosecone-zero-angle --format svg pdf   vector figures too\n\n"
                           + _EXIT_CODES)
-    rep.add_argument("results", help="a run's output folder, e.g. results/nosecone-zero-angle")
-    rep.add_argument("--out", help="report folder (default RESULTS/report)")
+    rep.add_argument("results", help="a run's output folder or store URL, e.g. results/nosecone-zero-angle or "
+                                     "s3://bucket/runs/nosecone")
+    rep.add_argument("--out", help="report folder (default RESULTS/report; under a store's URL for a store)")
+    rep.add_argument("--format", nargs="+", metavar="FORMAT",
+                     help="also write every figure as FORMAT (svg, pdf: vector, text kept as text) beside its "
+                          "PNG, linked from the page")
 
     v = _command(sub, "validate", cmd_validate, help="check study files without running them")
     v.add_argument("files", nargs="+", help="study files (TOML)")
@@ -298,7 +320,7 @@ def build_parser() -> argparse.ArgumentParser:
     e = _command(
         sub, "export", cmd_export, raw=True,
         help="write a drape or an ensemble as VTK, FE-mesh orientations, a flat pattern or a cutting pattern",
-        description="Export a result: a drape file (uqdrape drape --out) or a run folder\n"
+        description="Export a result: a drape file (uqdrape drape --out), or a run folder or store URL\n"
                     "(uqdrape run; its per-node statistics). One file set per force level of a sweep;\n"
                     "every file of a call is written, or none.\n\n"
                     "  vtk   STEM.vtu (net: shear, status, locked or ensemble statistics, fibre directions,\n"
@@ -310,13 +332,17 @@ def build_parser() -> argparse.ArgumentParser:
                     "        needs --mesh\n"
                     "  flat  STEM-flat-nodes.csv, STEM-flat-outline.csv, STEM-flat.dxf (flat blank, mm)\n"
                     "  cut   STEM-cut.dxf (layers CUT, ENVELOPE, FIBRE, SEED, LABEL) and STEM-cut.csv: the\n"
-                    "        part's edge (--trim, or the mould's outline) in the flat blank, fabric axes\n\n"
+                    "        part's edge (--trim, or the mould's outline) in the flat blank, fabric axes\n"
+                    "  netcdf  STEM.nc (or --out FILE.nc): the whole result as one CF netCDF file, a run's\n"
+                    "        ensemble streamed chunk by chunk from its folder or store\n\n"
                     "Examples:\n"
                     "  uqdrape export results/drape/nosecone.nc --to vtk flat\n"
                     "  uqdrape export results/drape/nosecone.nc --to cut --trim edge.csv --ply P1\n"
-                    "  uqdrape export results/nosecone-zero-angle --to fe --mesh part.inp --flavour abaqus lsdyna")
-    e.add_argument("result", help="a drape netCDF file or a run folder")
-    e.add_argument("--to", nargs="+", required=True, choices=("vtk", "fe", "flat", "cut"), help="what to write")
+                    "  uqdrape export results/nosecone-zero-angle --to fe --mesh part.inp --flavour abaqus lsdyna\n"
+                    "  uqdrape export s3://bucket/runs/nosecone --to netcdf --out results/nosecone.nc")
+    e.add_argument("result", help="a drape netCDF file, a run folder or a store URL")
+    e.add_argument("--to", nargs="+", required=True, choices=("vtk", "fe", "flat", "cut", "netcdf"),
+                   help="what to write")
     e.add_argument("--flavour", nargs="+", choices=("abaqus", "lsdyna", "nastran"), default=["abaqus"],
                    help="the FE solvers whose cards --to fe writes (default abaqus)")
     e.add_argument("--trim", metavar="CSV",
@@ -330,7 +356,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="plan angle of the direction fibre_deviation is measured from (default: the fabric's "
                         "orientation)")
     e.add_argument("--out", metavar="STEM",
-                   help="output path stem (default: the drape file without .nc, or RUN/export/RUN)")
+                   help="output path stem, or FILE.nc for --to netcdf (default: the drape file without .nc, or "
+                        "RUN/export/RUN, under a store's URL for a store)")
 
     srv = _command(
         sub, "serve", cmd_serve, raw=True,
@@ -390,10 +417,19 @@ def build_parser() -> argparse.ArgumentParser:
                     "shear angle gamma0 of that set rotating against the other (uqdrape.calibration.mapping).\n\n"
                     "CSV columns: x_mm,y_mm,angle_deg,fibre_set[,sd_deg] (angle: plan direction of the fibre,\n"
                     "deg from x; fibre_set 1 or 2; sd_deg: the point's measurement sd).\n\n"
-                    "Example:\n"
-                    "  uqdrape calibrate points.csv --out zero_angle.toml --plot")
-    cal.add_argument("points", help="CSV of measured fibre angles")
-    cal.add_argument("--out", required=True, metavar="BLOCK.toml", help="the study block to write")
+                    "With --drapes: the posterior of chosen study parameters (--parameter KEY=LOW:HIGH, a\n"
+                    "uniform prior) given measured shear on formed parts (one CSV a part:\n"
+                    "distance_mm,shear_deg,quadrant_sign), through a Gaussian-process emulator of the study's\n"
+                    "ensemble mean and sd at the measured points over a Latin-hypercube design of ensemble\n"
+                    "runs, sampled with emcee (needs uqdrape[calibrate]); writes the study at the posterior\n"
+                    "medians (--out, beside the study) and the sample (-posterior.nc).\n\n"
+                    "Examples:\n"
+                    "  uqdrape calibrate points.csv --out zero_angle.toml --plot --report calibration/\n"
+                    "  uqdrape calibrate --drapes part1.csv part2.csv --study studies/my.toml \\\n"
+                    "      --parameter uncertainty.zero_angle.sd_deg=0.5:8 --out studies/my-calibrated.toml")
+    cal.add_argument("points", nargs="?", help="CSV of measured fibre angles, or an image (with --mm-per-px)")
+    cal.add_argument("--out", required=True, metavar="FILE.toml",
+                     help="the study block to write (with --drapes: the calibrated study)")
     cal.add_argument("--plot", metavar="PNG", nargs="?", const=True,
                      help="write the calibration figure (points, fitted field, predictive check, profile "
                           "likelihoods), by default next to the block")
@@ -412,6 +448,19 @@ def build_parser() -> argparse.ArgumentParser:
     cal.add_argument("--window-px", type=float, default=8.0,
                      help="image: the structure tensor's Gaussian window sd, pixels (default 8; a sample every 2)")
     cal.add_argument("--fibre-set", type=int, choices=(1, 2), default=1, help="image: which fibre set it shows")
+    cal.add_argument("--report", metavar="DIR", help="also write the calibration report, DIR/index.html")
+    drapes = cal.add_argument_group("calibration from measured drapes")
+    drapes.add_argument("--drapes", nargs="+", metavar="PART.csv", help="measured parts, one CSV each")
+    drapes.add_argument("--study", metavar="STUDY.toml", help="the study whose parameters are calibrated")
+    drapes.add_argument("--parameter", action="append", metavar="KEY=LOW:HIGH",
+                        help="a study key to calibrate and its uniform prior box, repeatable "
+                             "(e.g. process.friction=0.1:0.4, uncertainty.zero_angle.sd_deg=0.5:8)")
+    drapes.add_argument("--design", type=int, help="design points (ensembles) of the emulator (default 10 per parameter)")
+    drapes.add_argument("--realizations", type=int, help="drapes per design point (default: the study's realizations)")
+    drapes.add_argument("--measurement-sd", type=float, default=0.1,
+                        help="sd of a measured shear's own error, deg (default 0.1)")
+    drapes.add_argument("--scheduler", metavar="ADDRESS", help="dask.distributed scheduler (default: local processes)")
+    drapes.add_argument("--workers", type=int, help="local worker processes (default: all cores)")
 
     p.add_argument("--version", action=_Version)
     p.set_defaults(verbosity=1)

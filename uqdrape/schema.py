@@ -128,6 +128,8 @@ QOI_ATTRS = {name: {"units": units, "long_name": long_name} for name, units, lon
     ("locked_fraction", "1", "fraction of the valid cells that are locked"),
     ("any_locked", "1", "1 if any node of the net is locked, else 0"),
     ("max_draw_in", "mm", "largest radial draw-in of the held edge"),
+    ("lock_margin", "1", "largest cell shear from its zero-energy angle over its branch's locking angle "
+                         "(above 1: a cell is locked)"),
 )}
 #: The quantities a sensitivity study ranks unless its [sensitivity] qoi says otherwise.
 SENSITIVITY_QOIS = ("max_abs_shear", "mean_shear_positive", "mean_shear_negative", "asymmetry",

@@ -18,8 +18,14 @@ the profile's.
 tensor, optional extra ``calibrate``) as points for the same fit (``uqdrape calibrate
 IMAGE --mm-per-px``).
 
-Not here yet (issue 25's second half): calibration from measured drapes through an emulator, and
-correlation lengths drawn per realisation (only the sd is).
+:func:`.block.unidentified` names the parameters the points do not identify (an open
+profile interval, or a posterior piling against the prior's bound).
+
+Measured drapes -> study parameters: :mod:`.emulator` (a GP per ensemble statistic over a
+Latin-hypercube design, scikit-learn) and :mod:`.drapes` (the parts' likelihood, its
+posterior by emcee, the posterior-predictive bands); the drapes themselves are run by
+``uqdrape.workflow.calibrate``. Not here yet: correlation lengths drawn per realisation
+(only the sd is).
 """
 
 from __future__ import annotations

@@ -36,11 +36,43 @@ def _interval(estimate) -> str:
     return f"[{lower}, {upper}]"
 
 
+def _posterior_ends(calibration) -> dict:
+    """The prior bounds each sampled parameter's posterior piles against (name -> bounds;
+    :meth:`.posterior.Posterior.at_bounds`), only the parameters that do."""
+    if calibration.posterior is None:
+        return {}
+    from .posterior import prior_box
+
+    ends = {name: calibration.posterior.at_bounds(name, lo, hi, log=True)
+            for name, (lo, hi) in prior_box(calibration.fit).items()}
+    return {name: e for name, e in ends.items() if e}
+
+
+def _posterior_bounded(calibration) -> bool:
+    """Whether the posterior's intervals are the data's, not the prior box's."""
+    return calibration.posterior is not None and not _posterior_ends(calibration)
+
+
+def unidentified(calibration) -> list[str]:
+    """A sentence per parameter the measured points do not identify: its profile-likelihood
+    interval is open at the search bound, or its posterior piles against the prior's bound."""
+    fit = calibration.fit
+    out = [f"{name} is not identified by the data: its profile-likelihood interval {_interval(est)} is open "
+           "(the likelihood stays within the cut up to the search bound)"
+           for name, est in fit.estimates.items() if est.lower_open or est.upper_open]
+    for name, ends in _posterior_ends(calibration).items():
+        lo, hi = calibration.posterior.interval(name, fit.level)
+        out.append(f"{name} is not identified by the data: its posterior reaches the prior bound "
+                   f"{' and '.join(f'{b:.4g}' for b in ends)} ({100 * fit.level:g} % interval [{lo:.4g}, {hi:.4g}] "
+                   "is the prior's, not the measurements'); more points over a larger sample would bound it")
+    return out
+
+
 def _sd_interval(calibration):
     """The sd's estimate with the interval sd_dof is matched to: the posterior's if
-    sampled, else the profile's."""
+    sampled and bounded by the data (:func:`unidentified`), else the profile's."""
     est = calibration.fit.estimates["sd_deg"]
-    if calibration.posterior is None:
+    if not _posterior_bounded(calibration):
         return est
     lower, upper = calibration.posterior.interval("sd_deg", calibration.fit.level)
     return type(est)(est.value, lower, upper)
@@ -109,8 +141,11 @@ def block_text(calibration, command: str = "uqdrape calibrate") -> str:
         lines += [f"  {name:12s} [{lo:.4g}, {hi:.4g}]  autocorrelation {post.autocorrelation[name]:.0f} steps"
                   for name in post.samples for lo, hi in [post.interval(name, fit.level)]]
     m = sd_dof(_sd_interval(calibration), fit.level)
-    source = "posterior" if post is not None else "profile"
-    lines.append(f"sd_dof = {m:.4g}: the sd's {source} interval as a scaled-inverse-chi-square one; a run draws each "
+    source = "posterior" if _posterior_bounded(calibration) else "profile"
+    lines += [f"WARNING: {u}" for u in unidentified(calibration)]
+    lines.append(f"sd_dof = {m:.4g}: the sd's {source} interval as a scaled-inverse-chi-square one"
+                 + (" (not the posterior's: it reaches its prior bound)" if post is not None and source == "profile"
+                    else "") + "; a run draws each "
                  "realisation's sd from it (delete sd_dof for a fixed sd; correlation lengths stay fixed)"
                  if m is not None else "no sd_dof: the sd's interval is open, the data do not bound it")
     if points.sd_deg.any():

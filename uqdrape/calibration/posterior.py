@@ -46,6 +46,24 @@ class Posterior:
         return float(lo), float(hi)
 
 
+    def at_bounds(self, name: str, lower: float, upper: float, *, log: bool = False) -> list[float]:
+        """The bounds of the prior range [lower, upper] (uniform in ``name``, or in its log
+        with ``log``) that the draws pile against: more than ``EDGE_SHARE`` of them within
+        ``EDGE`` of the range's width from it. A posterior that the data bound has next to no
+        draws there; one that does, would reach further with a wider prior: the data do not
+        identify the parameter and its interval is the prior's."""
+        x, lo, hi = self.samples[name], lower, upper
+        if log:
+            x, lo, hi = np.log(x), math.log(lo), math.log(hi)
+        t = (x - lo) / (hi - lo)
+        return [b for b, share in ((lower, np.mean(t < EDGE)), (upper, np.mean(t > 1 - EDGE))) if share > EDGE_SHARE]
+
+
+#: See :meth:`Posterior.at_bounds`: the outer share of a prior range, and the share of the
+#: draws there that marks a parameter as not identified.
+EDGE, EDGE_SHARE = 0.05, 0.01
+
+
 class MissingExtraError(ImportError, ValueError):
     """emcee is not installed (a ValueError too, so the command line says it in one line)."""
 
@@ -59,17 +77,24 @@ def _emcee():
     return emcee
 
 
+def prior_box(field_fit) -> dict:
+    """The prior's range of each sampled parameter (name -> (lower, upper), deg or mm):
+    the fit's search box (:func:`.fit.bounds`), the prior flat in the logs inside it."""
+    like = field_fit.likelihood
+    box = bounds(like, float(np.std(like.y, ddof=1)))
+    return {_NAMES[n]: (math.exp(lo), math.exp(hi)) for n, (lo, hi) in zip(parameter_names(like.family), box)}
+
+
 def posterior_sample(field_fit, *, walkers: int = 16, steps: int = 1500, burn: int = 300,
                      seed: int = 0) -> Posterior:
     """Sample the chosen family's parameters of ``field_fit`` (see the module docstring)."""
-    emcee = _emcee()
     like = field_fit.likelihood
     theta0 = np.asarray(field_fit.chosen.theta, dtype=float)
     ndim = theta0.size
     walkers = max(int(walkers), 2 * ndim + 2)
     if not 0 <= burn < steps:
         raise ValueError(f"burn must be in [0, steps), got burn={burn!r}, steps={steps!r}")
-    box = np.array(bounds(like, float(np.std(like.y, ddof=1))))
+    box = np.log(np.array(list(prior_box(field_fit).values())))
 
     def log_post(theta):
         if np.any(theta <= box[:, 0]) or np.any(theta >= box[:, 1]):
@@ -80,19 +105,27 @@ def posterior_sample(field_fit, *, walkers: int = 16, steps: int = 1500, burn: i
     rng = np.random.default_rng(seed)
     start = theta0 + 1e-3 * rng.standard_normal((walkers, ndim))
     start = np.clip(start, box[:, 0] + 1e-9, box[:, 1] - 1e-9)
+    names = list(prior_box(field_fit))
+    post = run_chains(log_post, start, names, steps=steps, burn=burn, rng=rng)
+    return Posterior({n: np.exp(v) for n, v in post.samples.items()}, post.acceptance, post.autocorrelation,
+                     post.seconds)
+
+
+def run_chains(log_post, start, names, *, steps: int, burn: int, rng, vectorize: bool = False) -> Posterior:
+    """emcee's affine-invariant ensemble from ``start`` (walker, parameter), ``burn`` of
+    ``steps`` steps dropped; the sample of θ under ``names``, reproducible from ``rng``."""
+    emcee = _emcee()
     clock = time.perf_counter()
-    sampler = emcee.EnsembleSampler(walkers, ndim, log_post)
+    sampler = emcee.EnsembleSampler(len(start), start.shape[1], log_post, vectorize=vectorize)
     sampler.random_state = np.random.RandomState(int(rng.integers(2 ** 31))).get_state()  # reproducible
     sampler.run_mcmc(start, steps, progress=False)
     seconds = time.perf_counter() - clock
     chain = sampler.get_chain(discard=burn, flat=True)
-    names = [_NAMES[n] for n in parameter_names(like.family)]
     quiet = logging.getLogger("emcee")
     level, quiet.level = quiet.level, logging.ERROR  # a short chain's warning: the times are reported as they are
     try:
-        tau = sampler.get_autocorr_time(discard=burn, quiet=True) if steps - burn >= 50 else [math.nan] * ndim
+        tau = sampler.get_autocorr_time(discard=burn, quiet=True) if steps - burn >= 50 else [math.nan] * len(names)
     finally:
         quiet.level = level
-    return Posterior({n: np.exp(chain[:, k]) for k, n in enumerate(names)},
-                     float(np.mean(sampler.acceptance_fraction)),
+    return Posterior({n: chain[:, k] for k, n in enumerate(names)}, float(np.mean(sampler.acceptance_fraction)),
                      {n: float(t) for n, t in zip(names, tau)}, seconds)

@@ -40,6 +40,16 @@ ones, by how far they miss; the optimum is the best feasible design evaluated (t
 least infeasible if none is). More force holds the edge, so the limit is a floor on the
 force where the held edge would otherwise be pulled in too far.
 
+Rare constraint. With ``rare`` (``[design] rare = {qoi, threshold, max_probability, cov,
+max_drapes}``) a design is feasible also when the same statistic of its P(qoi >=
+threshold) is at most ``max_probability``: the upper limit is the log-normal one of the
+estimate and its CoV (:func:`rare_interval`). The estimate is the ``[study] rare`` one
+(``uqdrape.workflow.rare.design_rare``, passed in as the Evaluator's ``rare``: this
+package does not drape limit states itself), one per design and sample with the sample's
+seed, kept in the design's record (``rare_*`` attributes) and in ``design.nc``. Its
+excess adds log10(P / max_probability) (decades) to the draw-in's (mm): a ranking of
+infeasible designs, not a quantity.
+
 Optimisers (deterministic: scipy, fixed seed, a deterministic objective):
 
 - one variable (the total force): a grid of ``GRID`` forces over the bounds (one
@@ -73,7 +83,8 @@ from them and drapes only what is missing; ``design.nc``, every evaluated design
 its statistics, the history and the result.
 """
 
-from .estimators import DRAW_IN, INFEASIBLE, STATISTICS, excess, objective_value, penalised, statistics
+from .estimators import (DRAW_IN, INFEASIBLE, RARE, STATISTICS, excess, objective_value, penalised, rare_interval,
+                         statistics)
 from .evaluate import EVALUATIONS, RECORD_VERSION, Evaluator, drape_design
 from .optimise import DE_POPSIZE, GRID, Result, optimise
 from .problem import VALIDATION_STREAM, Problem, problem, validation_seed
@@ -82,4 +93,4 @@ from .result import BOOTSTRAP, DESIGN_FILE, result_dataset, summary_text
 __all__ = ["problem", "Problem", "validation_seed", "Evaluator", "drape_design", "statistics", "excess",
            "objective_value", "penalised", "optimise", "Result", "result_dataset", "summary_text", "DESIGN_FILE",
            "EVALUATIONS", "RECORD_VERSION", "GRID", "DE_POPSIZE", "BOOTSTRAP", "VALIDATION_STREAM", "DRAW_IN",
-           "INFEASIBLE", "STATISTICS"]
+           "INFEASIBLE", "STATISTICS", "RARE", "rare_interval"]

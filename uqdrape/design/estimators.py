@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import xarray as xr
+from scipy.special import ndtri
 
 from ..stats import line_means, mean_statistics, quantile_statistics, wilson_interval
 from ..study.spec import DESIGN_OBJECTIVES
@@ -14,6 +15,8 @@ from ..study.spec import DESIGN_OBJECTIVES
 DRAW_IN = "q95_max_draw_in"
 INFEASIBLE = 1.0e6
 STATISTICS = tuple(DESIGN_OBJECTIVES)
+#: Statistic of a ``[design] rare`` constraint: the candidate's rare probability estimate.
+RARE = "p_rare"
 
 
 def per_realization(record: xr.Dataset, k_max: int) -> dict[str, np.ndarray]:
@@ -50,6 +53,14 @@ def statistics(values: dict, confidence: float) -> dict[str, tuple]:
     return out
 
 
+def rare_interval(probability: float, cov: float, confidence: float) -> tuple[float, float, float]:
+    """(estimate, lower, upper) of a rare probability estimate of coefficient of variation
+    ``cov``: the two-sided ``confidence`` interval of its log-normal approximation,
+    P exp(-+z sqrt(ln(1 + cov^2))) (positive, and the usual reading of a CoV at small P)."""
+    z = ndtri((1 + confidence) / 2) * np.sqrt(np.log1p(cov**2))
+    return float(probability), float(probability * np.exp(-z)), float(probability * np.exp(z))
+
+
 def _statistic(stats: dict, name: str, spec):
     """The spec's statistic (upper limit or estimate) of statistic ``name``."""
     estimate, _, upper = stats[name]
@@ -61,10 +72,16 @@ def _statistic(stats: dict, name: str, spec):
 
 
 def excess(stats: dict, spec):
-    """How far (mm) a design breaks the draw-in limit, 0 if it keeps it or there is none."""
-    if spec.max_draw_in_mm is None:
-        return np.zeros(np.shape(stats[DRAW_IN][0]))
-    return np.maximum(_statistic(stats, DRAW_IN, spec) - spec.max_draw_in_mm, 0.0)
+    """How far a design breaks its limits, 0 if it keeps them: the draw-in limit's excess
+    (mm) plus the rare constraint's (decades: log10 of P over max_probability), a ranking
+    of infeasible designs by how far they miss, not a physical quantity."""
+    over = np.zeros(np.shape(stats[DRAW_IN][0]))
+    if spec.max_draw_in_mm is not None:
+        over = over + np.maximum(_statistic(stats, DRAW_IN, spec) - spec.max_draw_in_mm, 0.0)
+    if spec.rare is not None:
+        with np.errstate(divide="ignore"):  # P = 0: keeps it
+            over = over + np.maximum(np.log10(_statistic(stats, RARE, spec) / spec.rare.max_probability), 0.0)
+    return over
 
 
 def objective_value(stats: dict, spec):
@@ -74,6 +91,6 @@ def objective_value(stats: dict, spec):
 
 
 def penalised(stats: dict, spec):
-    """The objective, or ``INFEASIBLE`` + the excess (mm) of a design over the draw-in limit."""
+    """The objective, or ``INFEASIBLE`` + the excess (:func:`excess`) of a design over its limits."""
     over = excess(stats, spec)
     return np.where(over > 0, INFEASIBLE + over, objective_value(stats, spec))

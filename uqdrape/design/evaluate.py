@@ -8,17 +8,17 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-from pathlib import Path
+import sys
 
 import dask
 import numpy as np
 import xarray as xr
 
 from ..drape import max_shear_lines
-from ..ensemble import Progress, compute_tasks, drape_inputs, sampled_inputs, write_atomic
+from ..ensemble import Progress, compute_tasks, drape_inputs, read_dataset, sampled_inputs, write_dataset
 from ..stats import realization_qois
 from ..study import identity
-from .estimators import per_realization, statistics
+from .estimators import RARE, per_realization, rare_interval, statistics
 from .problem import Problem
 
 #: Folder of the per-design records in a design run's output folder.
@@ -30,16 +30,21 @@ RECORD_VERSION = 2
 RECORD_QOIS = ("any_locked", "max_abs_shear", "max_draw_in")
 
 
+def variant(study, force: float, sectors, friction: float):
+    """``study`` under one design: total force (N), sector weights, friction."""
+    return dataclasses.replace(study, process=dataclasses.replace(
+        study.process, blankholder_force_N=(float(force),), sectors=sectors, friction=float(friction)))
+
+
 def drape_design(study, realizations, force: float, sectors, friction: float) -> xr.Dataset:
     """Dask task: drape ``realizations`` of ``study`` under one design (total force N,
     sector weights, friction) and keep what the statistics need: per realisation
     ``any_locked``, ``max_abs_shear`` (deg), ``max_draw_in`` (mm), the max-shear-line
     shear (deg), and per node the lock count, the valid count and the summed plan
     position (mm)."""
-    variant = dataclasses.replace(study, process=dataclasses.replace(
-        study.process, blankholder_force_N=(float(force),), sectors=sectors, friction=float(friction)))
+    variant_study = variant(study, force, sectors, friction)
     r = np.asarray(realizations)
-    ds = drape_inputs(variant, r, sampled_inputs(variant, r))
+    ds = drape_inputs(variant_study, r, sampled_inputs(variant_study, r))
     locked = ds["locked"] > 0
     valid = ds["shear"].notnull()
     return xr.Dataset({
@@ -62,19 +67,27 @@ def _merge(parts: list) -> xr.Dataset:
 class Evaluator:
     """Drapes batches of designs on the design or the validation sample, each design once:
     records are cached in ``folder`` (None: in memory only) under a key of the study, the
-    sample and the design vector. ``drape`` is the task that drapes one chunk
-    (:func:`drape_design`; a test passes a synthetic one through the same pipeline)."""
+    sample and the design vector, in the run folder or store URL ``folder``'s
+    ``evaluations/`` (``uqdrape.ensemble.location``). ``drape`` is the task that drapes one chunk
+    (:func:`drape_design`; a test passes a synthetic one through the same pipeline). With a
+    ``[design] rare`` constraint, ``rare`` estimates it for one design (its :func:`variant` of
+    the sample's study -> {probability, cov, drapes, method, ...}:
+    ``uqdrape.workflow.rare.design_rare``), kept in the design's record as ``rare_*`` attributes."""
 
     def __init__(self, prob: Problem, folder=None, *, scheduler=None, workers=None, progress=True,
-                 drape=drape_design, pool=None):
+                 drape=drape_design, pool=None, rare=None):
         self.prob, self.scheduler, self.workers, self.progress = prob, scheduler, workers, progress
         self.pool = pool
-        self.folder = None if folder is None else Path(folder) / EVALUATIONS
+        self.folder = folder
         self.drape = drape
+        if prob.spec.rare is not None and rare is None:
+            raise ValueError("a [design] rare constraint needs its estimator (rare=)")
+        self.rare = rare if prob.spec.rare is not None else None
         self.records: dict[str, xr.Dataset] = {}
         self.order: list[tuple[str, str, tuple[float, ...]]] = []  # (sample, key, x) as first asked for
         self.identity = json.dumps(identity(prob.study.to_dict()), sort_keys=True)
         self.drapes = 0
+        self.kept = self.draped = 0  # designs read back from an earlier run's records / draped here
         self.k_max = None  # line nodes of the asymmetry, set from the baseline design
         self.cache: dict[str, tuple[dict, dict]] = {}
 
@@ -85,7 +98,11 @@ class Evaluator:
             key = self.key(sample, x)
             if key not in self.cache:
                 values = per_realization(record, self.k_max)
-                self.cache[key] = (values, statistics(values, self.prob.spec.confidence))
+                stats = statistics(values, self.prob.spec.confidence)
+                if self.rare is not None:
+                    stats[RARE] = rare_interval(record.attrs["rare_probability"], record.attrs["rare_cov"],
+                                                self.prob.spec.confidence)
+                self.cache[key] = (values, stats)
             out.append(self.cache[key][1])
         return out
 
@@ -96,8 +113,10 @@ class Evaluator:
 
     def key(self, sample: str, x) -> str:
         study = self.prob.study if sample == "design" else self.prob.validation
+        rare = self.prob.spec.rare
+        asked = "" if rare is None else json.dumps([rare.qoi, rare.threshold, rare.cov, rare.max_drapes])
         text = (f"{RECORD_VERSION}|{self.identity}|{sample}|{study.seed}|{study.realizations}|"
-                f"{np.asarray(x, float).tobytes().hex()}")
+                f"{np.asarray(x, float).tobytes().hex()}{asked}")
         return hashlib.sha1(text.encode()).hexdigest()[:16]
 
     def __call__(self, X, sample: str = "design") -> list[xr.Dataset]:
@@ -111,13 +130,15 @@ class Evaluator:
                 self.order.append((sample, key, x))
             if key in self.records or key in todo:
                 continue
-            path = None if self.folder is None else self.folder / f"{key}.nc"
-            if path is not None and path.is_file():
-                self.records[key] = xr.load_dataset(path)
+            record = None if self.folder is None else read_dataset(self.folder, f"{EVALUATIONS}/{key}.nc")
+            if record is not None:
+                self.records[key] = record
+                self.kept += 1
             else:
                 todo[key] = x
         if todo:
             self._drape(study, sample, todo)
+            self.draped += len(todo)
         return [self.records[k] for k in keys]
 
     def _drape(self, study, sample: str, todo: dict) -> None:
@@ -141,7 +162,15 @@ class Evaluator:
         for key, x in todo.items():
             record = _merge([p for p, owner in zip(parts, owners) if owner == key])
             record.attrs.update(sample=sample, seed=study.seed, x=list(x), names=list(self.prob.names))
+            if self.rare is not None:
+                force = self.prob.settings(x)[0]
+                estimate = self.rare(variant(study, *self.prob.settings(x)))
+                record.attrs.update({f"rare_{k}": v for k, v in estimate.items()})
+                self.drapes += estimate["drapes"]
+                if self.progress:
+                    print(f"{study.name}: rare estimate at {force:.1f} N ({sample}): P = {estimate['probability']:.3g}"
+                          f" (CoV {estimate['cov']:.2f}, {estimate['drapes']:,} drapes, {estimate['method']})",
+                          file=sys.stderr)
             if self.folder is not None:
-                self.folder.mkdir(parents=True, exist_ok=True)
-                write_atomic(record, self.folder / f"{key}.nc")
+                write_dataset(self.folder, f"{EVALUATIONS}/{key}.nc", record)
             self.records[key] = record

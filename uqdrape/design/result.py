@@ -4,12 +4,13 @@ and the result in plain words."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
 import xarray as xr
 
-from .estimators import DRAW_IN, STATISTICS, excess, objective_value, penalised, statistics
+from .estimators import DRAW_IN, RARE, STATISTICS, excess, objective_value, penalised, statistics
 from .evaluate import EVALUATIONS, Evaluator
 from .optimise import Result
 
@@ -46,8 +47,19 @@ def result_dataset(result: Result, evaluate: Evaluator) -> xr.Dataset:
                       {"long_name": f"objective: {spec.statistic} of {spec.objective}"
                                     + (f", distance from {spec.target:g}" if spec.target is not None else "")}),
         "feasible": ("evaluation", [int(excess(s, spec) == 0) for s in stats],
-                     {"units": "1", "long_name": "keeps the draw-in limit (1) or not (0)"}),
+                     {"units": "1", "long_name": "keeps the draw-in limit and the rare constraint (1) or not (0)"}),
     }
+    if spec.rare is not None:
+        records = [evaluate([x], s)[0].attrs for s, _, x in rows]
+        for part, i in (("probability", 0), ("lower", 1), ("upper", 2)):
+            data[f"rare_{part}"] = ("evaluation", [s[RARE][i] for s in stats], {
+                "units": "1", "long_name": f"P({spec.rare.qoi} >= {spec.rare.threshold:g})"
+                                           + (" estimate" if i == 0 else f" {part} ({confidence:.0%}, log-normal)")})
+        data["rare_cov"] = ("evaluation", [r["rare_cov"] for r in records], {"units": "1", "long_name": "its CoV"})
+        data["rare_drapes"] = ("evaluation", [int(r["rare_drapes"]) for r in records],
+                               {"units": "1", "long_name": "drapes of its estimate"})
+        data["rare_method"] = ("evaluation", [str(r["rare_method"]) for r in records],
+                               {"long_name": "importance (at the design point) or subset (simulation)"})
     units_of = {"p_locked": "1", DRAW_IN: "mm"}
     for name in STATISTICS:
         units = units_of.get(name, "degree")
@@ -65,7 +77,11 @@ def result_dataset(result: Result, evaluate: Evaluator) -> xr.Dataset:
         ds[f"{role}_node_y"] = (rec["node_y"] / nv).assign_attrs(units="mm")
     design_X = np.array([x for s, _, x in rows if s == "design"])
     resampled = _resampled(evaluate.values(design_X), BOOTSTRAP, prob.study.seed)
-    boot = penalised(statistics({k: resampled[k] for k in {spec.objective, DRAW_IN}}, confidence), spec)
+    boot_stats = statistics({k: resampled[k] for k in {spec.objective, DRAW_IN}}, confidence)
+    if spec.rare is not None:  # a design's rare estimate is its own, not a resample of the realisations
+        rare = np.array([s[RARE] for s in evaluate.statistics(design_X)])
+        boot_stats[RARE] = tuple(np.broadcast_to(column, (BOOTSTRAP, len(design_X))) for column in rare.T)
+    boot = penalised(boot_stats, spec)
     best = design_X[np.argmin(boot, axis=1)]
     opt_stats = evaluate.statistics([result.optimum])[0][spec.objective]
     val_stats = {role: evaluate.statistics([x], "validation")[0] for role, x in result.validation.items()}
@@ -74,18 +90,20 @@ def result_dataset(result: Result, evaluate: Evaluator) -> xr.Dataset:
         study_name=prob.study.name, objective=spec.objective, statistic=spec.statistic,
         target=spec.target if spec.target is not None else "none", confidence=confidence,
         max_draw_in_mm=spec.max_draw_in_mm or "none",
+        rare=json.dumps(dataclasses.asdict(spec.rare)) if spec.rare is not None else "none",
         variables=list(prob.names), bounds=json.dumps(prob.bounds), budget_N=spec.budget_N or "none",
         k_max=result.k_max, optimiser=result.message, design_seed=prob.study.seed,
         design_realizations=prob.study.realizations, validation_seed=prob.validation.seed,
         validation_realizations=prob.validation.realizations, drapes_this_run=int(evaluate.drapes),
         drapes_total=int(sum(prob.study.realizations if s == "design" else prob.validation.realizations
-                             for s, _, _ in rows)),
+                             for s, _, _ in rows) + (ds["rare_drapes"].sum() if spec.rare is not None else 0)),
         optimum=list(result.optimum), optimum_lower=list(np.quantile(best, 0.025, axis=0)),
         optimum_upper=list(np.quantile(best, 0.975, axis=0)), optimum_interval=(
             f"2.5-97.5 % of the best evaluated design over {BOOTSTRAP} realisation resamples"),
         optimum_estimate=list(opt_stats), baseline=list(prob.baseline),
         validation=json.dumps({role: {"x": list(x), "estimate": list(val_stats[role][spec.objective]),
-                                      "draw_in": list(val_stats[role][DRAW_IN])}
+                                      "draw_in": list(val_stats[role][DRAW_IN]),
+                                      **({"rare": list(val_stats[role][RARE])} if spec.rare is not None else {})}
                                for role, x in result.validation.items()}),
         validated=int(inside), study_json=json.dumps(prob.study.to_dict()),
     )
@@ -151,4 +169,13 @@ def summary_text(ds: xr.Dataset) -> str:
         text += (f" Draw-in at the optimum (95 % quantile of the largest, mm): {stat(d)}, limit {limit:g} mm on its "
                  f"{ds.attrs['statistic']}: {'kept' if kept else 'BROKEN'} on the validation sample"
                  + ("; no evaluated design keeps it." if none_kept else "."))
+    if ds.attrs.get("rare", "none") != "none":
+        rare = json.loads(ds.attrs["rare"])
+        p = val["optimum"]["rare"]
+        kept = (p[2] if ds.attrs["statistic"] == "upper" else p[0]) <= rare["max_probability"]
+        design = ds["sample"].values == "design"
+        text += (f" P({rare['qoi']} >= {rare['threshold']:g}) at the optimum: {stat(p)} (an independent estimate on "
+                 f"the validation seed; {np.median(ds['rare_drapes'].values):,.0f} drapes a design, median), bound "
+                 f"{rare['max_probability']:g} on its {ds.attrs['statistic']}: {'kept' if kept else 'BROKEN'}"
+                 + ("; no evaluated design keeps the limits." if not ds["feasible"].values[design].any() else "."))
     return text

@@ -17,6 +17,9 @@ the circle's parameter is oriented so that, on that sheet, phi increases with t 
 leaves the mould through its outer side), so a crossing where phi falls is the surface
 seen from inside and is never taken. A node with no such root is NO_INTERSECTION, not
 placed on another face.
+
+``memo`` is the mould's query memo (``compiled.new_memo``): it makes a mesh's nearby queries
+cheap and never changes an answer.
 """
 
 from __future__ import annotations
@@ -47,7 +50,7 @@ NAN3 = (math.nan, math.nan, math.nan)
 
 
 @jit
-def _gap(kind, par, c, u, v, rho, t):
+def _gap(kind, par, memo, c, u, v, rho, t):
     """Circle point q at angle t (mm), the mould function phi(q) (mm), its t-derivative, the
     gradient of phi at q (3-tuple) and whether q is on the mould (``compiled.gap_on``). For a
     height field, phi = z - h and the derivative (d2 - hx d0) - hy d1, the same arithmetic
@@ -56,12 +59,12 @@ def _gap(kind, par, c, u, v, rho, t):
     q = (c[0] + rho * (ct * u[0] + st * v[0]), c[1] + rho * (ct * u[1] + st * v[1]),
          c[2] + rho * (ct * u[2] + st * v[2]))
     d0, d1, d2 = rho * (-st * u[0] + ct * v[0]), rho * (-st * u[1] + ct * v[1]), rho * (-st * u[2] + ct * v[2])
-    phi, gx, gy, gz, on = gap_on(kind, par, q[0], q[1], q[2])
+    phi, gx, gy, gz, on = gap_on(kind, par, q[0], q[1], q[2], memo)
     return q, phi, (gz * d2 + gx * d0) + gy * d1, (gx, gy, gz), on
 
 
 @jit
-def _bracket(kind, par, c, u, v, rho, tol, up):
+def _bracket(kind, par, memo, c, u, v, rho, tol, up):
     """Sign change nearest t = 0 on a grid of circle angles where phi rises with ``up`` * t
     (the sheet's outward crossing), then Illinois false position.
 
@@ -73,7 +76,7 @@ def _bracket(kind, par, c, u, v, rho, tol, up):
     for s in _BRACKET_ORDER:
         for e in (s, s + 1):
             if not seen[e]:
-                g[e] = _gap(kind, par, c, u, v, rho, grid[e])[1]
+                g[e] = _gap(kind, par, memo, c, u, v, rho, grid[e])[1]
                 seen[e] = True
         if np.sign(g[s]) * np.sign(g[s + 1]) <= 0 and (g[s + 1] - g[s]) * up > 0:
             pick, found = s, True
@@ -87,7 +90,7 @@ def _bracket(kind, par, c, u, v, rho, tol, up):
             t_new = b - gb * (b - a) / (gb - ga) if gb != ga else 0.5 * (a + b)
             if not (min(a, b) < t_new < max(a, b)):
                 t_new = 0.5 * (a + b)
-            g_new = _gap(kind, par, c, u, v, rho, t_new)[1]
+            g_new = _gap(kind, par, memo, c, u, v, rho, t_new)[1]
             t = t_new
             if abs(g_new) < tol:
                 break
@@ -102,12 +105,12 @@ def _bracket(kind, par, c, u, v, rho, tol, up):
             else:
                 b, gb = t_new, g_new
             side = 1 if left else -1
-    q, g_t, _, grad, on = _gap(kind, par, c, u, v, rho, t)
+    q, g_t, _, grad, on = _gap(kind, par, memo, c, u, v, rho, t)
     return q, found and abs(g_t) < tol, grad, on
 
 
 @jit
-def _solve_on_circle(kind, par, c, u, v, rho, tol, up):
+def _solve_on_circle(kind, par, memo, c, u, v, rho, tol, up):
     """Point of the circle ``c + rho (cos t u + sin t v)`` on the surface, |t| < THETA_MAX,
     where phi rises with ``up`` * t (+-1: the net's own sheet, see the module docstring).
 
@@ -119,7 +122,7 @@ def _solve_on_circle(kind, par, c, u, v, rho, tol, up):
     if not (math.isfinite(c[0] + c[1] + c[2] + u[0] + u[1] + u[2] + v[0] + v[1] + v[2] + rho) and rho > 0):
         return NAN3, False, NAN3, False
     theta, last, older = 0.0, math.nan, math.nan
-    q, g, dg, grad, on = _gap(kind, par, c, u, v, rho, theta)
+    q, g, dg, grad, on = _gap(kind, par, memo, c, u, v, rho, theta)
     for _ in range(_NEWTON_ITERS):
         if abs(g) < tol:
             break
@@ -128,11 +131,11 @@ def _solve_on_circle(kind, par, c, u, v, rho, tol, up):
             break
         older, last, theta = last, theta, theta + min(max(step, -0.2), 0.2)
         if theta == older:  # a 2-cycle: Newton would alternate until it gives up
-            return _bracket(kind, par, c, u, v, rho, tol, up)
-        q, g, dg, grad, on = _gap(kind, par, c, u, v, rho, theta)
+            return _bracket(kind, par, memo, c, u, v, rho, tol, up)
+        q, g, dg, grad, on = _gap(kind, par, memo, c, u, v, rho, theta)
     if abs(g) < tol and abs(theta) < THETA_MAX and dg * up > 0:
         return q, True, grad, on
-    return _bracket(kind, par, c, u, v, rho, tol, up)
+    return _bracket(kind, par, memo, c, u, v, rho, tol, up)
 
 
 @jit
@@ -164,26 +167,26 @@ def _status(ok, on, parents_valid):
 
 
 @jit
-def arm_node(kind, par, p, direction, turn, length, tol):
+def arm_node(kind, par, memo, p, direction, turn, length, tol):
     """Next generator-arm node: distance ``length`` (mm) from ``p`` along the surface
     direction obtained by turning ``direction`` by ``turn`` (rad) about the normal at ``p``.
 
     ``turn = 0`` gives the discrete geodesic (straightest) path. Returns (q, status).
     """
-    n = surface_normal(kind, par, p[0], p[1], p[2])
+    n = surface_normal(kind, par, p[0], p[1], p[2], memo)
     dn = _dot(direction, n)
     t = _unit((direction[0] - dn * n[0], direction[1] - dn * n[1], direction[2] - dn * n[2]))
     w = _cross(n, t)
     ct, st = math.cos(turn), math.sin(turn)
     t = (ct * t[0] + st * w[0], ct * t[1] + st * w[1], ct * t[2] + st * w[2])
-    q, ok, _, on = _solve_on_circle(kind, par, p, t, n, length, tol, 1.0)  # t rises along n: outwards
+    q, ok, _, on = _solve_on_circle(kind, par, memo, p, t, n, length, tol, 1.0)  # t rises along n: outwards
     parents = math.isfinite(p[0] + p[1] + p[2] + direction[0] + direction[1] + direction[2])
     status = _status(ok, on, parents)
     return (q if status == OK else NAN3), status
 
 
 @jit
-def fill(kind, par, a, b, c, la, lb, sign_ij, tol):
+def fill(kind, par, memo, a, b, c, la, lb, sign_ij, tol):
     """Node at distance ``la`` (mm) from its fibre-1 neighbour ``a`` and ``lb`` from its
     fibre-2 neighbour ``b``, on the side away from the diagonal-opposite node ``c``.
 
@@ -201,7 +204,7 @@ def fill(kind, par, a, b, c, la, lb, sign_ij, tol):
     u = _unit((guess[0] - ge * e[0], guess[1] - ge * e[1], guess[2] - ge * e[2]))
     v = _cross(e, u)
     # v = e x u points along sign_ij times the outward normal on a right-handed cell
-    q, ok, grad, on = _solve_on_circle(kind, par, centre, u, v, rho, tol, float(sign_ij))
+    q, ok, grad, on = _solve_on_circle(kind, par, memo, centre, u, v, rho, tol, float(sign_ij))
     parents = math.isfinite(a[0] + a[1] + a[2] + b[0] + b[1] + b[2] + c[0] + c[1] + c[2])
     status = _status(ok, on, parents)
     if status == OK:

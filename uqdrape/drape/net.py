@@ -21,6 +21,7 @@ import functools
 import numpy as np
 
 from .._jit import on_threads
+from ..geometry.compiled import new_memo
 from . import ring
 from .energy import MM_TO_M, bending_energy
 from .status import Status
@@ -141,8 +142,8 @@ class EnergyRings:
     def _realisation(self, P, r, k):
         """The leading arguments of the compiled ring functions at ring k, realisation r."""
         p = self.prob
-        return (p.surface.kernel, p.tol, p.n, k, np.ascontiguousarray(P[r]), p.blank[r], p.seg_i[r], p.seg_j[r],
-                p.cell_s1[r], p.cell_s2[r], p.gamma0[r], p.crossover[r], p.blankholder.force[r],
+        return (p.surface.kernel, new_memo(p.surface.kernel[0]), p.tol, p.n, k, np.ascontiguousarray(P[r]), p.blank[r],
+                p.seg_i[r], p.seg_j[r], p.cell_s1[r], p.cell_s2[r], p.gamma0[r], p.crossover[r], p.blankholder.force[r],
                 p.blankholder.friction[r])
 
     def sides(self, P, k, turn):
@@ -178,6 +179,13 @@ class EnergyRings:
         S, St, arm = self.sides(P, k, turn[:, None, :])
         X, Xs, corner = self.corners(P, k, S, [(0, 0)])
         return arm[:, 0].sum(-1) + corner[:, 0].sum(-1), S[:, 0], St[:, 0], X[:, 0], Xs[:, 0]
+
+    def place_at(self, P, status, k, turn):
+        """Place ring k of every realisation at the given turn angles (R, 4) rad, not searched:
+        P (R, N, N, 3) and status (R, N, N), with rings < k placed, are filled in place."""
+        _, S, St, X, Xs = self.step_energy(P, k, turn)
+        for r in range(self.prob.R):
+            ring.put_ring(self.prob.n, k, P[r], status[r], S[r], St[r], X[r], Xs[r])
 
     def run(self, progress=None):
         """Drape ring by ring (one compiled call per ring for the whole block, the block's

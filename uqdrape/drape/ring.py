@@ -18,7 +18,8 @@ Arrays of one realisation r (mm unless stated): P (N, N, 3) the net, NaN where u
 blank (3, 2) the flat blank, whose node (i, j) lies at blank[0] + i blank[1] + j blank[2]
 (the crossover and the fibre steps s e1, s e2); seg_i (2n, 2n+1), seg_j (2n+1, 2n) segment lengths;
 s1, s2 (2n, 2n) cell segment lengths and g0 (2n, 2n) zero-energy angles (rad);
-centre (2,) the crossover. ``surf`` is the mould's ``(kind, params)``, ``mat`` the
+centre (2,) the crossover. ``surf`` is the mould's ``(kind, params)`` and ``memo`` its query
+memo (``compiled.new_memo``, one per call: a mesh's answers to nearby points), ``mat`` the
 material's and ``bh`` the blank-holder's compiled form. Energies in J.
 """
 
@@ -29,6 +30,7 @@ import math
 import numpy as np
 
 from .._jit import jit
+from ..geometry.compiled import new_memo
 from ..material.model import cell_energy
 from .energy import segment_energy
 from .kernels import OK, arm_node, fill, shear
@@ -75,21 +77,22 @@ def _put(P, status, n, i, j, q, st):
 
 
 @jit
-def _geodesic_net(surf, tol, n, P, status, seg_i, seg_j, first_dir):
+def _geodesic_net(surf, memo, tol, n, P, status, seg_i, seg_j, first_dir):
     """Geodesic net of one realisation: P (N, N, 3) mm and status (N, N), with the
-    crossover placed, are filled in place; seg_i, seg_j, first_dir (4, 3)."""
+    crossover placed, are filled in place; seg_i, seg_j, first_dir (4, 3); ``memo`` the
+    mould's query memo (``compiled.new_memo``)."""
     kind, par = surf
     for k in range(1, n + 1):
         for a in range(4):
             di, dj = ARMS[a]
-            q, st = arm_node(kind, par, _node(P, n, (k - 1) * di, (k - 1) * dj),
+            q, st = arm_node(kind, par, memo, _node(P, n, (k - 1) * di, (k - 1) * dj),
                              _arm_direction(P, n, k, a, first_dir), 0.0, _arm_length(seg_i, seg_j, n, k, a), tol)
             _put(P, status, n, k * di, k * dj, q, st)
     for d in range(2, 2 * n + 1):
         for a in range(max(1, d - n), min(n, d - 1) + 1):
             for si, sj in ((1, 1), (-1, 1), (-1, -1), (1, -1)):
                 i, j = si * a, sj * (d - a)
-                q, st = fill(kind, par, _node(P, n, i - si, j), _node(P, n, i, j - sj), _node(P, n, i - si, j - sj),
+                q, st = fill(kind, par, memo, _node(P, n, i - si, j), _node(P, n, i, j - sj), _node(P, n, i - si, j - sj),
                              seg_i[min(i, i - si) + n, j + n], seg_j[i + n, min(j, j - sj) + n], si * sj, tol)
                 _put(P, status, n, i, j, q, st)
 
@@ -98,8 +101,9 @@ def _geodesic_net(surf, tol, n, P, status, seg_i, seg_j, first_dir):
 def geodesic_block(surf, tol, n, P, status, seg_i, seg_j, first_dir):
     """Geodesic nets of a block, one after the other: P (R, N, N, 3), status (R, N, N),
     seg_i, seg_j, first_dir (R, 4, 3) as ``_geodesic_net`` per realisation."""
+    memo = new_memo(surf[0])
     for r in range(P.shape[0]):
-        _geodesic_net(surf, tol, n, P[r], status[r], seg_i[r], seg_j[r], first_dir[r])
+        _geodesic_net(surf, memo, tol, n, P[r], status[r], seg_i[r], seg_j[r], first_dir[r])
 
 
 @jit
@@ -152,7 +156,7 @@ def _finite0(e):
 
 
 @jit
-def sides(surf, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend,
+def sides(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend,
           mat, bh, turns, S, St, energy):
     """Arm nodes and side chains of ring k for candidate turn angles ``turns`` (M, 4) rad.
 
@@ -166,7 +170,7 @@ def sides(surf, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu
         for a in range(4):
             di, dj = ARMS[a]
             turn = turns[c, a]
-            q, st = arm_node(kind, par, _node(P, n, (k - 1) * di, (k - 1) * dj), _arm_direction(P, n, k, a, first_dir),
+            q, st = arm_node(kind, par, memo, _node(P, n, (k - 1) * di, (k - 1) * dj), _arm_direction(P, n, k, a, first_dir),
                              turn, _arm_length(seg_i, seg_j, n, k, a), tol)
             invalid = 0
             cells = 0.0
@@ -189,7 +193,7 @@ def sides(surf, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu
                     else:
                         ai, bj = xi - ei, fj
                         na, nb = prev, fixed
-                    x, xs = fill(kind, par, na, nb, _node(P, n, fi - ei, fj - ej),
+                    x, xs = fill(kind, par, memo, na, nb, _node(P, n, fi - ei, fj - ej),
                                  seg_i[min(xi, ai) + n, xj + n], seg_j[xi + n, min(xj, bj) + n],
                                  (xi - ai) * (xj - bj), tol)
                     S[c, a, side, m, 0], S[c, a, side, m, 1], S[c, a, side, m, 2] = x
@@ -213,7 +217,7 @@ def sides(surf, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu
 
 
 @jit
-def corners(surf, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S, pairs,
+def corners(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S, pairs,
             X, Xs, energy):
     """Quadrant corner nodes of ring k for candidate pairs ``pairs`` (C, 2): (candidate of
     the i-family arm, candidate of the j-family arm) of the side chains S.
@@ -229,7 +233,7 @@ def corners(surf, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, 
             a = (S[cb, qb, sb, k - 1, 0], S[cb, qb, sb, k - 1, 1], S[cb, qb, sb, k - 1, 2])  # (si(k-1), sj k)
             b = (S[ca, qa, sa, k - 1, 0], S[ca, qa, sa, k - 1, 1], S[ca, qa, sa, k - 1, 2])  # (si k, sj(k-1))
             diag = _node(P, n, si * (k - 1), sj * (k - 1))
-            x, xs = fill(kind, par, a, b, diag, seg_i[min(si * k, si * (k - 1)) + n, sj * k + n],
+            x, xs = fill(kind, par, memo, a, b, diag, seg_i[min(si * k, si * (k - 1)) + n, sj * k + n],
                          seg_j[si * k + n, min(sj * k, sj * (k - 1)) + n], si * sj, tol)
             X[c, q, 0], X[c, q, 1], X[c, q, 2] = x
             Xs[c, q] = xs
@@ -267,7 +271,7 @@ def _stencil(e_arm, e_corner, h, grad, hess):
 
 
 @jit
-def minimise(surf, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat, bh,
+def minimise(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat, bh,
              turn, tolerance, max_iterations, max_turn, S, St, X, Xs, best_ring):
     """Trust-region Newton on the four turn angles (rad) of ring k, from ``turn``.
 
@@ -300,9 +304,9 @@ def minimise(surf, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force,
             for c in range(3):
                 cand[c, a] = turn[a] + (c - 1) * h
         # the trial's own ring first: its stencil neighbours only if it is accepted
-        sides(surf, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat, bh,
+        sides(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat, bh,
               cand[1:2], S[1:2], St[1:2], e_arm[1:2])
-        corners(surf, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S, pairs[1:2],
+        corners(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S, pairs[1:2],
                 X[1:2], Xs[1:2], e_corner[1:2])
         total = 0.0
         for a in range(4):
@@ -313,9 +317,9 @@ def minimise(surf, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force,
         its += 1
         if total <= best_energy:
             for c in (0, 2):
-                sides(surf, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat,
+                sides(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat,
                       bh, cand[c:c + 1], S[c:c + 1], St[c:c + 1], e_arm[c:c + 1])
-            corners(surf, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S, pairs,
+            corners(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S, pairs,
                     X, Xs, e_corner)
             _stencil(e_arm, e_corner, h, grad_best, hess_best)
             best[:] = turn
@@ -355,30 +359,39 @@ def drape_ring(surf, tol, n, k, P, status, blank, seg_i, seg_j, s1, s2, g0, cent
     best_ring = (np.empty((1, 4, 2, n, 3)), np.empty((1, 4, 2, n), np.int8), np.empty((1, 4, 3)),
                  np.empty((1, 4), np.int8))
     S_best, St_best, X_best, Xs_best = best_ring
+    memo = new_memo(surf[0])
     for r in range(P.shape[0]):
         args = (P[r], blank[r], seg_i[r], seg_j[r], s1[r], s2[r], g0[r], centre[r], force[r], mu[r])
         if k > 1:
-            turn, its, ok = minimise(surf, tol, n, k, *args, first_dir[r], bend, mat, bh, turns[r, k - 2].copy(),
+            turn, its, ok = minimise(surf, memo, tol, n, k, *args, first_dir[r], bend, mat, bh, turns[r, k - 2].copy(),
                                      tolerance, max_iterations, max_turn, S, St, X, Xs, best_ring)
             iterations[r] += its
             converged[r] &= ok
         else:  # ring 1 leaves at the fabric angles
             turn = np.zeros(4)
-            sides(surf, tol, n, k, *args, first_dir[r], bend, mat, bh, turn.reshape(1, 4), S_best, St_best,
+            sides(surf, memo, tol, n, k, *args, first_dir[r], bend, mat, bh, turn.reshape(1, 4), S_best, St_best,
                   np.empty((1, 4)))
-            corners(surf, tol, n, k, *args, mat, bh, S_best, np.zeros((1, 2), np.int64), X_best, Xs_best,
+            corners(surf, memo, tol, n, k, *args, mat, bh, S_best, np.zeros((1, 2), np.int64), X_best, Xs_best,
                     np.empty((1, 4)))
         turns[r, k - 1] = turn
-        for a in range(4):
-            di, dj = ARMS[a]
-            for side in range(2):
-                sgn = 1 - 2 * side
-                ei, ej = (0, sgn) if di != 0 else (sgn, 0)
-                for m in range(k):
-                    i, j = n + k * di + m * ei, n + k * dj + m * ej
-                    P[r, i, j] = S_best[0, a, side, m]
-                    status[r, i, j] = St_best[0, a, side, m]
-        for q in range(4):
-            si, sj = CORNERS[q][4], CORNERS[q][5]
-            P[r, n + si * k, n + sj * k] = X_best[0, q]
-            status[r, n + si * k, n + sj * k] = Xs_best[0, q]
+        put_ring(n, k, P[r], status[r], S_best[0], St_best[0], X_best[0], Xs_best[0])
+
+
+@jit
+def put_ring(n, k, P, status, S, St, X, Xs):
+    """Write ring k of one realisation into its net P (N, N, 3) and status (N, N): the chain
+    nodes S (4, 2, >= k, 3) with status St and the corner nodes X (4, 3) with status Xs of
+    one candidate of ``sides`` and ``corners``."""
+    for a in range(4):
+        di, dj = ARMS[a]
+        for side in range(2):
+            sgn = 1 - 2 * side
+            ei, ej = (0, sgn) if di != 0 else (sgn, 0)
+            for m in range(k):
+                i, j = n + k * di + m * ei, n + k * dj + m * ej
+                P[i, j] = S[a, side, m]
+                status[i, j] = St[a, side, m]
+    for q in range(4):
+        si, sj = CORNERS[q][4], CORNERS[q][5]
+        P[n + si * k, n + sj * k] = X[q]
+        status[n + si * k, n + sj * k] = Xs[q]

@@ -1,8 +1,10 @@
 """An ensemble as one chunked zarr store on any fsspec URL (issue 28).
 
 Selected by a URL (anything with ``://``: ``file:///abs/path``, ``memory://name``,
-``s3://bucket/prefix``), as ``--out`` or ``[output] directory``; a plain path stays a run
-folder (``uqdrape.ensemble.store``). Layout under the URL::
+``s3://bucket/prefix``), as ``--out`` or ``[output] directory``. Decided: a plain path
+stays a run folder of netCDF chunks (``uqdrape.ensemble.store``), the default, and old
+run folders are read, not refused: every reader takes either
+(``uqdrape.ensemble.location``). Layout under the URL::
 
     run.json        the manifest: study record, chunk size, chunk names, realisations
     run.lock        one writer at a time: created with exclusive create ("xb": on S3 a
@@ -12,6 +14,8 @@ folder (``uqdrape.ensemble.store``). Layout under the URL::
                     ``open_ensemble``: (blankholder_force, realization, ...), zarr
                     chunks of (1, chunk_size, full node grid)
     done/<chunk>    a region's "done" marker, written after its data
+    sensitivity.nc, sensitivity_maps.nc, report/, export/
+                    as in a run folder, each file put whole (:func:`publish`)
 
 The template (every variable's shape, dtype and attributes, no data) is written once
 with ``compute=False``; each dask task drapes its chunk and writes its region of
@@ -37,6 +41,7 @@ import json
 import os
 import sys
 import time
+from pathlib import Path
 
 import dask
 import dask.array
@@ -119,8 +124,10 @@ def check_store(url: str) -> None:
 
 def read_store_manifest(url: str) -> dict | None:
     """The manifest of the store at ``url``, or None if there is none (checked as
-    ``store.read_manifest`` checks a folder's, and its ``realizations`` a count)."""
+    ``store.read_manifest`` checks a folder's, and its ``realizations`` a count); OSError
+    (one line) for a missing bucket or an unreachable store (``_check_reachable``)."""
     fs, root = _fs(url)
+    _check_reachable(fs, root, url)
     where = f"{url}/{MANIFEST}"
     try:
         with fs.open(f"{root}/{MANIFEST}", "rb") as f:
@@ -179,6 +186,14 @@ class _StoreLock:
         self.fs.rm(self.path)
 
 
+def store_lock(url: str) -> _StoreLock:
+    """The run lock of the store at ``url`` (a context manager; OSError EBUSY if another
+    run holds it), for runs that write there other than ``run_store`` (a design)."""
+    fs, root = _fs(url)
+    _check_reachable(fs, root, url)
+    return _StoreLock(fs, root, url)
+
+
 def _encoded(ds: xr.Dataset, study: Study, title: str) -> xr.Dataset:
     """``ds`` with its CF attributes and the zarr-valid part of ``cf_encode``'s encoding."""
     ds, encoding = cf_encode(ds, title=title, history=f"uqdrape run {study.path.name}", float32=study.float32)
@@ -231,6 +246,28 @@ def done_regions(url: str) -> set[str]:
         return {p.rstrip("/").rsplit("/", 1)[-1] for p in fs.ls(f"{root}/{DONE}", detail=False)}
     except FileNotFoundError:
         return set()
+
+
+def fetch(url: str, name: str, local) -> bool:
+    """Copy the file ``name`` under the store at ``url`` to the local path ``local``;
+    False if the store has no such file."""
+    fs, root = _fs(url)
+    _check_reachable(fs, root, url)
+    Path(local).parent.mkdir(parents=True, exist_ok=True)  # else a missing folder here reads as no such file
+    try:
+        fs.get_file(f"{root}/{name}", str(local))
+    except FileNotFoundError:
+        return False
+    return True
+
+
+def publish(local, url: str, name: str) -> None:
+    """Put the local file ``local`` under the store at ``url`` as ``name``, whole: it is
+    uploaded as ``name.part`` and then moved (a rename on a local disk, a server-side
+    copy on S3), so a reader never sees it half-written."""
+    fs, root = _fs(url)
+    fs.put_file(str(local), f"{root}/{name}.part")
+    fs.mv(f"{root}/{name}.part", f"{root}/{name}")
 
 
 def _kept_regions(url: str, study: Study, provenance: dict, chunk_size: int, n: int, chunks,

@@ -11,8 +11,10 @@ Plain functions, a result Dataset in and files out (lengths mm, angles degrees):
 - :func:`export_cut` -- the cutting pattern: the part's edge in the flat blank, in the
   fabric's axes, with fibre marker, seed and ply label (and an ensemble's envelope), as
   DXF and CSV
+- :func:`netcdf_file` -- the whole result as one CF netCDF file (a run's ensemble,
+  streamed from its chunks)
 
-A result is a ``uqdrape drape`` netCDF file or a ``uqdrape run`` folder
+A result is a ``uqdrape drape`` netCDF file or a ``uqdrape run`` folder or store URL
 (:func:`open_result`); an ensemble is exported through its per-node statistics.
 Every file is written under a temporary name and renamed only when all of them are
 complete (``write_all`` of the ``*_files`` writers of several exports commits them
@@ -24,8 +26,9 @@ from .directions import fibre_directions, fibre_frame
 from .fe import export_fe, fe_files
 from ..files import write_all
 from .flat import export_flat, flat_files
-from .result import Level, levels, open_result
+from .result import Level, levels, netcdf_file, open_result
 from .vtk import export_vtk, vtk_files
 
 __all__ = ["open_result", "levels", "Level", "fibre_directions", "fibre_frame", "export_vtk", "export_fe",
-           "export_flat", "export_cut", "vtk_files", "fe_files", "flat_files", "cut_files", "write_all"]
+           "export_flat", "export_cut", "vtk_files", "fe_files", "flat_files", "cut_files", "write_all",
+           "netcdf_file"]

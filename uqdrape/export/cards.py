@@ -9,10 +9,13 @@ each yarn its own frame, in a form the solver keeps as written:
   made orthogonal: the same local 3). Abaqus takes local 1 as given and orthogonalises
   only local 2, so each yarn survives as local 1 of its own orientation: use them as the
   orientations of two plies of half the ply thickness (``*SHELL SECTION, COMPOSITE``; the
-  file shows the lines). The vectors are unit, in global axes, tangent to the mould at
-  the element's foot point (Abaqus projects local 1 onto a shell's surface). Unmapped
-  elements take the distributions' default rows (global x and y) and are listed in
-  ``*ELSET, ELSET=UQDRAPE_UNMAPPED``.
+  file shows the lines). The vectors are unit, in global axes, in the element's plane
+  (the yarns turned onto it, ``uqdrape.export.elements``), so Abaqus's projection of
+  local 1 onto a shell's surface leaves them and their angle, 90 deg - shear, as
+  written. Every element of the mesh has its row; an unmapped one gets the default
+  (yarn 1 = e1, yarn 2 = e2 of its element frame) and is listed in
+  ``*ELSET, ELSET=UQDRAPE_UNMAPPED``; the distributions' default rows (global x and y)
+  serve only elements the mesh does not have.
 - ``lsdyna`` (``STEM-lsdyna.k``): the mesh as ``*NODE`` and ``*ELEMENT_SHELL_BETA`` in two
   superimposed layers sharing the nodes: part 1 = yarn 1 (element id = the label), part
   2 = yarn 2 (id = label + offset, the offset a power of ten above every label), each
@@ -102,24 +105,23 @@ def _header(prefix: str, source: str, what: list[str]) -> list[str]:
 def abaqus(tmp: Path, cards) -> None:
     """The Abaqus include (see the module doc)."""
     v, labels = cards.values, cards.labels
-    on = np.flatnonzero(v["map_status"] == 0)
     lines = _header("**", cards.source, [
         "element labels: those of an Abaqus input mesh, else 1-based positions in the mesh file",
         "two orientations, one per yarn; use each for a ply of half the ply thickness, e.g.",
         "*SHELL SECTION, ELSET=<preform>, COMPOSITE",
         "<t/2>, 3, <UD material>, UQDRAPE_YARN1_ORIENTATION",
         "<t/2>, 3, <UD material>, UQDRAPE_YARN2_ORIENTATION",
-        "vectors: unit, global axes, tangent to the mould at the element's foot point"])
+        "vectors: unit, global axes, in the element's plane; default rows (global x, y): elements not in this mesh"])
     lines += ["*DISTRIBUTION TABLE, NAME=UQDRAPE_FIBRE_TABLE", "COORD3D, COORD3D"]
-    for name, a, b, default in (("UQDRAPE_YARN2", v["fibre2"], -v["fibre1"], ", 0.0, 1.0, 0.0, -1.0, 0.0, 0.0"),
-                                ("UQDRAPE_YARN1", v["fibre1"], v["fibre2"], ", 1.0, 0.0, 0.0, 0.0, 1.0, 0.0")):
+    for name, a, b, default in (("UQDRAPE_YARN2", v["yarn2"], -v["yarn1"], ", 0.0, 1.0, 0.0, -1.0, 0.0, 0.0"),
+                                ("UQDRAPE_YARN1", v["yarn1"], v["yarn2"], ", 1.0, 0.0, 0.0, 0.0, 1.0, 0.0")):
         lines += [f"*DISTRIBUTION, NAME={name}, LOCATION=ELEMENT, TABLE=UQDRAPE_FIBRE_TABLE", default]
-        lines += [", ".join([str(labels[k])] + [repr(float(x)) for x in (*a[k], *b[k])]) for k in on]
+        lines += [", ".join([str(label)] + [repr(float(x)) for x in (*a[k], *b[k])]) for k, label in enumerate(labels)]
     for name in ("UQDRAPE_YARN1", "UQDRAPE_YARN2"):
         lines += [f"*ORIENTATION, NAME={name}_ORIENTATION, DEFINITION=COORDINATES, SYSTEM=RECTANGULAR", name]
     unmapped = labels[v["map_status"] != 0]
     if unmapped.size:
-        lines.append(f"** {unmapped.size} elements not on the draped net: the default rows (global x, y)")
+        lines.append(f"** {unmapped.size} elements not on the draped net: yarn 1 = e1, yarn 2 = e2 of their frame")
         lines.append("*ELSET, ELSET=UQDRAPE_UNMAPPED")
         lines += [", ".join(map(str, unmapped[a:a + PER_LINE])) for a in range(0, unmapped.size, PER_LINE)]
     lines += field_table("**", v, labels)

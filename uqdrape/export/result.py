@@ -1,4 +1,4 @@
-"""Opening a result (a drape file or a run folder) and cutting it into force levels.
+"""Opening a result (a drape file, a run folder or a store URL) and cutting it into force levels.
 
 A :class:`Level` is what every exporter draws: node positions (mm) and point fields on
 the (i, j) grid of one drape, or of one force level of an ensemble summarised per node.
@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from ..conventions import cf_decode
+from ..conventions import cf_decode, cf_encode
 from ..geometry import Surface, build
 from ..schema import FORCE
 
@@ -48,12 +48,15 @@ class Level:
 
 
 def open_result(path) -> tuple[xr.Dataset, bool]:
-    """(Dataset, is_ensemble) of a ``uqdrape drape`` netCDF file or a ``uqdrape run`` folder.
+    """(Dataset, is_ensemble) of a ``uqdrape drape`` netCDF file, or of a ``uqdrape run``
+    folder or store URL (lazy: ``uqdrape.ensemble.open_ensemble``).
 
     Raises FileNotFoundError for a missing path and ValueError for a file that is not a
     drape result, naming the path."""
-    from ..ensemble import open_ensemble
+    from ..ensemble import is_url, open_ensemble
 
+    if is_url(path):  # a zarr store (uqdrape.ensemble.zarrstore)
+        return open_ensemble(path), True
     path = Path(path)
     if path.is_dir():
         return open_ensemble(path), True
@@ -67,6 +70,18 @@ def open_result(path) -> tuple[xr.Dataset, bool]:
     if missing:
         raise ValueError(f"{path}: not a uqdrape drape result (no {', '.join(sorted(missing))})")
     return ds, False
+
+
+def netcdf_file(ds: xr.Dataset, stem, history: str) -> dict:
+    """The writer (for ``write_all``) of result ``ds`` as one CF netCDF file, ``STEM.nc``
+    (``STEM`` itself if it ends in .nc), ``history`` the command that made it. A lazy
+    ensemble is streamed: dask reads and writes it a chunk at a time."""
+    from ..ensemble import write_netcdf
+
+    stem = Path(stem)
+    path = stem if stem.suffix == ".nc" else stem.with_name(stem.name + ".nc")
+    encoded, encoding = cf_encode(ds, title=ds.attrs.get("title", f"uqdrape result {stem.name}"), history=history)
+    return {path: lambda tmp: write_netcdf(encoded, tmp, encoding, target=path)}
 
 
 def surface_of(ds: xr.Dataset) -> Surface:

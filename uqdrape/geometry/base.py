@@ -82,5 +82,17 @@ class Surface:
         return self.normal(points[..., 0], points[..., 1])
 
     def describe(self) -> str:
-        p = ", ".join(f"{k}={v}" for k, v in self.params().items())
-        return f"{self.name}({p})"
+        """The mould in words, for titles, tables and file attributes: its kind and its
+        parameters with their units, e.g. "nose cone (base radius 225 mm, half angle 35°,
+        tip radius 50 mm)" (lengths in mm, angles ``*_deg`` in degrees, unset ones left out)."""
+        parts = []
+        for key, value in self.params().items():
+            if value is None:
+                continue
+            if isinstance(value, str):
+                parts.append(f"{key.replace('_', ' ')} {value}")
+            elif key.endswith("_deg"):
+                parts.append(f"{key.removesuffix('_deg').replace('_', ' ')} {value:g}°")
+            else:
+                parts.append(f"{key.removesuffix('_mm').replace('_', ' ')} {value:g} mm")
+        return f"{self.name.replace('_', ' ')} ({', '.join(parts)})"

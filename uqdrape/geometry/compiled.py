@@ -16,6 +16,8 @@ SADDLE       [half, R]
 MESH         a triangle mesh with its bounding-volume hierarchy (``meshquery``)
 
 Every kind is also an implicit surface for the node solver (``gap_on``, ``surface_normal``): a height field through its closed form, a mesh through its signed distance.
+These take a query memo (``new_memo``): a mesh's table of proven nearby answers
+(``meshquery.closest``), empty for the closed forms, which need none.
 """
 
 from __future__ import annotations
@@ -117,7 +119,14 @@ def inside(kind, p, x, y):
 
 
 @jit
-def gap_on(kind, p, x, y, z):
+def new_memo(kind):
+    """A query memo for ``gap_on`` and ``surface_normal`` on a mould of ``kind``: a mesh's
+    (``meshquery.new_memo``), else empty. One per thread: it is written by every query."""
+    return meshquery.new_memo() if kind == MESH else np.empty(0)
+
+
+@jit
+def gap_on(kind, p, x, y, z, memo):
     """The mould as an implicit surface at the point (x, y, z) (mm): (phi, dphi/dx, dphi/dy,
     dphi/dz, on), phi = 0 on the mould, > 0 on the side the fabric comes from, its gradient
     the outward normal (not unit), and whether a point of the surface there lies on the
@@ -126,27 +135,27 @@ def gap_on(kind, p, x, y, z):
     distance, on it within its tolerance, not on the tangent plane continuing it past an
     open edge (``meshquery.signed_distance``, one closest-point query for all of it)."""
     if kind == MESH:
-        phi, g, on = meshquery.signed_distance(p, x, y, z)
+        phi, g, on = meshquery.signed_distance(p, x, y, z, memo)
         return phi, g[0], g[1], g[2], on
     h, hx, hy = height_gradient(kind, p, x, y)
     return z - h, -hx, -hy, 1.0, inside(kind, p, x, y)
 
 
 @jit
-def gap(kind, p, x, y, z):
+def gap(kind, p, x, y, z, memo):
     """(phi, dphi/dx, dphi/dy, dphi/dz) of ``gap_on``."""
-    phi, gx, gy, gz, _ = gap_on(kind, p, x, y, z)
+    phi, gx, gy, gz, _ = gap_on(kind, p, x, y, z, memo)
     return phi, gx, gy, gz
 
 
 @jit
-def surface_normal(kind, p, x, y, z):
+def surface_normal(kind, p, x, y, z, memo):
     """Unit outward normal (3-tuple) of the mould at the surface point (x, y, z) (mm): the
     tangent plane a node's arm step uses: the normalised gradient of a height field, a mesh's
     interpolated vertex normal (continuous, so an arm steps as over the smooth part)."""
     if kind == MESH:
-        return meshquery.normal(p, x, y, z)
-    _, gx, gy, gz = gap(kind, p, x, y, z)
+        return meshquery.normal(p, x, y, z, memo)
+    _, gx, gy, gz = gap(kind, p, x, y, z, memo)
     s = math.sqrt(gx * gx + gy * gy + gz * gz)
     return (gx / s, gy / s, gz / s)
 
@@ -175,8 +184,9 @@ def evaluate(kernel, x, y):
 
 @jit
 def _gap_many(kind, p, x, y, z, out):
+    memo = new_memo(kind)
     for m in range(x.size):
-        out[m, 0], out[m, 1], out[m, 2], out[m, 3] = gap(kind, p, x[m], y[m], z[m])
+        out[m, 0], out[m, 1], out[m, 2], out[m, 3] = gap(kind, p, x[m], y[m], z[m], memo)
 
 
 def evaluate_gap(kernel, x, y, z):
@@ -190,8 +200,9 @@ def evaluate_gap(kernel, x, y, z):
 
 @jit
 def _normal_many(kind, p, x, y, z, out):
+    memo = new_memo(kind)
     for m in range(x.size):
-        out[m, 0], out[m, 1], out[m, 2] = surface_normal(kind, p, x[m], y[m], z[m])
+        out[m, 0], out[m, 1], out[m, 2] = surface_normal(kind, p, x[m], y[m], z[m], memo)
 
 
 def evaluate_normal(kernel, points):

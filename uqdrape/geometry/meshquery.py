@@ -23,6 +23,16 @@ the angle-weighted pseudo-normal at an edge or vertex (Baerentzen & Aanaes 2005)
 height over the face's plane where the closest point lies on the mesh's open boundary, so
 a sheet is continued by its tangent plane past its edge (nodes placed there are off the
 mould, as past an analytic mould's domain).
+
+The closest face is the one of least squared distance, ties to the lower face index, so the
+answer does not depend on the order of the search. A node solve queries points that lie
+close together (its Newton steps, the energy minimiser's stencil candidates), so a query
+takes a ``memo`` (``new_memo``, one per thread): a table, hashed by a point's cell of size
+REACH, of earlier answers, each with a radius rho within which it is proven to be the
+answer: the search went on to REACH beyond the closest face and found no other face nearer
+than 2 rho beyond it, so for a point moved by less than rho the same face is still strictly
+closest, and the query only recomputes the point on that face. A memoised query equals a
+query with a fresh memo to the last bit (tests/test_mesh_query.py).
 """
 
 from __future__ import annotations
@@ -34,13 +44,17 @@ import numpy as np
 from .._jit import jit
 
 #: Header slots of the packed mesh array: counts, offsets, the on-mesh tolerance (mm), the
-#: mesh's size (mm), cos(crease angle) and the edge blend half-width (mm).
-NV, NF, LEAVES, OFF_V, OFF_F, OFF_NB, OFF_VN, OFF_VB, OFF_BOX, ON_TOL, SCALE, COS_CREASE, EDGE_BLEND = range(13)
-HEADER = 13
+#: mesh's size (mm), cos(crease angle), the edge blend half-width (mm) and the memo's reach (mm).
+NV, NF, LEAVES, OFF_V, OFF_F, OFF_NB, OFF_VN, OFF_VB, OFF_BOX, ON_TOL, SCALE, COS_CREASE, EDGE_BLEND, REACH = range(14)
+HEADER = 14
+#: Entries of a query memo (a power of 2), each (x, y, z, rho, face).
+MEMO_SLOTS = 4096
 #: Faces per BVH leaf.
 LEAF = 4
 #: Bound on the BVH depth (a complete tree of up to 2**40 leaves).
 _STACK = 96
+#: Where a memo keeps the search's stack, after its table.
+_STACK_AT = 5 * MEMO_SLOTS
 
 
 @jit
@@ -129,42 +143,82 @@ def _box_distance2(p, node, q):
 
 
 @jit
-def closest(p, x, y, z):
+def new_memo():
+    """An empty query memo (``closest``): its table (no entry matches: NaN radii) and the
+    search's stack."""
+    return np.full(_STACK_AT + 2 * _STACK, math.nan)
+
+
+@jit
+def _slot(p, q):
+    """Offset in a memo of the entry for point q: its cell of size REACH, hashed."""
+    c = p[REACH]
+    h = (int(math.floor(q[0] / c)) * 73856093) ^ (int(math.floor(q[1] / c)) * 19349663) ^ (
+        int(math.floor(q[2] / c)) * 83492791)
+    return 5 * (h & (MEMO_SLOTS - 1))
+
+
+@jit
+def _distance2(p, f, q):
+    """(point, barycentric weights, region, squared distance) of face f's closest point to q."""
+    a, b, c = _face(p, f)
+    pt, w, region = _closest_on_triangle(q, a, b, c)
+    d = _sub(q, pt)
+    return pt, w, region, _dot(d, d)
+
+
+@jit
+def closest(p, x, y, z, memo):
     """Closest point of the mesh to (x, y, z): (face, point, barycentric weights, region,
-    squared distance); ties go to the face met first in a fixed traversal order (nearer
-    child box first); face -1 for a non-finite point."""
+    squared distance), the face of least squared distance (ties to the lower index); face -1
+    for a non-finite point. ``memo`` (``new_memo``) answers a point within a proven radius
+    of an earlier one, and keeps this answer, as the module docstring says."""
     if not math.isfinite(x + y + z):
         return -1, (math.nan, math.nan, math.nan), (0.0, 0.0, 0.0), 0, math.nan
     q = (x, y, z)
+    slot = _slot(p, q)
+    dx, dy, dz = x - memo[slot], y - memo[slot + 1], z - memo[slot + 2]
+    if dx * dx + dy * dy + dz * dz < memo[slot + 3] * memo[slot + 3]:
+        f = int(memo[slot + 4])
+        pt, w, region, d2 = _distance2(p, f, q)
+        return f, pt, w, region, d2
+    reach = p[REACH]
+    eps = 1e-12 * p[SCALE]  # far above the round-off of a distance, far below any rho of use
     leaves = int(p[LEAVES])
     nf = int(p[NF])
-    stack = np.empty(_STACK, np.int64)
-    bound = np.empty(_STACK)  # squared box distance of each stacked node
-    stack[0], bound[0] = 0, 0.0
-    top = 1
     best, best_f, best_c, best_w, best_r = math.inf, -1, (math.nan, math.nan, math.nan), (0.0, 0.0, 0.0), 0
+    second, limit = math.inf, math.inf  # nearest other face; boxes farther (squared) are left
+    stack, bound = _STACK_AT, _STACK_AT + _STACK  # the memo's node stack, their squared box distances
+    memo[stack], memo[bound] = 0.0, 0.0
+    top = 1
     while top > 0:
         top -= 1
-        node = stack[top]
-        if bound[top] >= best:
+        node = int(memo[stack + top])
+        if memo[bound + top] > limit:
             continue
         if node >= leaves - 1:
             first = (node - (leaves - 1)) * LEAF
             for f in range(first, min(first + LEAF, nf)):
-                a, b, c = _face(p, f)
-                pt, w, region = _closest_on_triangle(q, a, b, c)
-                d = _sub(q, pt)
-                d2 = _dot(d, d)
-                if d2 < best:
+                pt, w, region, d2 = _distance2(p, f, q)
+                if d2 < best or (d2 == best and f < best_f):
+                    second = min(second, best)
                     best, best_f, best_c, best_w, best_r = d2, f, pt, w, region
+                    r = math.sqrt(best) + reach + eps
+                    limit = r * r
+                else:
+                    second = min(second, d2)
             continue
         left, right = 2 * node + 1, 2 * node + 2
         dl, dr = _box_distance2(p, left, q), _box_distance2(p, right, q)
-        if dl <= dr:  # the nearer child is popped first
-            stack[top], bound[top], stack[top + 1], bound[top + 1] = right, dr, left, dl
-        else:
-            stack[top], bound[top], stack[top + 1], bound[top + 1] = left, dl, right, dr
+        if dl > dr:  # the nearer child is popped first
+            left, right, dl, dr = right, left, dr, dl
+        memo[stack + top], memo[bound + top], memo[stack + top + 1], memo[bound + top + 1] = right, dr, left, dl
         top += 2
+    # every other face lies at least min(sqrt(second), sqrt(best) + reach) away
+    d = math.sqrt(best)
+    rho = 0.5 * (min(math.sqrt(second), d + reach) - d) - eps
+    if rho > 0:
+        memo[slot], memo[slot + 1], memo[slot + 2], memo[slot + 3], memo[slot + 4] = x, y, z, rho, best_f
     return best_f, best_c, best_w, best_r, best
 
 
@@ -179,12 +233,13 @@ def _on_boundary(p, f, region):
 
 
 @jit
-def signed_distance(p, x, y, z):
+def signed_distance(p, x, y, z, memo):
     """(phi, gradient 3-tuple, on the mesh) at (x, y, z): the signed distance (> 0 outside, on
     the normals' side), its gradient, as set out in the module docstring, and whether the
     point lies on the mesh within the stored tolerance (not on the tangent plane that
-    continues it past an open edge), from the one closest-point query."""
-    f, c, _, region, d2 = closest(p, x, y, z)
+    continues it past an open edge), from the one closest-point query (``memo`` as in
+    ``closest``)."""
+    f, c, _, region, d2 = closest(p, x, y, z, memo)
     if f < 0:
         return math.nan, (math.nan, math.nan, math.nan), False
     on = d2 <= p[ON_TOL] * p[ON_TOL]
@@ -211,11 +266,12 @@ def signed_distance(p, x, y, z):
 def closest_many(p, points, foot, phi):
     """Closest points ``foot`` (M, 3) on the mesh and the signed distances ``phi`` (M,) of
     ``points`` (M, 3) mm, filled in place (NaN for a non-finite point)."""
+    memo = new_memo()
     for m in range(points.shape[0]):
         x, y, z = points[m, 0], points[m, 1], points[m, 2]
-        c = closest(p, x, y, z)[1]
+        c = closest(p, x, y, z, memo)[1]
         foot[m, 0], foot[m, 1], foot[m, 2] = c
-        phi[m] = signed_distance(p, x, y, z)[0]
+        phi[m] = signed_distance(p, x, y, z, memo)[0]
 
 
 @jit
@@ -239,12 +295,13 @@ def _smooth_normal(p, f, w):
 
 
 @jit
-def normal(p, x, y, z):
+def normal(p, x, y, z, memo):
     """Unit normal of the mesh at its point closest to (x, y, z): the interpolated normal,
     turned towards the bisector of a sharp edge (faces meeting beyond the crease angle) within
     EDGE_BLEND of it, as if the edge were rounded for the tangent plane alone, so that a node
-    on or next to the edge steps over it (the next node may lie a right angle round)."""
-    f, _, w, _, _ = closest(p, x, y, z)
+    on or next to the edge steps over it (the next node may lie a right angle round);
+    ``memo`` as in ``closest``."""
+    f, _, w, _, _ = closest(p, x, y, z, memo)
     if f < 0:
         return (math.nan, math.nan, math.nan)
     n = _smooth_normal(p, f, w)

@@ -5,11 +5,15 @@ variation and the number of model calls it took.
 
 ``subset_simulation`` (Au & Beck 2001: nested intermediate failure domains, each
 populated by modified Metropolis chains from the previous one's samples);
-``limit_states`` holds analytic cases with known P (linear, and the sphere's exterior)
-that check it.
+``importance_sampling`` (to a target CoV: importance sampling around the design point
+the subset levels give, or subset simulation again where no design point carries the
+probability); ``limit_states`` holds analytic cases with known P (linear, and the
+sphere's exterior) that check them.
 """
 
+from .importance import RareResult, importance_sampling
 from .limit_states import linear_limit_state, sphere_limit_state
 from .subset import SubsetResult, subset_simulation
 
-__all__ = ["SubsetResult", "linear_limit_state", "sphere_limit_state", "subset_simulation"]
+__all__ = ["RareResult", "SubsetResult", "importance_sampling", "linear_limit_state", "sphere_limit_state",
+           "subset_simulation"]

@@ -72,17 +72,25 @@ def subset_simulation(g, d: int, *, n_per_level: int = 1000, p0: float = 0.1, se
     """P(g(U) <= 0), U ~ N(0, I_d), by subset simulation with ``n_per_level`` samples a
     level and conditional probability ``p0`` (p0 N and 1 / p0 integers); ``spread`` the
     first level's proposal sd. ValueError if failure is not reached in ``max_levels``."""
+    return subset_levels(g, d, n_per_level=n_per_level, p0=p0, rng=np.random.default_rng(seed), spread=spread,
+                         max_levels=max_levels)[0]
+
+
+def subset_levels(g, d: int, *, n_per_level: int, p0: float, rng, spread: float,
+                  max_levels: int) -> tuple[SubsetResult, list[tuple[np.ndarray, np.ndarray]]]:
+    """:func:`subset_simulation` drawing from ``rng``, also returning each level's samples
+    and their g values, [(U (N, d), g (N,)), ...] (a chain's repeated states included)."""
     n = int(n_per_level)
     n_seeds, chain = round(p0 * n), round(1 / p0)
     if n_seeds < 1 or n_seeds * chain != n or abs(n_seeds - p0 * n) > 1e-9:
         raise ValueError(f"p0 * n_per_level and 1 / p0 must be whole numbers, got p0={p0}, n_per_level={n}")
-    rng = np.random.default_rng(seed)
     u = rng.standard_normal((n, d))
     y = np.asarray(g(u), dtype=float)
     calls, indicator_shape = n, (n, 1)  # level 0: n independent "chains" of one state
     probability, cov2 = 1.0, 0.0
-    thresholds, levels, gammas, rates = [], [], [], [np.nan]
+    thresholds, levels, gammas, rates, samples = [], [], [], [np.nan], []
     for _ in range(max_levels):
+        samples.append((u, y))
         b = max(_threshold(y, n_seeds), 0.0)
         inside = (y <= b).reshape(indicator_shape)
         p = float(inside.mean())
@@ -94,7 +102,7 @@ def subset_simulation(g, d: int, *, n_per_level: int = 1000, p0: float = 0.1, se
         gammas.append(gamma)
         if b == 0.0:
             return SubsetResult(probability, float(np.sqrt(cov2)), calls, tuple(thresholds), tuple(levels),
-                                tuple(gammas), tuple(rates[:len(levels)]))
+                                tuple(gammas), tuple(rates[:len(levels)])), samples
         seeds = np.argsort(y)[:n_seeds]
         x, yx = u[seeds].copy(), y[seeds].copy()
         states, values, accepted, moved_total = [x.copy()], [yx.copy()], 0, 0

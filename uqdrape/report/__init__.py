@@ -23,7 +23,7 @@ from .ensemble_figures import (
 from .design import write_design_report
 from ..experimental import ExperimentalPoints, read_experimental
 from .figures import plot_lines, plot_net
-from .html import write_report
+from .html import rare_rows, write_report
 from .sensitivity_figures import plot_sensitivity_bars, plot_sensitivity_map, plot_sensitivity_vs_force
 
 __all__ = [
@@ -41,6 +41,7 @@ __all__ = [
     "plot_sensitivity_vs_force",
     "plot_sensitivity_map",
     "write_report",
+    "rare_rows",
     "read_experimental",
     "ExperimentalPoints",
     "write_design_report",

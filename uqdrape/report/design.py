@@ -11,15 +11,14 @@ from __future__ import annotations
 import html
 import json
 import textwrap
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
-
 from ..files import write_text_atomic
-from .figures import panels, save, styled
+from .figures import panels, save
+from .style import NOTE_PT, canvas, check_formats, styled, vector_formats
 from .page import figures_html, page, provenance, provenance_line
 
 _LABELS = {"p_locked": "P(any node locked)", "q95_max_abs_shear": "95 % quantile of max |shear| (deg)",
@@ -57,7 +56,9 @@ def _statistic_panel(ax, ds: xr.Dataset, name: str, validation_key: str):
                     elinewidth=0.8, label=f"each design: estimate, {c:.0%} limits")
     broken = d["feasible"].values[order] == 0
     if broken.any():
-        ax.plot(F[broken], est[broken], "x", color="0.3", ms=7, mew=1.5, label="breaks the draw-in limit")
+        limits = [what for what, key in (("the draw-in limit", "max_draw_in_mm"), ("the rare constraint", "rare"))
+                  if ds.attrs.get(key, "none") != "none"]
+        ax.plot(F[broken], est[broken], "x", color="0.3", ms=7, mew=1.5, label=f"breaks {' or '.join(limits)}")
     n = _n_forces(ds)
     for role, colour, marker, size in (("baseline", "tab:red", "s", 6), ("uniform", "tab:orange", "o", 6),
                                        ("optimum", "tab:green", "D", 10)):
@@ -94,7 +95,7 @@ def plot_objective(ds: xr.Dataset, path) -> Path:
         _statistic_panel(ax2, ds, DRAW_IN, "draw_in")
         ax2.axhline(float(limit), color="k", ls="--", lw=1,
                     label=f"draw-in limit {float(limit):g} mm (on the {ds.attrs['statistic']})")
-        ax2.legend(loc="best", fontsize=8)
+        ax2.legend(loc="best")
     return save(fig, path)
 
 
@@ -118,8 +119,7 @@ def plot_convergence(ds: xr.Dataset, path) -> Path:
     _log_if_wide(ax, f)
     ax.set_xlabel("evaluation (design sample)")
     ax.set_ylabel("objective")
-    ax.set_title("\n".join(textwrap.wrap(f"{d['objective'].attrs['long_name']}; {ds.attrs['optimiser']}", 90)),
-                 fontsize=9)
+    ax.set_title("\n".join(textwrap.wrap(f"{d['objective'].attrs['long_name']}; {ds.attrs['optimiser']}", 80)))
     ax.legend()
     ax.grid(alpha=0.3)
     return save(fig, path)
@@ -146,8 +146,7 @@ def plot_sectors(ds: xr.Dataset, path, surface) -> Path:
     width = 2 * np.pi / n
     theta = (np.arange(n) + 0.5) * width
     top = float(np.max(hi))
-    fig = Figure(figsize=(6.4, 6.4))  # fixed axes: the polar bars share the plan's centre
-    FigureCanvasAgg(fig)
+    fig = canvas(6.4, 6.4)  # fixed axes: the polar bars share the plan's centre
     rect = [0.12, 0.08, 0.8, 0.8]
     ax = fig.add_axes(rect)
     _outline(ax, surface, extent)
@@ -163,16 +162,16 @@ def plot_sectors(ds: xr.Dataset, path, surface) -> Path:
     polar.plot(np.linspace(0, 2 * np.pi, 181), np.full(181, opt.sum() / n), "--", color="tab:orange",
                label=f"uniform, same total ({opt.sum():.0f} N)")
     for t, f in zip(theta, opt):
-        polar.text(t, f + 0.06 * top, f"{f:.0f} N", ha="center", va="center", fontsize=9)
+        polar.text(t, f + 0.06 * top, f"{f:.0f} N", ha="center", va="center", fontsize=NOTE_PT)
     polar.set_ylim(0, 1.2 * top)
     polar.set_yticklabels([])
     polar.set_xticks(np.arange(n) * width)
     polar.set_xticklabels([])
     polar.grid(alpha=0.3)
-    polar.legend(loc="lower left", bbox_to_anchor=(0.0, 0.0), fontsize=8, framealpha=0.9)
+    polar.legend(loc="lower left", bbox_to_anchor=(0.0, 0.0), framealpha=0.9)
     fig.suptitle(f"{ds.attrs['study_name']}: sector forces at the optimum on the part outline\n"
                  f"(bar radius: force, 0-{1.2 * top:.0f} N; error bars: the optimum's "
-                 "resampling interval)", fontsize=9, x=0.12, ha="left")
+                 "resampling interval)", fontsize=NOTE_PT, x=0.12, ha="left")
     return save(fig, path)
 
 
@@ -186,9 +185,9 @@ def plot_risk_maps(ds: xr.Dataset, path) -> Path:
     for ax, role in zip(axes, roles):
         p = ds[f"{role}_node_p_locked"].values.ravel()
         x, y = ds[f"{role}_node_x"].values.ravel(), ds[f"{role}_node_y"].values.ravel()
-        ax.scatter(x[p == 0], y[p == 0], s=3, color="0.8", label="P = 0")
+        ax.scatter(x[p == 0], y[p == 0], s=3, color="0.8", label="P = 0", rasterized=True)
         hot = p > 0
-        im = ax.scatter(x[hot], y[hot], c=p[hot], s=10, cmap="Reds", vmin=0, vmax=1)
+        im = ax.scatter(x[hot], y[hot], c=p[hot], s=10, cmap="Reds", vmin=0, vmax=1, rasterized=True)
         if not hot.any():
             ax.legend(loc="upper right")
         ax.set_aspect("equal")
@@ -199,6 +198,32 @@ def plot_risk_maps(ds: xr.Dataset, path) -> Path:
     return save(fig, path)
 
 
+def _rare_limit(ds: xr.Dataset) -> str:
+    """The ``[design] rare`` constraint in words ("none" without one)."""
+    if ds.attrs.get("rare", "none") == "none":
+        return "none"
+    r = json.loads(ds.attrs["rare"])
+    return (f"P({r['qoi']} >= {r['threshold']:g}) <= {r['max_probability']:g} on the {ds.attrs['statistic']}, "
+            f"estimated per design to CoV {r['cov']:g} within {r['max_drapes']:,} drapes as a [study] rare is "
+            "(importance sampling at the design point of subset levels, or subset simulation; method per design below)")
+
+
+def _rare_table(ds: xr.Dataset) -> str:
+    """Each evaluated design's rare estimate: force, P with its limits, CoV, drapes, feasible."""
+    if "rare_probability" not in ds:
+        return ""
+    head = ("sample", "total force (N)", "P", "limits", "CoV", "drapes", "method", "feasible")
+    rows = [(str(ds["sample"].values[e]), f"{ds['total_force'].values[e]:.1f}",
+             ("< " if ds["rare_method"].values[e] == "below" else "") + f"{ds['rare_probability'].values[e]:.3g}",
+             f"[{ds['rare_lower'].values[e]:.3g}, {ds['rare_upper'].values[e]:.3g}]",
+             f"{ds['rare_cov'].values[e]:.3f}", f"{int(ds['rare_drapes'].values[e]):,}",
+             str(ds["rare_method"].values[e]), "yes" if ds["feasible"].values[e] else "no")
+            for e in np.argsort(ds["total_force"].values, kind="stable")]
+    cells = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in row) + "</tr>" for row in rows)
+    return ("<h2>Rare constraint per design</h2>\n<table><tr>" + "".join(f"<th>{h}</th>" for h in head)
+            + f"</tr>{cells}</table>\n")
+
+
 def _table(ds: xr.Dataset) -> str:
     rows = [("study", ds.attrs["study_name"]), ("objective", f"{ds.attrs['statistic']} of {ds.attrs['objective']}"
              + (f", target {ds.attrs['target']}" if ds.attrs["target"] != "none" else "")),
@@ -207,6 +232,7 @@ def _table(ds: xr.Dataset) -> str:
             ("draw-in limit (mm)", ds.attrs["max_draw_in_mm"] if ds.attrs["max_draw_in_mm"] == "none" else
              f"{ds.attrs['max_draw_in_mm']:g} on the {ds.attrs['statistic']} of the 95 % quantile of the largest "
              "radial draw-in of the net's outermost ring"),
+            ("rare constraint", _rare_limit(ds)),
             ("optimiser", ds.attrs["optimiser"]),
             ("designs evaluated", f"{int((ds['sample'] == 'design').sum())} x {ds.attrs['design_realizations']} "
                                   f"drapes (seed {ds.attrs['design_seed']})"),
@@ -217,11 +243,18 @@ def _table(ds: xr.Dataset) -> str:
     return f"<table>{body}</table>"
 
 
-def write_design_report(ds: xr.Dataset, out_dir, *, surface) -> Path:
-    """Write the design report of ``ds`` (``design.nc``) into ``out_dir``: PNGs,
-    ``index.html`` and ``summary.json``; ``surface`` is the mould. Returns index.html."""
+def write_design_report(ds: xr.Dataset, out_dir, *, surface, formats: Sequence[str] = ()) -> Path:
+    """Write the design report of ``ds`` (``design.nc``) into ``out_dir``: PNGs (and their
+    copies in the vector ``formats``, svg or pdf), ``index.html`` and ``summary.json``;
+    ``surface`` is the mould. Returns index.html."""
+    formats = check_formats(formats)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    with vector_formats(formats):
+        return _write_design_report(ds, out, surface)
+
+
+def _write_design_report(ds: xr.Dataset, out: Path, surface) -> Path:
     figures = [(plot_objective(ds, out / "objective.png"),
                 "The objective's statistic of every design on the design sample (common random numbers) "
                 "against the total force (the band is hidden under the line where the limits are within a few "
@@ -236,14 +269,19 @@ def write_design_report(ds: xr.Dataset, out_dir, *, surface) -> Path:
     summary = {k: v for k, v in ds.attrs.items() if k not in ("study_json", "wall_time_s")}
     summary["figures"] = [p.name for p, _ in figures]
     summary["provenance"] = prov = provenance(ds.attrs.get("wall_time_s"))
-    for key in ("validation", "margin", "bounds"):
-        if key in summary:
+    for key in ("validation", "margin", "bounds", "rare"):
+        if key in summary and summary[key] != "none":
             summary[key] = json.loads(summary[key])
+    if "rare_probability" in ds:  # each design's rare estimate, as the page's table
+        summary["rare_designs"] = {k: ds[k].values.tolist() for k in (
+            "sample", "total_force", "rare_probability", "rare_lower", "rare_upper", "rare_cov", "rare_drapes",
+            "rare_method", "feasible")}
     summary = json.loads(json.dumps(summary, default=lambda v: np.asarray(v).tolist()))
     write_text_atomic(out / "summary.json", json.dumps(summary, indent=1))
     body = (f"<h1>{html.escape(ds.attrs['study_name'])}: blank-holder design</h1>\n"
             f"<p class=\"note\">{html.escape(provenance_line(prov))}</p>\n"
-            f"<p><b>{html.escape(ds.attrs['summary'])}</b></p>\n{_table(ds)}\n<h2>Figures</h2>\n{figures_html(figures)}")
+            f"<p><b>{html.escape(ds.attrs['summary'])}</b></p>\n{_table(ds)}\n{_rare_table(ds)}"
+            f"<h2>Figures</h2>\n{figures_html(figures)}")
     page_html = page(f"{ds.attrs['study_name']}: blank-holder design", body)
     index = out / "index.html"
     write_text_atomic(index, page_html)

@@ -54,6 +54,7 @@ from .figures import (
     shared_ylim,
     suptitle,
 )
+from .style import NOTE_PT
 
 #: Probability level of the shaded band of the realisations along the max-shear lines.
 BAND = 0.95
@@ -111,12 +112,12 @@ def _map(ds: xr.Dataset, values: xr.DataArray, path, *, norm, cmap, cbar_label: 
         x, y = xy["x"].transpose("i", "j").values, xy["y"].transpose("i", "j").values
         tri, used = triangulation(x, y, np.isfinite(x) & np.isfinite(y) & np.isfinite(v))
         ax.set_facecolor("0.9")  # the net stands out where its values are white (no risk)
-        ax.tripcolor(tri, v.flat[used], shading="gouraud", norm=norm, cmap=cmap)
+        ax.tripcolor(tri, v.flat[used], shading="gouraud", norm=norm, cmap=cmap, rasterized=True)
         xlabel, ylabel = map_labels(ds)
         ax.set(xlabel=xlabel, ylabel=ylabel, aspect="equal", title=force_title(force))
         m = None if mark is None else mark(force)
         if isinstance(m, str):
-            ax.text(0.5, 0.5, m, transform=ax.transAxes, ha="center", va="center", fontsize=11,
+            ax.text(0.5, 0.5, m, transform=ax.transAxes, ha="center", va="center", fontsize=NOTE_PT,
                     bbox=dict(boxstyle="round", fc="white", alpha=0.9))
         elif m is not None:
             i, j, text = m
@@ -125,7 +126,7 @@ def _map(ds: xr.Dataset, values: xr.DataArray, path, *, norm, cmap, cbar_label: 
             # the label points into the net, so it stays inside the panel and off its title
             right, top = px > np.nanmean(x), py > np.nanmean(y)
             ax.annotate(text, (px, py), xytext=(-8 if right else 8, -8 if top else 8), textcoords="offset points",
-                        ha="right" if right else "left", va="top" if top else "bottom", fontsize=9,
+                        ha="right" if right else "left", va="top" if top else "bottom", fontsize=NOTE_PT,
                         bbox=dict(boxstyle="round", fc="white", alpha=0.8))
     fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=axes, shrink=0.85, label=cbar_label)
     suptitle(fig, title, describe(ds))
@@ -246,7 +247,7 @@ def plot_line_statistics(ds: xr.Dataset, path, *, line_stats: xr.Dataset | None 
         ax.set(xlabel="mean " + DISTANCE_LABEL, ylabel=SHEAR_LABEL)
         ax.set_title(force_title(force))
         ax.grid(alpha=0.3)
-        ax.legend(loc="best", fontsize=8)
+        ax.legend(loc="best")
     shared_ylim(axes)
     suptitle(fig, f"max-shear lines, N = {ds.sizes[REALIZATION]}", describe(ds))
     return save(fig, path)
@@ -284,7 +285,7 @@ def plot_histograms(ds: xr.Dataset, path, nodes: Sequence[Sequence[int]], *, bin
                title=f"node {node}, {_node_kind(node)}, {force_title(force)}")
         ax.grid(alpha=0.3)
         ax.set_ylim(0.0, 1.35 * ax.get_ylim()[1])  # headroom: the legend sits above the bars
-        ax.legend(loc="upper left", fontsize=8)
+        ax.legend(loc="upper left")
     fig.suptitle(f"node shear distributions, N = {ds.sizes[REALIZATION]}" + (" per level" if len(groups) > 1 else ""))
     return save(fig, path)
 
@@ -336,7 +337,7 @@ def plot_convergence(ds: xr.Dataset, path, node: Sequence[int] | None = None, *,
         axis.set_minor_formatter(mpl.ticker.NullFormatter())
     for ax in (ax_m, ax_h):
         ax.grid(alpha=0.3, which="both")
-        ax.legend(loc="best", fontsize=8)
+        ax.legend(loc="best")
     fig.suptitle(f"convergence of the mean shear at node {node} ({_node_kind(node)})")
     return save(fig, path)
 
@@ -364,7 +365,7 @@ def plot_sweep(ds: xr.Dataset, path, *, scalars: xr.Dataset | None = None) -> Pa
         ax.axhline(0.0, color="0.6", linewidth=0.8)
         ax.set_xlabel("blank-holder force F_BH (N)")
         ax.grid(alpha=0.3)
-        ax.legend(loc="best", fontsize=8)
+        ax.legend(loc="best")
     k_max = sc.attrs.get("k_max")
     ax_q.set(ylabel="line-mean shear (deg)", title=f"mean shear over line nodes k = 1..{k_max}")
     ax_a.set(ylabel="asymmetry (deg)", title="± quadrant asymmetry")
@@ -416,6 +417,6 @@ def plot_scalar_vs_factor(ds: xr.Dataset, path, factor: str) -> Path:
              title=f"max-shear lines, mean over nodes k = 1..{sc.attrs.get('k_max')}")
     for ax in (ax_e, ax_s):
         ax.grid(alpha=0.3)
-        ax.legend(loc="best", fontsize=8)
+        ax.legend(loc="best")
     suptitle(fig, f"each drape against {factor}, N = {ds.sizes[REALIZATION]}", describe(ds))
     return save(fig, path)

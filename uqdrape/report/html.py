@@ -18,7 +18,7 @@ from pathlib import Path
 
 import xarray as xr
 
-from uqdrape.schema import FORCE, REALIZATION, by_force
+from uqdrape.schema import FORCE, QOI_ATTRS, REALIZATION, by_force
 from uqdrape.stats import (
     dominant_factors,
     headline_numbers,
@@ -32,6 +32,7 @@ from ..experimental import read_experimental
 from ..conventions import cf_encode
 from ..files import write_atomic, write_text_atomic
 from .page import figures_html, page, provenance, provenance_line
+from .style import check_formats, vector_formats
 from .plan import PLAN, SENSITIVITY_PLAN, Context, render
 from .sensitivity_figures import INDICES
 
@@ -71,6 +72,27 @@ def _fmt(value, digits: int = 3) -> str:
 
 def _where(site: Mapping) -> str:
     return f"node (i, j) = ({site['node'][0]}, {site['node'][1]}), F_BH = {site['blankholder_force_N']:g} N"
+
+
+#: The rare-event estimators (``uqdrape.reliability.importance_sampling``'s ``method``) in words.
+RARE_METHODS = {"importance": "importance sampling at the design point of subset levels",
+                "subset": "subset simulation (no design point carries the probability)"}
+
+
+def rare_rows(record: Mapping) -> list[tuple[str, str, str]]:
+    """(quantity, value, how) of each force level of a rare-event record
+    (``uqdrape.workflow.rare``), e.g. ("P(lock_margin >= 1) at 126 N", "1.02e-03",
+    "CoV 0.09, 2,650 drapes, importance sampling ..., 313 standard variables")."""
+    units = QOI_ATTRS[record["qoi"]]["units"]
+    unit = "" if units == "1" else " deg" if units == "degree" else f" {units}"
+    rows = []
+    for level in record["levels"]:
+        short = f" (above the target {record['cov']:g})" if level["cov"] > record["cov"] else ""
+        rows.append((f"P({record['qoi']} >= {record['threshold']:g}{unit}) at {level['force']:g} N",
+                     f"{level['probability']:.3g}",
+                     f"CoV {level['cov']:.2f}{short}, {level['drapes']:,} drapes, {RARE_METHODS[level['method']]}, "
+                     f"{record['variables']} standard variables"))
+    return rows
 
 
 def _rows(numbers: Mapping, extra: Mapping, dominant: list | None) -> list[tuple[str, str, str]]:
@@ -137,7 +159,8 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None
                  study_text: str | None = None, histogram_nodes: Sequence[Sequence[int]] | None = None,
                  experimental_csv=None, summary: Mapping | None = None, sensitivity: xr.Dataset | None = None,
                  sensitivity_maps: xr.Dataset | None = None, wall_time_s: float | None = None,
-                 replicates: int | None = None) -> Path:
+                 replicates: int | None = None, rare: Mapping | None = None,
+                 formats: Sequence[str] = ()) -> Path:
     """Write the figures of ensemble ``ds``'s report plan, ``summary.json`` and ``index.html``
     into ``out_dir``; returns the index.html path.
 
@@ -151,7 +174,10 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None
     ``summary``: extra headline items (name -> number/string) for the table and the JSON
     (under ``extra``). ``sensitivity`` / ``sensitivity_maps``: the QoI indices and
     node-shear index maps of a sensitivity run (``uqdrape.workflow.open_sensitivity``),
-    shown first. ``wall_time_s``: the run's wall time for the provenance line.
+    shown first. ``wall_time_s``: the run's wall time for the provenance line. ``rare``:
+    the run's rare-event record (``uqdrape.workflow.rare``), a headline row per force level
+    and ``rare`` in the JSON. ``formats``: vector formats (``style.VECTOR_FORMATS``: svg, pdf)
+    written beside the PNGs and linked from the captions.
     """
     if REALIZATION not in ds.dims:
         raise ValueError(f"write_report needs an ensemble Dataset with a {REALIZATION!r} dim; dims: {dict(ds.sizes)}")
@@ -161,6 +187,7 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None
     if not isinstance(title, str) or not title.strip():
         raise ValueError(f"title must be a non-empty string, got {title!r}")
     extra = _check_extra(summary)
+    formats = check_formats(formats)
     points = read_experimental(experimental_csv) if experimental_csv is not None else None
     if sensitivity is not None and sensitivity.attrs.get("method") not in INDICES:
         raise ValueError(f"sensitivity has method={sensitivity.attrs.get('method')!r} in its attributes; "
@@ -173,26 +200,30 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None
     exceedance = wrinkle_risk(ds) if kind == RANDOM else None
     nodes = default_histogram_nodes(ds, node_stats) if histogram_nodes is None else histogram_nodes
     c = Context(ds, kind, out, node_stats, exceedance, nodes, points, sensitivity, sensitivity_maps)
-    sens_items, items = render(SENSITIVITY_PLAN, c), render(PLAN, c)
+    with vector_formats(formats):  # the figures, and the page linking their vector copies
+        sens_items, items = render(SENSITIVITY_PLAN, c), render(PLAN, c)
 
-    numbers = headline_numbers(ds, node_stats=node_stats, exceedance=exceedance)
-    dominant = dominant_factors(sensitivity) if sensitivity is not None and "ST" in sensitivity else None
-    record = {"title": title, "description": description, **numbers, "extra": extra, "provenance": provenance(wall_time_s),
-              "attrs": {k: _json_attr(v) for k, v in ds.attrs.items()},
-              "figures": [item[0].name for item in sens_items + items if not isinstance(item, str)],
-              "notes": [item for item in sens_items + items if isinstance(item, str)]}
-    if sensitivity is not None:
-        record["sensitivity"] = {k: _json_attr(sensitivity.attrs[k])
-                                 for k in ("method", "base_samples", "n_evaluations", "conf_level")}
-        record["sensitivity"]["largest_ST"] = dominant
-    summary_path = out / "summary.json"
-    write_text_atomic(summary_path, json.dumps(record, indent=2, allow_nan=False) + "\n")
-    write_statistics(ds, node_stats, exceedance, out / STATISTICS_FILE, title)
+        numbers = headline_numbers(ds, node_stats=node_stats, exceedance=exceedance)
+        dominant = dominant_factors(sensitivity) if sensitivity is not None and "ST" in sensitivity else None
+        record = {"title": title, "description": description, **numbers, "extra": extra, "provenance": provenance(wall_time_s),
+                  "attrs": {k: _json_attr(v) for k, v in ds.attrs.items()},
+                  "figures": [item[0].name for item in sens_items + items if not isinstance(item, str)],
+                  "notes": [item for item in sens_items + items if isinstance(item, str)]}
+        if rare is not None:
+            record["rare"] = {k: v for k, v in rare.items() if k != "key"}
+        if sensitivity is not None:
+            record["sensitivity"] = {k: _json_attr(sensitivity.attrs[k])
+                                     for k in ("method", "base_samples", "n_evaluations", "conf_level")}
+            record["sensitivity"]["largest_ST"] = dominant
+        summary_path = out / "summary.json"
+        write_text_atomic(summary_path, json.dumps(record, indent=2, allow_nan=False) + "\n")
+        write_statistics(ds, node_stats, exceedance, out / STATISTICS_FILE, title)
 
-    section = "" if sensitivity is None else _sensitivity_section(sensitivity, sens_items)
-    page = _page(record, ds, _rows(numbers, extra, dominant), items, study_text, summary_path.name, section)
-    index = out / "index.html"
-    write_text_atomic(index, page)
+        section = "" if sensitivity is None else _sensitivity_section(sensitivity, sens_items)
+        rows = _rows(numbers, extra, dominant) + (rare_rows(rare) if rare is not None else [])
+        page = _page(record, ds, rows, items, study_text, summary_path.name, section)
+        index = out / "index.html"
+        write_text_atomic(index, page)
     return index
 
 

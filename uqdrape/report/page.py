@@ -1,7 +1,9 @@
 """The one HTML skeleton of uqdrape's report pages: the page with its inline CSS, the
 provenance sentence that heads every page, and the figure grid. Pages are
 self-contained (inline CSS, relative links to the PNGs beside them), so a report folder
-can be copied or served as it is."""
+can be copied or served as it is. The CSS widths are ``style``'s, so the page shows each
+figure at the size it was drawn for; printed, the page takes an A3 landscape sheet,
+wide enough for the same layout (15.7 in between 10 mm margins against the 14.25 in row)."""
 
 from __future__ import annotations
 
@@ -13,20 +15,23 @@ from PIL import Image
 
 from .. import __version__
 from ..conventions import git_version
+from .style import GAP_PX, PADDING_PX, PAGE_MAX_PX, is_wide, requested_formats
 
-_CSS = """
-body { font-family: system-ui, sans-serif; max-width: 1500px; margin: 1.5em auto; padding: 0 1em; color: #222; }
-h1 { font-size: 1.6em; margin-bottom: 0.2em; } h2 { font-size: 1.25em; margin-top: 1.6em; border-bottom: 1px solid #ccc; }
-table { border-collapse: collapse; margin: 0.5em 0; } td, th { border: 1px solid #ccc; padding: 0.3em 0.7em; }
-th { background: #f2f2f2; text-align: left; white-space: nowrap; }
-td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
-.figures { display: grid; grid-template-columns: repeat(2, minmax(0, 1fr)); gap: 1.2em; align-items: start; }
-.wide { grid-column: 1 / -1; }
-figure { margin: 0; } figure img { width: 100%; height: auto; border: 1px solid #ddd; }
-figure.wide img { width: auto; max-width: 100%; }
-figcaption { font-size: 0.95em; color: #444; margin-top: 0.3em; }
-pre { background: #f7f7f7; border: 1px solid #ddd; padding: 0.8em; white-space: pre-wrap; font-size: 0.9em; }
-.note { color: #555; font-size: 0.95em; }
+_CSS = f"""
+body {{ font-family: system-ui, sans-serif; max-width: {PAGE_MAX_PX}px; margin: 1.5em auto; padding: 0 {PADDING_PX}px;
+  color: #222; }}
+h1 {{ font-size: 1.6em; margin-bottom: 0.2em; }} h2 {{ font-size: 1.25em; margin-top: 1.6em; border-bottom: 1px solid #ccc; }}
+table {{ border-collapse: collapse; margin: 0.5em 0; }} td, th {{ border: 1px solid #ccc; padding: 0.3em 0.7em; }}
+th {{ background: #f2f2f2; text-align: left; white-space: nowrap; }}
+td.num {{ text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }}
+.figures {{ display: grid; grid-template-columns: repeat(2, minmax(0, 1fr)); gap: {GAP_PX}px; align-items: start; }}
+.wide {{ grid-column: 1 / -1; }}
+figure {{ margin: 0; }} figure img {{ width: 100%; height: auto; border: 1px solid #ddd; }}
+figcaption a {{ margin-left: 0.4em; }}
+@media print {{ @page {{ size: A3 landscape; margin: 10mm; }} figure, tr {{ break-inside: avoid; }} }}
+figcaption {{ font-size: 0.95em; color: #444; margin-top: 0.3em; }}
+pre {{ background: #f7f7f7; border: 1px solid #ddd; padding: 0.8em; white-space: pre-wrap; font-size: 0.9em; }}
+.note {{ color: #555; font-size: 0.95em; }}
 """
 
 
@@ -63,9 +68,9 @@ def provenance_line(prov: Mapping) -> str:
 
 
 def figures_html(items) -> str:
-    """The figures two to a row (a figure of more than 900 px, i.e. of two panels or more
-    side by side, spans the row at its own size), and the sentences standing in for
-    figures left out, each across the row."""
+    """The figures two to a row (a figure drawn the row's width, ``style.is_wide``, spans
+    it), each linked to its vector copies if they were asked for (``style.vector_formats``),
+    and the sentences standing in for figures left out, each across the row."""
     esc = html.escape
     out = []
     for item in items:
@@ -74,8 +79,10 @@ def figures_html(items) -> str:
             continue
         path, caption = item
         with Image.open(path) as im:
-            wide = " class=\"wide\"" if im.width > 900 else ""
+            wide = " class=\"wide\"" if is_wide(im.width) else ""
+        vectors = "".join(f"<a href=\"{esc(path.with_suffix('.' + fmt).name)}\">{fmt.upper()}</a>"
+                          for fmt in requested_formats())
         out.append(f"<figure{wide}><a href=\"{esc(path.name)}\">"
-                   f"<img src=\"{esc(path.name)}\" alt=\"{esc(caption)}\"></a><figcaption>{esc(caption)}</figcaption>"
-                   "</figure>")
+                   f"<img src=\"{esc(path.name)}\" alt=\"{esc(caption)}\"></a><figcaption>{esc(caption)}{vectors}"
+                   "</figcaption></figure>")
     return "<div class=\"figures\">\n" + "\n".join(out) + "\n</div>"

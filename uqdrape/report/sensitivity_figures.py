@@ -56,7 +56,7 @@ def plot_sensitivity_bars(indices: xr.Dataset, path):
     groups = levels(indices)
     qois = [str(q) for q in indices["qoi"].values]
     factors = [str(f) for f in indices["factor"].values]
-    size = (max(3.6, 0.9 * len(factors) + 1.2), 2.9)
+    size = (max(3.6, 0.9 * len(factors) + 1.2), 3.6)
     # one level: the QoIs fill a grid of up to 3 columns; else a row per QoI, a column per level
     cols = min(3, len(qois)) if len(groups) == 1 else len(groups)
     fig, axes = panels(len(qois) * len(groups), size=size, cols=cols)
@@ -78,9 +78,9 @@ def plot_sensitivity_bars(indices: xr.Dataset, path):
             ax.grid(axis="y", alpha=0.3)
             if method == "sobol":
                 ax.set_ylim(min(-0.1, ax.get_ylim()[0]), max(1.1, ax.get_ylim()[1]))
-            ax.set_title(f"{q}, {force_title(force)}", fontsize=10)
+            ax.set_title(f"{q}, {force_title(force)}")
             ax.set_ylabel(_qoi_axis_label(indices, q))
-    axes[0, 0].legend(loc="upper left", fontsize=8)
+    axes[0, 0].legend(loc="upper left")
     fig.suptitle(f"sensitivity indices per quantity of interest\n{_design_text(indices)}")
     return save(fig, path)
 
@@ -112,7 +112,7 @@ def plot_sensitivity_vs_force(indices: xr.Dataset, path):
     handles = [Line2D([], [], color=cmap(k % 10), linewidth=6, label=str(f))
                for k, f in enumerate(indices["factor"].values)]
     handles += [Line2D([], [], color="0.2", linestyle=styles[var], label=name) for var, _, name in pairs]
-    fig.legend(handles=handles, loc="outside right upper", fontsize=9, handlelength=3.5)
+    fig.legend(handles=handles, loc="outside right upper", handlelength=3.5)
     fig.suptitle(f"sensitivity against blank-holder force, bands: confidence intervals\n{_design_text(indices)}")
     return save(fig, path)
 
@@ -144,9 +144,9 @@ def plot_sensitivity_map(ds: xr.Dataset, maps: xr.Dataset, path, index: str = "S
             ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(v)
             if ok.sum() >= 3:
                 tri, used = triangulation(x, y, ok)
-                ax.tripcolor(tri, v.flat[used], shading="gouraud", norm=norm, cmap=cmap)
+                ax.tripcolor(tri, v.flat[used], shading="gouraud", norm=norm, cmap=cmap, rasterized=True)
             ax.set(aspect="equal", xticks=[], yticks=[])
-            ax.set_title(f"{factor}, {force_title(force)}", fontsize=9)
+            ax.set_title(f"{factor}, {force_title(force)}")
     label = f"{index} of node shear" + (" (-)" if method == "sobol" else " (deg per unit step)")
     fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=axes, shrink=0.8, label=label)
     where = "the flat blank" if blank_view(ds) else "the mean net (x-y plan)"

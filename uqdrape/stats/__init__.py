@@ -13,7 +13,7 @@ from .convergence import convergence, samples_needed
 from .exceedance import clopper_pearson_interval, exceedance_probability, wilson_interval
 from .headline import KINDS, dominant_factors, headline_numbers, study_kind, varying_factors, wrinkle_risk
 from .histogram import node_histogram
-from .lines import line_means, line_scalars, line_statistics
+from .lines import line_means, line_scalars, line_statistics, shear_at_points
 from .qoi import QOI_ATTRS, QOIS, SENSITIVITY_QOIS, check_qois, realization_qois
 from .summary import inner_outer_sd, mean_statistics, node_statistics, quantile_statistics, ring_sd
 
@@ -26,6 +26,7 @@ __all__ = [
     "clopper_pearson_interval",
     "line_statistics",
     "line_scalars",
+    "shear_at_points",
     "line_means",
     "node_histogram",
     "convergence",

@@ -105,11 +105,12 @@ def wrinkle_risk(ds: xr.Dataset, confidence: float = 0.95) -> xr.Dataset | None:
 
 
 def _status_counts(ds: xr.Dataset) -> dict[str, int]:
-    """Node values per placement status over the whole ensemble, statuses that occur only."""
+    """Node values per placement status over the whole ensemble, statuses that occur only;
+    counted lazily, a chunk at a time, for an ensemble opened from its store."""
     if "status" not in ds:
         return {}
-    codes, counts = np.unique(np.asarray(ds["status"].values), return_counts=True)
-    return {Status(int(c)).name.lower(): int(k) for c, k in zip(codes, counts)}
+    counts = xr.Dataset({s.name.lower(): (ds["status"] == s).sum() for s in Status}).compute()
+    return {name: int(k) for name, k in counts.items() if k > 0}
 
 
 def headline_numbers(ds: xr.Dataset, *, node_stats: xr.Dataset | None = None,

@@ -8,6 +8,7 @@ the sensitivity analysis (mean shear per quadrant and the +/- quadrant asymmetry
 
 from __future__ import annotations
 
+import numpy as np
 import xarray as xr
 
 from uqdrape.drape.lines import max_shear_lines, min_shear_lines
@@ -15,6 +16,7 @@ from uqdrape.drape.lines import max_shear_lines, min_shear_lines
 from ..schema import MINUS_QUADRANTS, PLUS_QUADRANTS
 from ._common import REALIZATION, check_confidence
 from .summary import moment_statistics
+
 _KINDS = {"max": max_shear_lines, "min": min_shear_lines}
 
 
@@ -101,3 +103,26 @@ def line_means(shear: xr.DataArray, k_max: int | None = None) -> xr.Dataset:
     )
     out.attrs = {"k_max": k_max}
     return out.compute()
+
+
+def shear_at_points(ds: xr.Dataset, distance_mm, quadrant_sign) -> np.ndarray:
+    """Each drape's shear (deg) at measured points along its max-shear lines, for comparing
+    measured parts with an ensemble (``uqdrape.calibration.drapes``): point p lies at
+    ``distance_mm[p]`` from the crossover on a line of sign ``quadrant_sign[p]`` (+1: the
+    i*j > 0 quadrants, as ``uqdrape.experimental``), shear interpolated linearly in each
+    drape's own line distance (NaN past its end). The two lines of a sign are read as two
+    copies of the part (a mould symmetric under a half turn about the crossover): copy 0
+    puts + points on "++" and - points on "-+", copy 1 on "--" and "+-". Returns an array
+    (copy, realization, point); ``ds`` has dims realization, i, j (one force level)."""
+    lines = _lines(ds, "max").transpose(REALIZATION, "quadrant", "k")
+    distance, sign = np.asarray(distance_mm, float), np.asarray(quadrant_sign, float)
+    out = np.full((2, lines.sizes[REALIZATION], distance.size), np.nan)
+    for copy, quadrants in enumerate((("++", "-+"), ("--", "+-"))):
+        for s, q in zip((1.0, -1.0), quadrants):
+            at = np.flatnonzero(sign == s)
+            d, g = lines["distance"].sel(quadrant=q).values, lines["shear"].sel(quadrant=q).values
+            for r in range(d.shape[0]):
+                ok = np.isfinite(d[r]) & np.isfinite(g[r])
+                if ok.any():
+                    out[copy, r, at] = np.interp(distance[at], d[r][ok], g[r][ok], right=np.nan)
+    return out

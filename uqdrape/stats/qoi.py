@@ -14,6 +14,10 @@ computed here, once:
 - ``locked_fraction``      share of the valid cells (finite cell shear) that are locked (-)
 - ``any_locked``           1 if any node of the net is locked, else 0 (-)
 - ``max_draw_in``          largest radial draw-in of the held edge (mm; ``uqdrape.drape.draw_in``)
+- ``lock_margin``          largest cell shear from its zero-energy angle over its branch's locking
+                           angle, max((g - g0) / lock+, (g0 - g) / lock-) (-): above 1 exactly where
+                           a cell is locked (``Material.is_locked``), so P(any cell locked) is
+                           P(lock_margin > 1) and, unlike ``any_locked``, it says how near a drape came
 
 k_max is the largest line node valid in every realisation of the Dataset given (or the
 ``k_max`` passed), so all realisations average the same nodes (stored as the attribute
@@ -22,6 +26,7 @@ k_max is the largest line node valid in every realisation of the Dataset given (
 
 from __future__ import annotations
 
+import numpy as np
 import xarray as xr
 
 from ..drape import draw_in
@@ -40,8 +45,16 @@ _NODE_QOIS = {
     "locked_fraction": lambda ds: ds["cell_locked"].where(ds["cell_shear"].notnull()).mean(["cell_i", "cell_j"]),
     "any_locked": lambda ds: (ds["locked"] > 0).any(["i", "j"]).astype(float),
     "max_draw_in": lambda ds: draw_in(ds).max(["i", "j"]),
+    "lock_margin": lambda ds: _lock_margin(ds),
 }
 assert set(_LINE_QOIS) | set(_NODE_QOIS) == set(QOIS), "every named QoI is computed here"
+
+
+def _lock_margin(ds: xr.Dataset) -> xr.DataArray:
+    """The ``lock_margin`` of every drape in ``ds`` (its locking angles from its attributes)."""
+    rel = ds["cell_shear"] - ds["gamma0"]
+    ratio = np.fmax(rel / ds.attrs["locking_angle_deg"], -rel / ds.attrs["locking_angle_neg_deg"])
+    return ratio.max(["cell_i", "cell_j"])
 
 
 def check_qois(qoi) -> tuple[str, ...]:

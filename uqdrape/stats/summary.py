@@ -1,14 +1,18 @@
 """Per-node (or per-cell) ensemble statistics with confidence limits.
 
-Reductions run along ``realization`` only, so a dask-backed ensemble (``open_mfdataset``
-over chunk files) is processed chunk by chunk: moments in one pass of shifted power
-sums, quantiles per block of nodes holding every realisation of that block.
+Reductions run along ``realization`` only, so a dask-backed ensemble (a run folder's
+chunk files or a zarr store, ``uqdrape.ensemble.open_ensemble``) is processed chunk by
+chunk: moments in one pass of shifted power sums, quantiles per block of nodes holding
+every realisation of that block, one block at a time (:func:`node_statistics`).
 """
 
 from __future__ import annotations
 
+import itertools
+import math
 from collections.abc import Sequence
 
+import dask
 import numpy as np
 import xarray as xr
 from scipy import stats
@@ -145,6 +149,33 @@ def quantile_statistics(
     return out
 
 
+def blockwise_quantiles(da: xr.DataArray, quantiles: Sequence[float], confidence: float,
+                        dim: str = REALIZATION) -> xr.Dataset:
+    """``quantile_statistics`` of ``da`` computed one block of nodes at a time, each block
+    every realisation of at most dask's ``array.chunk-size`` bytes of nodes (one node at
+    least). Memory is then a block and the chunks being read, not the ensemble: one
+    rechunk of a whole variable to columns would hold every piece of it at once. A
+    dask-backed ensemble is read once per block. Returns the same numbers: lazily if
+    one block holds every node (so that one pass computes it with the moments), else
+    computed."""
+    template = quantile_statistics(da, quantiles, confidence, dim)
+    limit = dask.utils.parse_bytes(dask.config.get("array.chunk-size"))
+    block = {d: n for d, n in da.sizes.items() if d != dim}
+    while math.prod(block.values()) * da.sizes[dim] * da.dtype.itemsize > limit and max(block.values()) > 1:
+        widest = max(block, key=block.get)
+        block[widest] = -(-block[widest] // 2)
+    if da.chunks is None or block == {d: n for d, n in da.sizes.items() if d != dim}:
+        return template
+    out = {name: np.empty(var.shape, var.dtype) for name, var in template.data_vars.items()}
+    for starts in itertools.product(*(range(0, da.sizes[d], size) for d, size in block.items())):
+        where = {d: slice(a, a + block[d]) for d, a in zip(block, starts)}
+        part = quantile_statistics(da.isel(where), quantiles, confidence, dim).compute()
+        for name, values in out.items():
+            dims = template[name].dims
+            values[tuple(where.get(d, slice(None)) for d in dims)] = part[name].transpose(*dims).values
+    return template.copy(data=out)
+
+
 def mean_statistics(da: xr.DataArray, confidence: float = 0.95, dim: str = REALIZATION) -> xr.Dataset:
     """Mean, sd, skewness, count and Student-t interval of the mean of any DataArray.
 
@@ -172,7 +203,8 @@ def node_statistics(
     ``mean, sd, skewness, count, mean_lower, mean_upper`` and, along dim ``quantile``,
     ``quantile_value, quantile_lower, quantile_upper``; units those of ``var``. The mean
     interval is Student t; quantile limits are distribution-free order statistics (see
-    each variable's ``method`` attr). Computed in one dask pass; returns in-memory data.
+    each variable's ``method`` attr). The moments are one dask pass, the quantiles one a
+    block of nodes (``blockwise_quantiles``); returns in-memory data.
     ``replicates`` K: the realisations are K equal consecutive randomisations of one
     randomised-QMC point set (``[sampling] plan = "rqmc"``): the mean's interval is then
     Student t over the K randomisations' means (REPLICATE_INTERVAL), as the points within
@@ -180,7 +212,7 @@ def node_statistics(
     """
     c = check_confidence(confidence)
     da = get_variable(ds, var)
-    out = xr.merge([moment_statistics(da, c), quantile_statistics(da, quantiles, c)], combine_attrs="override")
+    out = xr.merge([moment_statistics(da, c), blockwise_quantiles(da, quantiles, c)], combine_attrs="override")
     if replicates is not None:
         out.update(_replicate_limits(da, int(replicates), c))
     out.attrs = {**ds.attrs, "variable": var, "confidence": c}

@@ -19,7 +19,7 @@ from ..files import location
 from .. import geometry as _geometry
 from .. import material as _material
 from .. import stochastic as _stochastic
-from ..schema import SOLVER_INPUTS
+from ..schema import QOI_ATTRS, SOLVER_INPUTS
 
 #: Where a study file fixes each scalar solver input (``uqdrape.schema.SOLVER_INPUTS``,
 #: the solver's names): (section, key, index of the element of a list key or None).
@@ -60,6 +60,10 @@ DESIGN_STATISTICS = ("upper", "estimate")
 #: apply to (None: any): the mean (Student-t interval; across randomisations under rqmc)
 #: and the probability of a 0/1 quantity (Wilson score interval).
 TARGET_STATISTICS = {"mean": None, "probability": ("any_locked",)}
+#: QoIs a [study] rare probability can be about: those with a continuous value, which the
+#: subset levels rank (a 0/1 quantity or a fraction that is 0 in nearly every drape gives
+#: them nothing to rank; P(any cell locked) is P(lock_margin >= 1)).
+RARE_QOIS = tuple(q for q in QOI_ATTRS if q not in ("any_locked", "locked_fraction"))
 #: Study-file parameter names of each factor distribution; "bounds" = [lower, upper].
 DIST_KEYS = {"normal": ("mean", "sd"), "truncnormal": ("mean", "sd", "bounds"),
              "uniform": ("bounds",), "lognormal": ("mean", "sd")}
@@ -197,7 +201,9 @@ class Design:
     the friction coefficient as a variable. The design minimises ``statistic`` ("upper"
     confidence limit at ``confidence``, or the "estimate") of ``objective`` (a key of
     DESIGN_OBJECTIVES), or with ``target`` its distance from the target value, among the
-    designs whose ``q95_max_draw_in`` (same statistic) is at most ``max_draw_in_mm``. At most
+    designs whose ``q95_max_draw_in`` (same statistic) is at most ``max_draw_in_mm`` and
+    whose rare probability ``rare`` (same statistic, :class:`RareLimit`) is at most its
+    ``max_probability``. At most
     ``max_evaluations`` designs of the study's realisations each (common random numbers);
     the optimum is re-evaluated on ``validation_realizations`` fresh ones.
     """
@@ -215,6 +221,7 @@ class Design:
     tolerance_N: float = 5.0
     validation_realizations: int | None = None
     max_draw_in_mm: float | None = None
+    rare: RareLimit | None = None
 
 
 @dataclass(frozen=True)
@@ -226,6 +233,32 @@ class Target:
     statistic: str
     half_width: float
     confidence: float = 0.95
+
+
+@dataclass(frozen=True)
+class Rare:
+    """P(``qoi`` >= ``threshold``) (the QoI's unit) at every force level, estimated to
+    coefficient of variation ``cov`` within ``max_drapes`` drapes a level
+    (``uqdrape.workflow.rare``; the budget stops the importance rounds and a second subset
+    run, not the first subset run's levels of 500 drapes, about 450 more a decade of P)."""
+
+    qoi: str
+    threshold: float
+    cov: float = 0.1
+    max_drapes: int = 20_000
+
+
+@dataclass(frozen=True)
+class RareLimit:
+    """A design's constraint P(``qoi`` >= ``threshold``) <= ``max_probability``, the
+    probability estimated per candidate as a [study] :class:`Rare` is (to CoV ``cov``
+    within ``max_drapes`` drapes, ``uqdrape.workflow.rare``)."""
+
+    qoi: str
+    threshold: float
+    max_probability: float
+    cov: float = 0.1
+    max_drapes: int = 20_000
 
 
 @dataclass(frozen=True)
@@ -261,6 +294,8 @@ class Study:
     #: [study] target: run in rounds until it is met or ``max_realizations`` are drawn
     target: Target | None = None
     max_realizations: int | None = None
+    #: [study] rare: a rare exceedance probability estimated after the run
+    rare: Rare | None = None
 
     @property
     def force_levels(self) -> tuple[float, ...]:
@@ -310,7 +345,8 @@ class Study:
 _PLAIN = ("fabric", "process", "solver", "sampling", "sensitivity", "report")
 #: The [study] header: Study fields between ``path`` and ``geometry``.
 _HEADER = tuple(f for f in dataclasses.fields(Study) if f.name in ("name", "seed", "realizations", "chunk_size",
-                                                                    "description", "target", "max_realizations"))
+                                                                    "description", "target", "max_realizations",
+                                                                    "rare"))
 
 
 def _plain(value):
@@ -333,13 +369,13 @@ def identity(doc: dict) -> dict:
     change a drape: the chunk size, the number of realisations (realisation r is the same
     in a larger run, so a run extends; ``uqdrape.ensemble.run`` refuses plans where it is
     not), an rqmc plan's number of randomisations (its points per randomisation stay), the
-    target that chose the size, the output folder and the [design] section (its
-    candidates are keyed by their own settings)."""
+    target that chose the size, the rare probability asked for, the output folder and the
+    [design] section (its candidates are keyed by their own settings)."""
     doc = json.loads(json.dumps(doc))
     sampling = doc.get("sampling", {})
     if "randomizations" in sampling:  # rqmc: K randomisations of M points; M is what a drape depends on
         sampling["points"] = doc["study"]["realizations"] // sampling.pop("randomizations")
-    for key in ("chunk_size", "realizations", "target", "max_realizations"):
+    for key in ("chunk_size", "realizations", "target", "max_realizations", "rare"):
         doc["study"].pop(key, None)
     for section in ("output", "design"):
         doc.pop(section, None)
@@ -374,6 +410,8 @@ def from_dict(doc: dict, path) -> Study:
     head = dict(doc["study"])
     if "target" in head:
         head["target"] = Target(**head["target"])
+    if "rare" in head:
+        head["rare"] = Rare(**head["rare"])
     return Study(
         path=Path(path), **head,
         geometry=Geometry(geometry.pop("kind"), geometry),
@@ -386,6 +424,7 @@ def from_dict(doc: dict, path) -> Study:
         report=section(Report, report, histogram_nodes=tuple(tuple(n) for n in report["histogram_nodes"]),
                        experimental_csv=Path(report["experimental_csv"]) if report.get("experimental_csv") else None),
         output_dir=location(doc["output"]["directory"]),
-        design=section(Design, doc["design"]) if "design" in doc else None,
+        design=section(Design, doc["design"], rare=RareLimit(**doc["design"]["rare"]) if "rare" in doc["design"]
+                       else None) if "design" in doc else None,
         float32=doc["output"].get("float32", False),
     )

@@ -9,7 +9,11 @@ Sections and keys (units: mm, N, degrees)::
                    target = {qoi, statistic ("mean" | "probability"), half_width, confidence = 0.95}
                    and max_realizations (both or neither): run in rounds from ``realizations``
                    until the statistic's interval half-width is at most half_width at every
-                   force level, or max_realizations are drawn (uqdrape.workflow.target)
+                   force level, or max_realizations are drawn (uqdrape.workflow.target);
+                   rare = {qoi (RARE_QOIS), threshold, cov = 0.1, max_drapes = 20000}: P(qoi >= threshold)
+                   at every force level after the run, by importance sampling at the design point of
+                   subset levels (uqdrape.workflow.rare), in the report with its CoV and drapes;
+                   not with a [design] or a per-realisation sd (sd_dof)
     [geometry]     kind + that kind's shape parameters (see uqdrape.geometry.KINDS)
     [fabric]       material, spacing_mm, orientation_deg = 0, pre_shear_deg = 0, skew_deg = 0, crossover = [0, 0]
     [process]      blankholder_force_N (a number, or a list: a sweep), friction = 0.2, sectors,
@@ -37,7 +41,10 @@ Sections and keys (units: mm, N, degrees)::
                    (the total force, or each sector's), friction_bounds = [lo, hi], budget_N (total force),
                    objective (DESIGN_OBJECTIVES), statistic = "upper" | "estimate", target, confidence = 0.95,
                    max_evaluations = 40, tolerance_N = 5, validation_realizations = study.realizations,
-                   max_draw_in_mm (a draw-in limit: the statistic of q95_max_draw_in at most this):
+                   max_draw_in_mm (a draw-in limit: the statistic of q95_max_draw_in at most this),
+                   rare = {qoi (RARE_QOIS), threshold, max_probability, cov = 0.1, max_drapes = 20000}
+                   (a constraint: the statistic of P(qoi >= threshold), estimated per candidate as a
+                   [study] rare is, at most max_probability; not with a per-realisation sd):
                    a blank-holder design (uqdrape.design); the study's own force is the baseline design
     [report]       histogram_nodes = [], experimental_csv
     [output]       directory = "results/<study name>", float32 = false (true: chunks store floats as
@@ -95,8 +102,9 @@ from ..schema import (BLANKHOLDER_MODELS, MAX_RINGS, MAX_TOLERANCE_DEG, MODES, Q
                       SOLVER_INPUTS, SPACING_RANGE_MM)
 from ..material.scatter import card_scatter
 from .spec import (CARD, DESIGN_OBJECTIVES, DESIGN_STATISTICS, DESIGN_VARIABLES, DIST_KEYS, FACTOR_SETTINGS, FIELD_KEYS,
-                   FIELDS, SECTIONS, SENSITIVITY_METHODS, TARGET_STATISTICS, Design, Fabric, Geometry, Process,
-                   RandomField, Report, Sampling, Sensitivity, Solver, Study, Target, Uncertainty, prestrain_map)
+                   FIELDS, RARE_QOIS, SECTIONS, SENSITIVITY_METHODS, TARGET_STATISTICS, Design, Fabric, Geometry,
+                   Process, RandomField, Rare, RareLimit, Report, Sampling, Sensitivity, Solver, Study, Target,
+                   Uncertainty, prestrain_map)
 
 
 class StudyError(FileFormatError):
@@ -152,7 +160,7 @@ class _Source(Document):
 
 def _study(src: _Source, doc: dict) -> dict:
     t = Table(src, "study", doc.get("study", {}), ("name", "seed", "realizations", "chunk_size", "description",
-                                                    "target", "max_realizations"))
+                                                    "target", "max_realizations", "rare"))
     name = t.string("name", hint="name must be a non-empty string of letters, digits, '-' and '_'",
                     valid=_NAME_RE.match)
     head = {
@@ -169,7 +177,16 @@ def _study(src: _Source, doc: dict) -> dict:
     if t.has("target"):
         head["target"] = _target(t.table("target", ("qoi", "statistic", "half_width", "confidence")))
         head["max_realizations"] = t.number("max_realizations", integer=True, ge=head["realizations"])
+    if t.has("rare"):
+        r = t.table("rare", ("qoi", "threshold", "cov", "max_drapes"))
+        head["rare"] = Rare(*_rare(r))
     return head
+
+
+def _rare(r: Table) -> tuple:
+    """(qoi, threshold, cov, max_drapes) of a rare probability's table."""
+    return (r.string("qoi", choices=RARE_QOIS), r.number("threshold"), r.number("cov", 0.1, gt=0, lt=1),
+            r.number("max_drapes", 20_000, integer=True, ge=1000))
 
 
 def _target(t: Table) -> Target:
@@ -193,6 +210,18 @@ def _target_rules(src: _Source, head: dict, sampling: Sampling, sensitivity: Sen
         src.invalid("study.target", dataclasses.asdict(head["target"]),
                     'a [study] target is for a sample of the study (sensitivity method = "none", no [design]): '
                     'remove it')
+
+
+def _rare_rules(src: _Source, head: dict, uncertainty: Uncertainty, design) -> None:
+    """A rare probability is of the study's own inputs as standard normals: refuse it with
+    a [design] (whose force is what varies) or a sd drawn per realisation (no column)."""
+    if "rare" not in head:
+        return
+    if design is not None:
+        src.invalid("study.rare", dataclasses.asdict(head["rare"]),
+                    "a [study] rare probability is estimated for a study without [design]: remove it (a "
+                    "design takes one as its constraint: [design] rare)")
+    _fixed_sd(src, uncertainty, "a [study] rare probability")
 
 
 def _geometry_section(src: _Source, doc: dict):
@@ -461,7 +490,7 @@ def _describe(mould) -> str:
     bounds = getattr(mould, "bounds", None)
     if bounds is None:
         return mould.describe()
-    return f"{mould.name}, plan x in [{bounds[0]:g}, {bounds[1]:g}], y in [{bounds[2]:g}, {bounds[3]:g}] mm"
+    return f"{mould.describe()}, plan x in [{bounds[0]:g}, {bounds[1]:g}], y in [{bounds[2]:g}, {bounds[3]:g}] mm"
 
 
 def _sampling(src: _Source, doc: dict, realizations: int, seed: int, uncertainty: Uncertainty,
@@ -559,7 +588,7 @@ def _design(src: _Source, doc: dict, process: Process, uncertainty: Uncertainty,
     t = Table(src, "design", doc["design"], ("variables", "sectors", "force_bounds_N", "friction_bounds",
                                               "budget_N", "objective", "statistic", "target", "confidence",
                                               "max_evaluations", "tolerance_N", "validation_realizations",
-                                              "max_draw_in_mm"))
+                                              "max_draw_in_mm", "rare"))
     variables = t.string("variables", choices=DESIGN_VARIABLES)
     sectors = None
     if variables == "sectors":
@@ -581,6 +610,12 @@ def _design(src: _Source, doc: dict, process: Process, uncertainty: Uncertainty,
     tolerance = t.number("tolerance_N", 5.0, gt=0)
     validation = t.number("validation_realizations", None, integer=True, ge=2)
     draw_in = t.number("max_draw_in_mm", None, gt=0)
+    rare = None
+    if t.has("rare"):
+        r = t.table("rare", ("qoi", "threshold", "max_probability", "cov", "max_drapes"))
+        qoi, threshold, cov, drapes = _rare(r)
+        rare = RareLimit(qoi, threshold, r.number("max_probability", gt=0, lt=1), cov, drapes)
+        _fixed_sd(src, uncertainty, "a [design] rare constraint")
     quantiles = DESIGN_OBJECTIVES[objective][1] == "quantile95" or draw_in is not None
     if quantiles and statistic == "upper":
         fewest = _fewest_for_quantile_limit(0.95, confidence)
@@ -599,7 +634,7 @@ def _design(src: _Source, doc: dict, process: Process, uncertainty: Uncertainty,
         src.invalid("sensitivity.method", sensitivity.method,
                     'a [design] study runs its own designs; set method = "none" or remove [design]')
     return Design(variables, (lo, hi), objective, sectors, friction, budget, statistic, target, confidence,
-                  evaluations, tolerance, validation, draw_in)
+                  evaluations, tolerance, validation, draw_in, rare)
 
 
 def _report(src: _Source, doc: dict, rings: int) -> Report:
@@ -636,11 +671,21 @@ def _output(src: _Source, doc: dict, name: str) -> tuple[Path | str, bool]:
 # ----------------------------------------------------------------------------- public API
 
 
-def load_study(path) -> Study:
-    """Read and validate a study file; raises StudyError (first problem found)."""
+def load_study(path, overrides: dict | None = None) -> Study:
+    """Read and validate a study file; raises StudyError (first problem found).
+    ``overrides`` maps dotted keys ("process.friction") to values set in the file's
+    document first, so each is checked as if the file held it (a calibration's design)."""
     path = Path(path)
     src = _Source(path)
     doc = src.read()
+    for key, value in (overrides or {}).items():
+        *tables, leaf = key.split(".")
+        table = doc
+        for name in tables:
+            table = table.setdefault(name, {})
+            if not isinstance(table, dict):
+                src.fail(f"{name} in {key} is not a table", key)
+        table[leaf] = value
     for key, value in doc.items():
         if key not in SECTIONS:
             what = f"section [{key}]" if isinstance(value, dict) else f"top-level key {key} (outside any section)"
@@ -658,6 +703,7 @@ def load_study(path) -> Study:
     sensitivity = _sensitivity(src, doc, uncertainty)
     design = _design(src, doc, process, uncertainty, sensitivity, head["realizations"])
     _target_rules(src, head, sampling, sensitivity, design)
+    _rare_rules(src, head, uncertainty, design)
     report = _report(src, doc, solver.rings)
     output_dir, float32 = _output(src, doc, head["name"])  # checked last, as the sections are ordered
     return Study(path=path, **head, geometry=geometry, fabric=fabric, process=process, solver=solver,

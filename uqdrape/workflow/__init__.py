@@ -9,7 +9,8 @@
   exports;
 - ``text``: the command line's descriptions of moulds, architectures and studies;
 - ``serve``: a study as a UM-Bridge model (``uqdrape serve``);
-- ``calibrate``: measured fibre angles -> a calibrated ``[uncertainty.zero_angle]`` block.
+- ``calibrate``: measured fibre angles -> a calibrated ``[uncertainty.zero_angle]`` block;
+  measured drapes -> the posterior of chosen study parameters and the calibrated study.
 
 The names below are imported on first use (PEP 562), so that ``uqdrape --help`` and the
 light commands do not pay for dask, matplotlib and SALib.
@@ -20,14 +21,14 @@ from __future__ import annotations
 import importlib
 
 _EXPORTS = {
-    "run": ("run_study", "run_outcome", "run_design", "run_report", "write_sensitivity", "open_sensitivity", "INDICES_FILE",
+    "run": ("run_study", "run_outcome", "design_outcome", "run_design", "run_report", "write_sensitivity", "open_sensitivity", "INDICES_FILE",
             "MAPS_FILE"),
     "preflight": ("load_study", "location", "validate_study", "check_resources", "check_placement", "run_preflight"),
     "commands": ("check_drape_inputs", "drape_to_files", "material_list", "material_text", "derive_material", "fit_material",
                  "export_result"),
     "text": ("geometry_help", "architectures", "describe_study", "version_text"),
     "serve": ("serve_study", "input_names", "nominal_input"),
-    "calibrate": ("calibrate_fibre_angles",),
+    "calibrate": ("calibrate_fibre_angles", "calibrate_drapes", "calibrate_parts", "synthetic_parts"),
 }
 _MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
 __all__ = sorted(_MODULE_OF)

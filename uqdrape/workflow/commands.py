@@ -11,8 +11,8 @@ import numpy as np
 
 from ..conventions import cf_encode
 from ..drape import drape
-from ..ensemble import Progress, write_netcdf
-from ..export import cut_files, fe_files, flat_files, levels, open_result, vtk_files
+from ..ensemble import Progress, made_from, run_name, write_netcdf
+from ..export import cut_files, fe_files, flat_files, levels, netcdf_file, open_result, vtk_files
 from ..files import write_all, write_text_atomic
 from ..errors import ParameterError
 from ..geometry import build
@@ -159,21 +159,36 @@ def fit_material(rig, out, plot=None) -> str:
 
 
 def export_result(result, to, *, out=None, mesh=None, tolerance=None, reference=None, flavours=("abaqus",),
-                  trim=None, ply=None) -> tuple[list[Path], list[str]]:
-    """Export a drape file or a run folder ``result`` as ``to`` (some of "vtk", "fe",
-    "flat", "cut"); every file is computed first and written together, all or nothing.
-    ``flavours``: the FE solvers' cards for "fe"; ``trim``: the part's edge (plan CSV) for
-    "cut" (default: the mould's own outline), ``ply`` its label. Returns the paths and the
-    lines to tell the user (the FE mapping counts)."""
+                  trim=None, ply=None) -> tuple[list, list[str]]:
+    """Export a drape file, a run folder or a store URL ``result`` as ``to`` (some of
+    "vtk", "fe", "flat", "cut", "netcdf"); every file is computed first and written
+    together, all or nothing, under the stem ``out`` (default: the drape file without
+    .nc, or the run's ``export/NAME``, in a store put under its URL). ``flavours``: the
+    FE solvers' cards for "fe"; ``trim``: the part's edge (plan CSV) for "cut" (default:
+    the mould's own outline), ``ply`` its label. Returns the paths (URLs in a store) and
+    the lines to tell the user (the FE mapping counts)."""
     if "fe" in to and not mesh:
         raise ValueError("--to fe needs --mesh FILE (a surface mesh meshio reads: .inp, .msh, .vtu, .stl, ...)")
-    result = Path(result)
     ds, is_ensemble = open_result(result)
-    stem = Path(out) if out else (result / "export" / result.name if is_ensemble else result.with_suffix(""))
-    levels_ = levels(ds, is_ensemble)
+    name = run_name(result) if is_ensemble else Path(result).stem
+    options = dict(mesh=mesh, tolerance=tolerance, reference=reference, flavours=flavours, trim=trim,
+                   ply=ply or name, history=f"uqdrape export {result} --to {' '.join(to)}")
+    if out or not is_ensemble:
+        return _export(ds, is_ensemble, to, Path(out) if out else Path(result).with_suffix(""), **options)
+    with made_from(result, "export") as made:
+        written, notes = _export(ds, is_ensemble, to, made.folder / name, **options)
+    return [made.where(path) for path in written], notes
+
+
+def _export(ds, is_ensemble: bool, to, stem: Path, *, mesh, tolerance, reference, flavours, trim, ply,
+            history) -> tuple[list[Path], list[str]]:
+    """The files of ``export_result`` under ``stem``."""
+    writers, notes = {}, []
+    if "netcdf" in to:
+        writers.update(netcdf_file(ds, stem, history))
+    levels_ = levels(ds, is_ensemble) if set(to) - {"netcdf"} else []
     for level in levels_ if reference is not None else ():
         level.orientation = reference
-    writers, notes = {}, []
     if "vtk" in to:
         writers.update(vtk_files(levels_, ds, stem))
     if "fe" in to:
@@ -185,5 +200,5 @@ def export_result(result, to, *, out=None, mesh=None, tolerance=None, reference=
     if "flat" in to:
         writers.update(flat_files(levels_, stem))
     if "cut" in to:
-        writers.update(cut_files(levels_, ds, stem, trim=trim, ply=ply or result.stem))
+        writers.update(cut_files(levels_, ds, stem, trim=trim, ply=ply))
     return write_all(writers), notes

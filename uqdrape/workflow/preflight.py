@@ -5,7 +5,9 @@ The study file itself is checked where it is read (``uqdrape.study.load_study``:
 types, ranges, the rules tying sections together); this is what reading a file cannot
 know: the memory a chunk takes, the disk the chunks still to be written take in the
 folder that will actually be written, whether that folder is writable, and whether the
-first realisation's net can be placed on the mould at all. Every refusal is a
+first realisation's net can be placed on the mould at all. A run to a target
+(``[study] target``) is checked for its budget, ``max_realizations``: the largest chunk
+any of its rounds drapes, and every drape its rounds may still write. Every refusal is a
 ``StudyError`` naming the study file and the key to change.
 """
 
@@ -43,10 +45,19 @@ def nearest_existing(path: Path) -> Path:
     return path
 
 
+def budget(study) -> tuple[str, int]:
+    """(key, realisations) a run of ``study`` may reach: ``study.max_realizations`` for a
+    run to a target, else ``study.realizations``."""
+    if study.target is not None:
+        return "study.max_realizations", study.max_realizations
+    return "study.realizations", study.realizations
+
+
 def check_resources(study, output_dir, drapes_to_write: int, chunk_size: int | None = None) -> None:
     """Refuse a study whose drape or chunk would not fit in memory, whose output folder
     cannot be written, or whose ``drapes_to_write`` drapes would not fit on that folder's
-    disk (estimates, stated in the message). ``output_dir`` a store's URL: the store must
+    disk (estimates, stated in the message). The chunk is the largest the study's
+    :func:`budget` of realisations makes. ``output_dir`` a store's URL: the store must
     take a write (``zarrstore.check_store``: OSError otherwise); an object store's space is
     not known here, a file:// store's folder is checked as a folder."""
     nodes = (2 * study.solver.rings + 1) ** 2
@@ -56,7 +67,8 @@ def check_resources(study, output_dir, drapes_to_write: int, chunk_size: int | N
                           f"one drape of {nodes:,} nodes needs about {nodes * WORKING_BYTES_PER_NODE / 2**30:.3g} "
                           f"GiB, more than half of this machine's {memory / 2**30:.3g} GiB")
     chunk_size = study.chunk_size if chunk_size is None else chunk_size
-    batch = min(chunk_size, study.realizations)
+    key, most = budget(study)
+    batch = min(chunk_size, most)
     need = batch * nodes * WORKING_BYTES_PER_NODE
     if need > memory / 2:
         raise study_error(study.path, "study.chunk_size", chunk_size,
@@ -75,7 +87,7 @@ def check_resources(study, output_dir, drapes_to_write: int, chunk_size: int | N
     disk = drapes_to_write * nodes * STORED_BYTES_PER_NODE
     free = shutil.disk_usage(existing).free
     if disk > free:
-        raise study_error(study.path, "study.realizations", study.realizations,
+        raise study_error(study.path, key, most,
                           f"{drapes_to_write:,} drapes of {nodes:,} nodes take about {disk / 2**30:.3g} GiB, "
                           f"more than the {free / 2**30:.3g} GiB free under {existing}")
 
@@ -110,9 +122,12 @@ def check_placement(study, realization: int = 0, force: float | None = None, des
 
 def run_preflight(study, output_dir, *, chunk_size: int | None = None, design_rows=None, quiet: bool = False):
     """The ``preflight`` of ``uqdrape.ensemble.run_ensemble`` for a run of ``study`` into
-    ``output_dir``: resources for the drapes still to write, placement of the first."""
+    ``output_dir``: resources for the drapes still to write (a target run's round: also
+    those its later rounds may add up to ``max_realizations``), placement of the first."""
+    later = (budget(study)[1] - study.realizations) * len(study.force_levels)
+
     def check(drapes: int, first: int, force: float) -> None:
-        check_resources(study, output_dir, drapes, chunk_size)
+        check_resources(study, output_dir, drapes + later, chunk_size)
         check_placement(study, first, force, design_rows, quiet=quiet)
     return check
 
@@ -120,9 +135,10 @@ def run_preflight(study, output_dir, *, chunk_size: int | None = None, design_ro
 def validate_study(path):
     """Read a study file (``uqdrape.study.load_study``) and run the preflight a run of it
     would run: resources for the whole ensemble in its output folder, and the placement of
-    its first realisation. Returns the Study; raises StudyError naming file and key."""
+    its first realisation (a run to a target: for its budget, ``max_realizations``).
+    Returns the Study; raises StudyError naming file and key."""
     study = load_study(path)
-    drapes = study.realizations * len(study.force_levels)
+    drapes = budget(study)[1] * len(study.force_levels)
     check_resources(study, study.output_dir, 0 if study.design is not None else drapes)
     check_placement(study)
     return study

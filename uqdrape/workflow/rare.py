@@ -1,20 +1,48 @@
-"""A study's rare exceedance events as limit states in standard normal space, for
-``uqdrape.reliability``: P(QoI >= threshold) of a drape whose random inputs are the
-standard normals U.
+"""A study's rare exceedance probabilities: P(QoI >= threshold) of its drapes, as limit
+states in standard normal space for ``uqdrape.reliability``, and the estimates a
+``[study] rare`` asks for, kept in the run folder (``rare.json``) and shown in its report.
 
 U's columns are the study's design variables (``uqdrape.ensemble.design_variables``): a
 scalar factor's u = Phi(U) (then its own ``ppf``), a random field's truncated KL modes
 as they are (``kl_retained`` of its variance). A batch of rows is one batched drape.
+
+A ``[study] rare = {qoi, threshold, cov, max_drapes}`` is estimated after the run's
+sample, at every force level, by ``uqdrape.reliability.importance_sampling`` (importance
+sampling at the design point the subset levels give, or subset simulation again where
+no design point carries the probability) to CoV ``cov`` within ``max_drapes`` drapes,
+with the seed ``SeedSequence([study seed, RARE_STREAM, level])``. Its drapes are the
+estimator's own (their nets are not stored). A resumed run keeps ``rare.json`` if it was
+written for the same study and request.
 """
 
 from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import sys
+from pathlib import Path
 
 import numpy as np
 from scipy.special import ndtr
 
 from ..ensemble import design_variables, drape_inputs, inputs_from_design
+from ..files import write_text_atomic
 from ..material import load_material
+from ..reliability import importance_sampling
+from ..report import rare_rows
 from ..stats import realization_qois
+from ..study import identity, study_error
+
+#: The rare-event estimates of a run, in its output folder.
+RARE_FILE = "rare.json"
+#: The estimator's seeds are SeedSequence([study seed, RARE_STREAM, force level index]).
+RARE_STREAM = 29
+#: Conditional probability of the subset levels.
+P0 = 0.1
+#: A [design] rare candidate's subset levels stop at P below BELOW x its bound.
+BELOW = 0.01
 
 
 def drape_limit_state(study, qoi: str, threshold: float, force: float | None = None):
@@ -39,3 +67,84 @@ def drape_limit_state(study, qoi: str, threshold: float, force: float | None = N
         return threshold - values(U, k_max)[qoi].values
 
     return g, len(names)
+
+
+def estimate(study, spec, seed: int, force: float, *, below: float | None = None) -> tuple[dict, int]:
+    """({probability, cov, drapes, method, beta, subset_probability, subset_cov}, standard
+    variables) of P(``spec.qoi`` >= ``spec.threshold``) of ``study``'s drapes at ``force``
+    (N) by ``importance_sampling`` to CoV ``spec.cov`` within ``spec.max_drapes`` drapes,
+    with ``seed``. A threshold no drape reaches is the study's error (``study.rare``); with
+    ``below``, the subset levels stop at the first level of P under it (p0 = 0.1 each), and
+    reaching no failure there is the record ``method = "below"``, ``probability`` that level
+    (P is below it; cov 0)."""
+    g, d = drape_limit_state(study, spec.qoi, spec.threshold, force)
+    drapes = []
+
+    def counted(U):
+        drapes.append(len(U))
+        return g(U)
+
+    levels = 30 if below is None else math.ceil(round(math.log(below) / math.log(P0), 9))
+    try:
+        r = importance_sampling(counted, d, seed=seed, cov=spec.cov, max_calls=spec.max_drapes, p0=P0,
+                                max_levels=levels)
+    except ValueError as e:  # no failure domain reached: say it of the study's request
+        if below is not None:
+            return {"probability": P0**levels, "cov": 0.0, "drapes": sum(drapes), "method": "below",
+                    "beta": math.nan, "subset_probability": math.nan, "subset_cov": math.nan}, d
+        raise study_error(study.path, "study.rare.threshold", spec.threshold,
+                          f"no drape at {force:g} N reached it ({e})") from None
+    return {"probability": r.probability, "cov": r.cov, "drapes": r.calls, "method": r.method, "beta": r.beta,
+            "subset_probability": r.subset.probability, "subset_cov": r.subset.cov}, d
+
+
+def design_rare(variant) -> dict:
+    """The ``[design] rare`` estimate of one candidate design (``variant``: the study with
+    the candidate's force, sectors and friction, and the seed of its sample): :func:`estimate`
+    with the seed ``SeedSequence([sample seed, RARE_STREAM])``, the same for every candidate
+    of a sample (common random numbers, as its drapes), so a resumed design is bitwise the
+    same. Subset levels stop at P below BELOW x the bound: a design that safe is feasible
+    whatever its P, and is not estimated further (``method = "below"``)."""
+    spec = variant.design.rare
+    seed = int(np.random.SeedSequence([variant.seed, RARE_STREAM]).generate_state(1)[0])
+    return estimate(variant, spec, seed, variant.force_levels[0], below=BELOW * spec.max_probability)[0]
+
+
+def rare_key(study) -> str:
+    """What a ``rare.json`` is of: a digest of the study's drapes (``identity``), its seed and
+    its ``[study] rare``."""
+    what = {"study": identity(study.to_dict()), "seed": study.seed, "rare": dataclasses.asdict(study.rare)}
+    return hashlib.sha256(json.dumps(what, sort_keys=True).encode()).hexdigest()
+
+
+def read_rare(study, output_dir) -> dict | None:
+    """The rare-event record in ``output_dir`` (``RARE_FILE``) if it is of ``study``'s
+    ``[study] rare`` (:func:`rare_key`), else None."""
+    path = Path(output_dir) / RARE_FILE
+    if study.rare is None or not path.is_file():
+        return None
+    record = json.loads(path.read_text(encoding="utf-8"))
+    return record if record.get("key") == rare_key(study) else None
+
+
+def rare_probabilities(study, output_dir, *, resume: bool = True, progress: bool = True) -> dict:
+    """Estimate the study's ``[study] rare`` at every force level (module docstring) and
+    write it to ``output_dir/rare.json``; a resumed run keeps a record of the same
+    :func:`rare_key`. Returns the record."""
+    spec, key = study.rare, rare_key(study)
+    kept = read_rare(study, output_dir) if resume else None
+    if kept is not None:
+        if progress:
+            print(f"{study.name}: rare probability already estimated in {output_dir}", file=sys.stderr)
+        return kept
+    levels = []
+    for level, force in enumerate(study.force_levels):
+        seed = int(np.random.SeedSequence([study.seed, RARE_STREAM, level]).generate_state(1)[0])
+        entry, d = estimate(study, spec, seed, force)
+        levels.append({"force": force, **entry})
+    record = {"key": key, **dataclasses.asdict(spec), "variables": d, "levels": levels}
+    if progress:
+        for quantity, value, how in rare_rows(record):
+            print(f"{study.name}: {quantity} = {value} ({how})", file=sys.stderr)
+    write_text_atomic(Path(output_dir) / RARE_FILE, json.dumps(record, indent=2) + "\n")
+    return record

@@ -22,23 +22,27 @@ same worker pool as an ensemble.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import hashlib
 import json
 import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import xarray as xr
 
-from ..files import is_url
-from ..design import DESIGN_FILE, Evaluator, drape_design, optimise, problem, result_dataset
-from ..ensemble import (Progress, design_variables, local_pool, open_ensemble, read_manifest, reach_scheduler,
-                        run_ensemble, run_lock, write_atomic)
+from ..design import DESIGN_FILE, EVALUATIONS, Evaluator, drape_design, optimise, problem, result_dataset
+from ..ensemble import (Progress, design_variables, is_url, local_pool, made_from, open_ensemble, read_dataset,
+                        read_manifest, reach_scheduler, run_ensemble, run_lock, run_name, store_lock, write_dataset)
+from ..ensemble.inputs import realization_sd_deg
 from ..report import write_design_report, write_report
 from ..sensitivity import map_indices, qoi_indices, study_design
+from ..schema import REALIZATION
 from ..stats import SENSITIVITY_QOIS, realization_qois
 from ..study import SENSITIVITY_METHODS, Study, from_dict, identity, load_study
 from .preflight import check_placement, check_resources, run_preflight
+from .rare import design_rare, rare_probabilities, read_rare
 from .target import run_to_target
 
 #: Files a sensitivity run writes into its output folder.
@@ -85,8 +89,9 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
             return run_ensemble(sample, output_dir=out, scheduler=scheduler, workers=workers, chunk_size=chunk_size,
                                 resume=again, progress=progress, verbose=verbose,
                                 preflight=run_preflight(sample, out, chunk_size=chunk_size, quiet=not progress))
-        return run_to_target(study, run_round, chunk_size=chunk_size or study.chunk_size, resume=resume,
-                             progress=progress)
+        out = run_to_target(study, run_round, chunk_size=chunk_size or study.chunk_size, resume=resume,
+                            progress=progress)
+        return _rare(study, out, resume, progress)
     out = run_ensemble(study, design_rows=None if design is None else design.standard, output_dir=out,
                        provenance=provenance, attrs=attrs, scheduler=scheduler, workers=workers,
                        chunk_size=chunk_size, resume=resume, progress=progress, verbose=verbose,
@@ -101,6 +106,13 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
             print(f"{study.name}: analysing {design.method} indices of {design.n_evaluations} evaluations"
                   + (f" at {len(study.force_levels)} force levels" if study.is_sweep else ""), file=sys.stderr)
         write_sensitivity(out, design, qoi=study.sensitivity.qoi, seed=study.seed, progress=progress)
+    return _rare(study, out, resume, progress)
+
+
+def _rare(study, out: Path, resume: bool, progress: bool) -> Path:
+    """Estimate the study's ``[study] rare`` probability into the run folder ``out``, if it asks for one."""
+    if study.rare is not None:
+        rare_probabilities(study, out, resume=resume, progress=progress)
     return out
 
 
@@ -113,31 +125,32 @@ def _run_key(output_dir) -> str:
 
 
 def analysed(output_dir) -> bool:
-    """Whether ``output_dir`` holds the sensitivity files of its own finished run (both
-    files, written for the run its manifest describes), so a resume need not redo them."""
-    out = Path(output_dir)
+    """Whether ``output_dir`` (a run folder or store URL) holds the sensitivity files of
+    its own finished run (both files, written for the run its manifest describes), so a
+    resume need not redo them."""
     keys = []
     for name in (INDICES_FILE, MAPS_FILE):
         try:
-            with xr.open_dataset(out / name) as ds:
-                keys.append(ds.attrs.get("run_key"))
+            ds = read_dataset(output_dir, name)
         except (OSError, ValueError):
             return False
-    return keys[0] == keys[1] == _run_key(out)
+        keys.append(None if ds is None else ds.attrs.get("run_key"))
+    return keys[0] is not None and keys[0] == keys[1] == _run_key(output_dir)
 
 
-def write_sensitivity(output_dir, design, *, qoi=None, seed: int, progress: bool = False) -> tuple[Path, Path]:
-    """Analyse a finished sensitivity run in ``output_dir`` (its realisations are the
+def write_sensitivity(output_dir, design, *, qoi=None, seed: int,
+                      progress: bool = False) -> tuple[Path | str, Path | str]:
+    """Analyse a finished sensitivity run in ``output_dir`` (a run folder or store URL; its realisations are the
     design's rows): QoI indices to ``sensitivity.nc``, node-shear index maps to
     ``sensitivity_maps.nc`` (both written whole, then renamed, with the attribute
     ``run_key`` naming the run they are of: see :func:`analysed`). ``qoi``: names (default
     ``SENSITIVITY_QOIS``); ``progress``: count the analysed nodes on stderr. Returns the
-    two paths."""
-    out = Path(output_dir)
+    two paths (URLs in a store)."""
+    out = output_dir
     with open_ensemble(out) as ds:
         qois = realization_qois(ds, SENSITIVITY_QOIS if qoi is None else qoi)
         shear = ds["shear"].load()
-        study_name = ds.attrs.get("study_name", out.name)
+        study_name = ds.attrs.get("study_name", run_name(out))
     indices = qoi_indices(design, qois, seed=seed)
     nodes = shear.isel({dim: 0 for dim in shear.dims if dim not in ("i", "j")}).size
     bar = Progress(nodes * shear.sizes.get("blankholder_force", 1), enabled=progress, desc="index maps", unit="node")
@@ -149,80 +162,117 @@ def write_sensitivity(output_dir, design, *, qoi=None, seed: int, progress: bool
         result.attrs.update(study_name=study_name, run_key=_run_key(out))
     if "k_max" in qois.attrs:
         indices.attrs["line_k_max"] = qois.attrs["k_max"]
-    return write_atomic(indices, out / INDICES_FILE), write_atomic(maps, out / MAPS_FILE)
+    return write_dataset(out, INDICES_FILE, indices), write_dataset(out, MAPS_FILE, maps)
 
 
 def open_sensitivity(output_dir) -> tuple[xr.Dataset, xr.Dataset] | None:
-    """(QoI indices, node-shear index maps) of a sensitivity run in ``output_dir``, loaded;
-    None if the folder holds no sensitivity results."""
-    out = Path(output_dir)
-    if not (out / INDICES_FILE).is_file():
-        return None
-    return xr.load_dataset(out / INDICES_FILE), xr.load_dataset(out / MAPS_FILE)
+    """(QoI indices, node-shear index maps) of a sensitivity run in ``output_dir`` (a run
+    folder or store URL), loaded; None if the run holds no sensitivity results."""
+    indices = read_dataset(output_dir, INDICES_FILE)
+    return None if indices is None else (indices, read_dataset(output_dir, MAPS_FILE))
 
 
 def run_design(study, *, output_dir=None, scheduler: str | None = None, workers: int | None = None,
-               progress: bool = True, drape=drape_design) -> Path:
+               progress: bool = True, drape=drape_design, rare=design_rare) -> Path:
     """Run the [design] of a study (a ``Study`` or a study file's path): write
-    ``design.nc`` and the per-design records into the output folder (default the
-    study's; resumes from the records of an earlier run of the same study) and return the
-    folder. ``drape`` is the task that drapes one chunk of one design (a test passes a
-    synthetic one through the same pipeline)."""
+    ``design.nc`` and the per-design records into the output folder or store URL (default
+    the study's; resumes from the records of an earlier run of the same study) and return
+    it. ``drape`` is the task that drapes one chunk of one design, ``rare`` estimates a
+    ``[design] rare`` constraint of one design (a test passes synthetic ones through the
+    same pipeline)."""
     start = time.perf_counter()
     study = study if isinstance(study, Study) else load_study(study)
     if study.design is None:
         raise ValueError(f"study {study.name!r} ({study.path}) has no [design] section; run it with `uqdrape run`")
     prob = problem(study)
     out = study.output_dir if output_dir is None else output_dir
-    if is_url(out):
-        raise ValueError(f"{out}: a [design] study writes design.nc and its records into a folder, not a store; "
-                         "set --out to a folder path")
-    out = Path(out)
-    check_resources(study, out, 0)  # a design's records are per-drape numbers and node sums, not nets
+    out = out if is_url(out) else Path(out)
+    if not is_url(out):  # a store's space is the object store's business
+        check_resources(study, out, 0)  # a design's records are per-drape numbers and node sums, not nets
     check_placement(study, quiet=not progress)
     reach_scheduler(scheduler)
-    out.mkdir(parents=True, exist_ok=True)
     local = scheduler in (None, "processes")
     # one pool for the whole run: a design is many small batches, and starting worker
     # processes for each would cost more than draping it; one run at a time in the folder
-    with run_lock(out), local_pool(workers) if local else contextlib.nullcontext() as pool:
+    lock = store_lock(out) if is_url(out) else run_lock(out)
+    with lock, local_pool(workers) if local else contextlib.nullcontext() as pool:
         evaluate = Evaluator(prob, out, scheduler=scheduler, workers=workers, progress=progress, drape=drape,
-                             pool=pool)
+                             pool=pool, rare=rare)
         result = optimise(prob, evaluate)
         ds = result_dataset(result, evaluate)
         # this run's own time: a resumed run replays earlier designs from their records
         ds.attrs["wall_time_s"] = round(time.perf_counter() - start, 1)
-        write_atomic(ds, out / DESIGN_FILE)
+        ds.attrs["designs_kept"], ds.attrs["designs_draped"] = evaluate.kept, evaluate.draped
+        write_dataset(out, DESIGN_FILE, ds)
     if progress:
         print(f"{study.name}: {ds.attrs['summary']}", file=sys.stderr)
     return out
 
 
-def run_report(output_dir, out_dir=None) -> Path:
-    """Report of a finished run: the ensemble under ``output_dir`` with the title
+def run_report(output_dir, out_dir=None, formats=()) -> Path | str:
+    """Report of a finished run (a run folder or a store URL): the ensemble with the title
     (the study's name), description, study text, histogram nodes and experimental CSV of
     the study stored in its attributes, the wall time from its manifest, and its
     sensitivity results if it has them; of a design run, its design page. Writes into
-    ``out_dir`` (default ``output_dir/report``); returns the index.html path."""
-    design = Path(output_dir) / DESIGN_FILE
-    ds = xr.load_dataset(design) if design.is_file() else open_ensemble(output_dir)
-    study = from_dict(json.loads(ds.attrs["study_json"]), Path(output_dir))
-    report = Path(out_dir) if out_dir else Path(output_dir) / "report"
-    if design.is_file():
-        return write_design_report(ds, report, surface=study.geometry.build_mould())
+    the local folder ``out_dir`` (default: the run's ``report/``, in a store put under its
+    URL), its figures also in the vector ``formats`` (svg, pdf) beside the PNGs; returns
+    the index.html path (a URL in a store)."""
+    if out_dir is None:
+        with made_from(output_dir, "report") as made:
+            index = run_report(output_dir, made.folder, formats)
+        return made.where(index)
+    design = read_dataset(output_dir, DESIGN_FILE)
+    ds = open_ensemble(output_dir) if design is None else design
+    study = from_dict(json.loads(ds.attrs["study_json"]), Path(run_name(output_dir)))
+    report = Path(out_dir)
+    if design is not None:
+        return write_design_report(ds, report, surface=study.geometry.build_mould(), formats=formats)
     sensitivity = open_sensitivity(output_dir)
     manifest = read_manifest(output_dir)
     target = manifest.get("target") or {}  # a target run: what stopped it, for the page's attributes
     ds.attrs.update({f"target_{k}": v for k, v in target.items() if k not in ("forces", "rounds")})
     if target:
         ds.attrs["target_rounds"] = [r["realizations"] for r in target["rounds"]]
-    return write_report(ds, report, title=study.name,
+    return write_report(ds, report, title=study.name, summary=hierarchical_summary(study, ds[REALIZATION].values),
                         description=study.description or None, study_text=ds.attrs.get("study_toml"),
                         histogram_nodes=list(study.report.histogram_nodes) or None,
                         experimental_csv=study.report.experimental_csv,
                         wall_time_s=manifest.get("wall_time_s"),
                         replicates=study.sampling.randomizations if study.sampling.plan == "rqmc" else None,
+                        formats=formats,
+                        rare=read_rare(from_dict(manifest["study"], Path(output_dir)), output_dir),
                         **({} if sensitivity is None else dict(zip(("sensitivity", "sensitivity_maps"), sensitivity))))
+
+
+def hierarchical_summary(study, realizations) -> dict | None:
+    """The report's statement of how much of a hierarchical ensemble's scatter is the
+    measurement's: this run's drawn zero-angle sds (``[uncertainty.zero_angle] sd_dof``)
+    against the estimate. A response linear in the sd (a small zero-angle scatter) has its
+    sd wider than the fixed-sd run's by rms(sd_r) / sd - 1, and 1 - sd² / mean(sd_r²) of
+    its variance comes from the sd's estimation uncertainty, the rest from the fabric."""
+    field = study.uncertainty.fields.get("zero_angle")
+    if field is None or field.sd_dof is None:
+        return None
+    sd = field.params["sd_deg"]
+    r = np.asarray(realizations, dtype=int)
+    drawn = realization_sd_deg(dataclasses.replace(study, realizations=max(study.realizations, int(r.max()) + 1)), r)
+    rms = float(np.sqrt(np.mean(drawn ** 2)))
+    return {"zero-angle sd drawn per realisation": f"sd_dof {field.sd_dof:g}: rms {rms:.4g} deg against the "
+            f"estimate {sd:.4g} deg",
+            "limits wider than a fixed sd's (a response linear in the sd)": f"{100 * (rms / sd - 1):.1f} %",
+            "share of the variance from the small measurement": f"{100 * (1 - sd ** 2 / rms ** 2):.1f} % "
+            "(the rest: the fabric)"}
+
+
+def design_outcome(out) -> str:
+    """What ``uqdrape design`` did to ``out`` (a folder or store URL): designs draped, or how
+    many a resume kept."""
+    attrs = read_dataset(out, DESIGN_FILE).attrs
+    kept, draped = int(attrs.get("designs_kept", 0)), int(attrs.get("designs_draped", 0))
+    if not kept:
+        return f"designs written to {out}: {draped} designs draped"
+    return (f"resumed: {kept} of {kept + draped} designs kept from {EVALUATIONS}/, {draped} draped; "
+            f"designs in {out}")
 
 
 def run_outcome(out: Path) -> str:
