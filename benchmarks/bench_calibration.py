@@ -11,6 +11,10 @@ longer a grid), so the full 1,600 x 1,600 covariance is factored and inverted at
 evaluation, as for scattered points. Then ``auto``: all three families fitted
 and one kept (no intervals). BLAS threads are whatever OpenBLAS starts with: set
 OPENBLAS_NUM_THREADS=1 or 2 to compare (on a loaded machine one thread is faster).
+``--posterior``: also the emcee sample of ``uqdrape calibrate --posterior`` (its default
+16 walkers x 1,500 steps) of each grid fit and of 38 scattered points (Table 5.1's size,
+the exponential field of the same parameters), with its likelihood evaluations, acceptance
+and autocorrelation times.
 
 Run: python benchmarks/bench_calibration.py [--grid 40] [--no-intervals]
 """
@@ -23,6 +27,7 @@ import numpy as np
 
 from uqdrape.calibration import fit_field, synthetic_set
 from uqdrape.calibration.likelihood import Likelihood
+from uqdrape.calibration.posterior import posterior_sample
 
 TRUTH = dict(sd_deg=4.0, length_mm=(20.0, 10.0), nugget_deg=1.0)
 
@@ -40,12 +45,22 @@ def _counted():
     return calls
 
 
+def _time_posterior(label, fit, calls):
+    """Time one default emcee posterior sample of ``fit`` and print what it cost."""
+    calls[0] = 0
+    post = posterior_sample(fit)
+    tau = ", ".join(f"{k} {v:.0f}" for k, v in post.autocorrelation.items())
+    print(f"  posterior ({label}): {post.seconds:.1f} s, {calls[0]} evaluations, acceptance "
+          f"{post.acceptance:.2f}, autocorrelation (steps) {tau}")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--grid", type=int, default=40, help="grid side (default 40: 1,600 points)")
     parser.add_argument("--no-intervals", action="store_true", help="time the fits only")
     parser.add_argument("--dense-intervals", action="store_true",
                         help="also time the dense way's intervals (minutes on a loaded machine)")
+    parser.add_argument("--posterior", action="store_true", help="also time the emcee posterior sample")
     args = parser.parse_args()
     calls = _counted()
     print(f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}, "
@@ -80,6 +95,12 @@ def main():
             print(f"  with 90 % profile intervals {t_all:.1f} s ({n_all} evaluations): "
                   + ", ".join(f"{k} [{e[k].lower:.3g}, {e[k].upper:.3g}]"
                               for k in ("sd_deg", "length_1_mm", "length_2_mm")))
+        if args.posterior and way == "grid":
+            _time_posterior(f"{family}, grid", fit, calls)
+    if args.posterior:
+        a, b, y = synthetic_set(np.random.default_rng(3), "exponential", lattice=(12, 12), points=38, **TRUTH)
+        _time_posterior("exponential, 38 scattered points", fit_field(a, b, y, family="exponential",
+                                                                       intervals=False), calls)
     calls[0] = 0
     t0 = time.perf_counter()
     fit = fit_field(*on_grid, intervals=False)
