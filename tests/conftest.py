@@ -100,3 +100,81 @@ def assert_one_line_error(text: str, *, file=None, key=None, value=None, valid=(
         assert re.search(rf"(?<![\w.]){re.escape(named)}(?![\w])", text), (named, text)
     for part in valid:
         assert part in text, (part, text)
+
+
+# -- an S3 server on 127.0.0.1 -----------------------------------------------------------
+
+#: Bytes the bucket "full" of the ``s3`` server takes before it answers every further
+#: upload as a Ceph gateway over its bucket quota (HTTP 403, QuotaExceeded).
+FULL_BUCKET_BYTES = 200_000
+_QUOTA_EXCEEDED = (b'<?xml version="1.0" encoding="UTF-8"?><Error><Code>QuotaExceeded</Code>'
+                   b'<Message>bucket quota exceeded</Message></Error>')
+
+
+def _with_quota(app):
+    """``app`` (moto's WSGI application) with the bucket "full" limited to FULL_BUCKET_BYTES."""
+    used = [0]
+
+    def quota(environ, start_response):
+        if environ["REQUEST_METHOD"] in ("PUT", "POST") and environ.get("PATH_INFO", "").startswith("/full/"):
+            used[0] += int(environ.get("CONTENT_LENGTH") or 0)
+            if used[0] > FULL_BUCKET_BYTES:
+                start_response("403 Forbidden", [("Content-Type", "application/xml"),
+                                                 ("Content-Length", str(len(_QUOTA_EXCEEDED)))])
+                return [_QUOTA_EXCEEDED]
+        return app(environ, start_response)
+
+    return quota
+
+
+@pytest.fixture(scope="module")
+def s3():
+    """moto's S3 server on 127.0.0.1, started here, with the buckets "runs", "readonly"
+    (a bucket policy denies PutObject) and "full" (FULL_BUCKET_BYTES of quota); the AWS_*
+    environment points at it for the module (worker processes inherit it). Yields an
+    s3fs filesystem on it."""
+    import json
+    import threading
+    import urllib.request
+
+    pytest.importorskip("moto.server")
+    from moto.server import DomainDispatcherApplication, MotoRequestHandler, create_backend_app
+    from werkzeug.serving import make_server
+
+    server = make_server("127.0.0.1", 0, _with_quota(DomainDispatcherApplication(create_backend_app)), threaded=True,
+                         request_handler=MotoRequestHandler)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    endpoint = f"http://127.0.0.1:{server.server_port}"
+    urllib.request.urlopen(urllib.request.Request(f"{endpoint}/moto-api/reset", method="POST")).close()  # moto's
+    # state is per process, not per server: start each module with no buckets
+    with pytest.MonkeyPatch.context() as env:
+        for key, value in {"AWS_ENDPOINT_URL": endpoint, "AWS_ACCESS_KEY_ID": "testing",
+                           "AWS_SECRET_ACCESS_KEY": "testing", "AWS_DEFAULT_REGION": "us-east-1"}.items():
+            env.setenv(key, value)
+        import s3fs
+
+        s3fs.S3FileSystem.clear_instance_cache()
+        fs = s3fs.S3FileSystem(client_kwargs={"endpoint_url": endpoint})
+        for bucket in ("runs", "readonly", "full"):
+            fs.mkdir(bucket)
+        deny = {"Version": "2012-10-17", "Statement": [{"Effect": "Deny", "Principal": "*", "Action": "s3:PutObject",
+                                                        "Resource": "arn:aws:s3:::readonly/*"}]}
+        fs.call_s3("put_bucket_policy", Bucket="readonly", Policy=json.dumps(deny))
+        yield fs
+        s3fs.S3FileSystem.clear_instance_cache()
+    server.shutdown()
+
+
+@pytest.fixture()
+def no_s3_credentials(s3, monkeypatch):
+    """The ``s3`` server's environment without credentials anywhere botocore looks."""
+    import s3fs
+
+    for key in ("AWS_ACCESS_KEY_ID", "AWS_SECRET_ACCESS_KEY"):
+        monkeypatch.delenv(key)
+    for key in ("AWS_SHARED_CREDENTIALS_FILE", "AWS_CONFIG_FILE"):
+        monkeypatch.setenv(key, "/nonexistent")
+    monkeypatch.setenv("AWS_EC2_METADATA_DISABLED", "true")
+    s3fs.S3FileSystem.clear_instance_cache()
+    yield
+    s3fs.S3FileSystem.clear_instance_cache()

@@ -18,7 +18,6 @@ from uqdrape.study import load_study
 from uqdrape.workflow import run_design, run_report
 
 from test_design import synthetic_drape, write
-from test_zarrstore import monkeypatch_module, s3  # noqa: F401 (fixtures: moto's S3 server)
 
 TEXT = ('variables = "force"\nforce_bounds_N = [0.0, 1000.0]\nobjective = "q95_max_abs_shear"\n'
         'statistic = "estimate"\ntolerance_N = 2.0\nmax_evaluations = 12\n')

@@ -29,7 +29,7 @@ from uqdrape.workflow.run import analysed
 
 from conftest import write_study
 from test_export import hemisphere_mesh
-from test_zarrstore import monkeypatch_module, no_s3_credentials, s3, tiny  # noqa: F401 (fixtures: moto's S3 server)
+from test_zarrstore import tiny
 
 STORES = ("file", "s3")
 

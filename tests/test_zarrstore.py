@@ -7,7 +7,6 @@ of every variable, coordinate and variable attribute. S3 runs against moto's ser
 """
 
 import errno
-import socket
 
 import numpy as np
 import pytest
@@ -93,33 +92,6 @@ def test_bad_url_is_one_line_oserror(reference):
 
 # -- S3 against moto's server on 127.0.0.1 ---------------------------------------------
 
-@pytest.fixture(scope="module")
-def s3(monkeypatch_module):
-    moto_server = pytest.importorskip("moto.server")
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        port = sock.getsockname()[1]
-    server = moto_server.ThreadedMotoServer(ip_address="127.0.0.1", port=port)
-    server.start()
-    endpoint = f"http://127.0.0.1:{port}"
-    for key, value in {"AWS_ENDPOINT_URL": endpoint, "AWS_ACCESS_KEY_ID": "testing",
-                       "AWS_SECRET_ACCESS_KEY": "testing", "AWS_DEFAULT_REGION": "us-east-1"}.items():
-        monkeypatch_module.setenv(key, value)
-    import s3fs
-
-    s3fs.S3FileSystem.clear_instance_cache()
-    fs = s3fs.S3FileSystem(client_kwargs={"endpoint_url": endpoint})
-    fs.makedirs("runs", exist_ok=True)  # moto keeps its buckets per process: another module may have made it
-    yield fs
-    server.stop()
-
-
-@pytest.fixture(scope="module")
-def monkeypatch_module():
-    with pytest.MonkeyPatch.context() as mp:
-        yield mp
-
-
 def test_s3_store_equals_folder(reference, s3):
     study, ref = reference
     url = "s3://runs/tiny"
@@ -142,21 +114,6 @@ def test_s3_missing_bucket(reference, s3):
     with pytest.raises(OSError, match="bucket 'nosuchbucket' does not exist") as err:
         run_store(study, "s3://nosuchbucket/x", scheduler="synchronous", progress=False)
     assert "\n" not in str(err.value)
-
-
-@pytest.fixture
-def no_s3_credentials(s3, monkeypatch):
-    """No AWS credentials anywhere (environment, files, instance metadata), fresh s3fs instances."""
-    import s3fs
-
-    for key in ("AWS_ACCESS_KEY_ID", "AWS_SECRET_ACCESS_KEY"):
-        monkeypatch.delenv(key)
-    for key in ("AWS_SHARED_CREDENTIALS_FILE", "AWS_CONFIG_FILE"):
-        monkeypatch.setenv(key, "/nonexistent")
-    monkeypatch.setenv("AWS_EC2_METADATA_DISABLED", "true")
-    s3fs.S3FileSystem.clear_instance_cache()
-    yield
-    s3fs.S3FileSystem.clear_instance_cache()
 
 
 def test_s3_no_credentials(reference, no_s3_credentials):

@@ -101,10 +101,10 @@ def _engine_study(args):
     """The study of ``run`` or ``design``, its output folder replaced by ``--out`` if given."""
     import dataclasses
 
-    from .workflow import load_study
+    from .workflow import load_study, location
 
     study = load_study(args.study)
-    return dataclasses.replace(study, output_dir=Path(args.out)) if args.out else study
+    return dataclasses.replace(study, output_dir=location(args.out)) if args.out else study
 
 
 def cmd_run(args) -> int:
@@ -133,11 +133,13 @@ examples:
   uqdrape run STUDY.toml --out results/mine --workers 2 -q     another folder, 2 processes, no progress
   uqdrape run STUDY.toml --method morris --no-report           a cheap screening run, report later
   uqdrape run STUDY.toml --scheduler tcp://host:8786           on a dask.distributed cluster
+  uqdrape run STUDY.toml --out s3://bucket/runs/mine           one zarr store on S3 (AWS_* from the environment)
 
 exit codes:
   0  done (ensemble and report written)
   2  a user error: a bad study key or flag, a folder holding another study (one line on stderr)
-  3  an I/O failure: unreadable or damaged files, a full disk, an unreachable scheduler, a busy folder
+  3  an I/O failure: unreadable or damaged files, a full disk, an unreachable scheduler, a busy folder,
+     a store that cannot be reached or written (bad URL, missing bucket, credentials, read-only or full)
   130  interrupted (Ctrl-C); run the same command again to resume
 """
 
@@ -221,7 +223,9 @@ def _engine_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="address of an existing dask.distributed scheduler (default: local processes)")
     p.add_argument("--workers", type=int, help="local worker processes (default: all cores)")
-    p.add_argument("--out", metavar="DIR", help="output folder (default: the study's [output] directory)")
+    p.add_argument("--out", metavar="DIR|URL",
+                   help="output folder, or an fsspec URL (s3://bucket/prefix, file:///abs/path) to write one zarr "
+                        "store (default: the study's [output] directory)")
     p.add_argument("--no-report", action="store_true", help="skip the report")
 
 

@@ -152,6 +152,18 @@ def inside(name: str) -> bool:
     return os.path.normpath(name).split(os.sep, 1)[0] != os.pardir
 
 
+def is_url(target) -> bool:
+    """Whether ``target`` names a location by fsspec URL (``s3://bucket/prefix``,
+    ``file:///abs/path``, ``memory://name``) rather than a local path."""
+    return isinstance(target, str) and "://" in target
+
+
+def location(target) -> Path | str:
+    """An output location as written: a URL stays a string (a Path would fold its '//'),
+    anything else is a Path."""
+    return target if is_url(target) else Path(target)
+
+
 def fmt(value) -> str:
     """A value as it would be written in TOML (shortened past 80 characters)."""
     if isinstance(value, bool):

@@ -17,7 +17,8 @@ from .location import made_from, read_dataset, run_name, write_dataset
 from .progress import Progress
 from .run import compute_tasks, reach_scheduler, run_ensemble
 from .store import open_ensemble, read_manifest
-from .zarrstore import is_url, store_lock
+from ..files import is_url
+from .zarrstore import store_lock
 
 __all__ = ["run_ensemble", "open_ensemble", "sampled_inputs", "inputs_from_design", "design_variables",
            "drape_inputs", "write_atomic", "write_netcdf", "read_manifest", "compute_tasks", "reach_scheduler", "Progress", "local_pool", "run_lock",

@@ -119,17 +119,28 @@ class RunLocked(OSError):
 MAX_PID = 2**22
 
 
-def _owner(path: Path) -> dict | None:
-    """The run a lock file names: {pid, host, started}, or None if the file is not a lock
-    uqdrape wrote (hand-edited, truncated, another program's)."""
+def lock_record() -> dict:
+    """What a lock says of the run holding it: {pid, host, started}."""
+    return {"pid": os.getpid(), "host": socket.gethostname(), "started": time.strftime("%Y-%m-%d %H:%M:%S %Z")}
+
+
+def lock_owner(text) -> dict | None:
+    """The run a lock's text (str or bytes) names: {pid, host, started}, or None if it is
+    not a lock uqdrape wrote (hand-edited, truncated, another program's)."""
     try:
-        owner = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError, RecursionError):
+        owner = json.loads(text)
+    except (ValueError, RecursionError):
         return None
     ok = (isinstance(owner, dict) and isinstance(owner.get("pid"), int) and not isinstance(owner["pid"], bool)
           and 0 < owner["pid"] <= MAX_PID and isinstance(owner.get("host"), str)
           and isinstance(owner.get("started"), str))
     return owner if ok else None
+
+
+def stale(owner: dict) -> bool:
+    """Whether the run a lock names is gone: its process was on this host and is not
+    running (a lock from another host is never guessed about)."""
+    return owner["host"] == socket.gethostname() and not _alive(owner["pid"])
 
 
 def _alive(pid: int) -> bool:
@@ -148,10 +159,8 @@ def run_lock(out: Path):
     """Hold ``out/run.lock`` for the duration of a run; raise RunLocked if a live run holds it."""
     out.mkdir(parents=True, exist_ok=True)
     path = out / LOCK
-    host = socket.gethostname()
-    me = {"pid": os.getpid(), "host": host, "started": time.strftime("%Y-%m-%d %H:%M:%S %Z")}
     mine = out / f".{LOCK}.{os.getpid()}.{threading.get_ident()}"
-    mine.write_text(json.dumps(me), encoding="utf-8")
+    mine.write_text(json.dumps(lock_record()), encoding="utf-8")
     try:
         while True:
             try:
@@ -159,11 +168,14 @@ def run_lock(out: Path):
                 break
             except FileExistsError:
                 pass
-            owner = _owner(path)
+            try:
+                owner = lock_owner(path.read_bytes())
+            except OSError:
+                owner = None
             if owner is None:
                 raise RunLocked(errno.EBUSY, f"{LOCK} is not a lock uqdrape wrote; delete it if no run is writing "
                                 "to this folder", str(out)) from None
-            if owner["host"] != host or _alive(owner["pid"]):
+            if not stale(owner):
                 raise RunLocked(errno.EBUSY, f"another run (pid {owner['pid']} on {owner['host']}, started "
                                 f"{owner['started']}) is writing to this folder; wait for it, or use another "
                                 f"--out (delete {LOCK} only if that run is certainly gone)", str(out)) from None

@@ -18,7 +18,8 @@ from pathlib import Path
 import xarray as xr
 
 from .chunk import write_atomic
-from .zarrstore import fetch, is_url, publish
+from ..files import is_url
+from .zarrstore import fetch, publish
 
 
 def run_name(run) -> str:

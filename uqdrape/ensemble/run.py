@@ -45,7 +45,7 @@ from dask.callbacks import Callback
 from .. import __version__
 from .. import geometry as _geometry
 from ..conventions import cf_encode
-from ..files import read_text
+from ..files import is_url, read_text
 from ..schema import FORCE, REALIZATION, at_level
 from ..study import Study, identity
 from ..stochastic.inputs import positive_int
@@ -103,19 +103,27 @@ def _kept_chunks(out: Path, provenance: dict, study: Study, chunk_size: int, n: 
     old = read_manifest(out) if resume else None
     if old is None or identity(old["study"]) != identity(provenance):
         return []  # nothing to keep; another study's folder is refused by _prepare
-    if old["chunk_size"] != chunk_size:
-        raise ValueError(
-            f"{out} was run with --chunk-size {old['chunk_size']}; resume with --chunk-size {old['chunk_size']} "
-            "or run again with --no-resume")
     held = max((int(_RANGE.search(name).group(2)) + 1 for name in old["chunks"]), default=0)
+    check_growth(out, study, old["chunk_size"], held, chunk_size, n)
+    return old["chunks"]
+
+
+def check_growth(where, study: Study, old_chunk_size: int, held: int, chunk_size: int, n: int) -> None:
+    """Raise ValueError (naming ``where``, a folder or a store) unless a run of ``held``
+    realisations in chunks of ``old_chunk_size`` can be resumed as ``n`` in chunks of
+    ``chunk_size``: the same chunk size, no fewer realisations, more only under a plan
+    that extends."""
+    if old_chunk_size != chunk_size:
+        raise ValueError(
+            f"{where} was run with --chunk-size {old_chunk_size}; resume with --chunk-size {old_chunk_size} "
+            "or run again with --no-resume")
     if n < held:
-        raise ValueError(f"{out} holds {held} realisations, more than the {n} asked for: set "
+        raise ValueError(f"{where} holds {held} realisations, more than the {n} asked for: set "
                          f"realizations >= {held} in [study], or run again with --no-resume")
     why = extension_problem(study.sampling, held, n) if n > held else None
     if why:
-        raise ValueError(f"{out} holds {held} realisations and cannot be extended to {n}: {why}; "
+        raise ValueError(f"{where} holds {held} realisations and cannot be extended to {n}: {why}; "
                          "run again with --no-resume")
-    return old["chunks"]
 
 
 def _run_chunk(study: Study, chunk: Chunk, folder: str, attrs: dict, design_rows=None) -> str:
@@ -243,13 +251,14 @@ def compute_tasks(tasks: list, sizes: list, scheduler: str | None, workers: int 
 def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance: dict | None = None,
                  attrs: dict | None = None, scheduler: str | None = None, workers: int | None = None,
                  chunk_size: int | None = None, resume: bool = True, progress: bool = True,
-                 verbose: bool = False, preflight=None) -> Path:
+                 verbose: bool = False, preflight=None) -> Path | str:
     """Drape a study's realisations into chunk files; return the output folder (open it
-    with ``open_ensemble``).
+    with ``open_ensemble``). An fsspec URL as ``output_dir`` (or the study's) writes one
+    zarr store there instead (``uqdrape.ensemble.zarrstore``) and returns the URL.
 
     design_rows  None: the study's own sample (``sampled_inputs``); else a design matrix
                  of standard variables (``inputs_from_design``), row k draped as realisation k
-    output_dir   default: the study's [output] directory
+    output_dir   default: the study's [output] directory; a folder, or a store's URL
     provenance   the study record kept in the manifest and every chunk (default ``study.to_dict()``)
     attrs        further attributes of every chunk
     scheduler    None or "processes": a pool of local processes; "synchronous": in this
@@ -279,13 +288,14 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
         workers = positive_int("workers", workers)
         if scheduler is not None and scheduler not in LOCAL_SCHEDULERS:
             raise ValueError(f"workers={workers} sets local processes; the cluster at {scheduler} has its own workers")
-    from .zarrstore import is_url, run_store
+    from .zarrstore import run_store
 
-    if is_url(output_dir):  # one zarr store by fsspec URL (issue 28); preflight checks are a folder's
+    output_dir = study.output_dir if output_dir is None else output_dir
+    if is_url(output_dir):  # one zarr store by fsspec URL (issue 28)
         return run_store(study, output_dir, design_rows=design_rows, provenance=provenance, attrs=attrs,
                          scheduler=scheduler, workers=workers, chunk_size=chunk_size, resume=resume,
-                         progress=progress)
-    out = Path(study.output_dir if output_dir is None else output_dir).absolute()
+                         progress=progress, preflight=preflight)
+    out = Path(output_dir).absolute()
     provenance = study.to_dict() if provenance is None else provenance
     n = study.realizations if design_rows is None else len(design_rows)
     chunks = plan_chunks(study, chunk_size, n, _kept_chunks(out, provenance, study, chunk_size, n, resume))

@@ -21,7 +21,7 @@ from pathlib import Path
 import xarray as xr
 
 from ..conventions import cf_decode
-from ..files import write_text_atomic
+from ..files import is_url, write_text_atomic
 from ..schema import FORCE
 
 MANIFEST = "run.json"
@@ -35,48 +35,60 @@ MAX_MANIFEST_BYTES = 64 * 2**20
 
 
 def read_manifest(output_dir) -> dict | None:
-    """The run manifest of ``output_dir``, or None if there is none. A manifest that is not
-    one uqdrape wrote (hand-edited, truncated, another program's) raises OSError naming the
+    """The run manifest of ``output_dir`` (a run folder, or a store's URL:
+    ``uqdrape.ensemble.zarrstore``), or None if there is none. A manifest that is not one
+    uqdrape wrote (hand-edited, truncated, another program's) raises OSError naming the
     file and what is wrong: its chunk names are paths uqdrape will open, so they must be
-    plain chunk file names inside ``chunks/``. A store URL reads the store's manifest
-    (``uqdrape.ensemble.zarrstore``)."""
-    from .zarrstore import is_url, read_store_manifest
+    plain chunk file names inside ``chunks/``."""
+    from .zarrstore import read_store_manifest
 
     if is_url(output_dir):
         return read_store_manifest(output_dir)
     path = Path(output_dir) / MANIFEST
     if not path.is_file():
         return None
+    if path.stat().st_size > MAX_MANIFEST_BYTES:
+        raise corrupt_manifest(path, f"larger than {MAX_MANIFEST_BYTES // 2**20} MB")
+    return parse_manifest(path.read_bytes(), path)
 
-    def corrupt(why):
-        return OSError(errno.EIO, f"not a uqdrape run manifest ({why}); run the study again with --no-resume, "
-                                  "or delete the folder", str(path))
 
+def corrupt_manifest(where, why: str) -> OSError:
+    """The one-line error for a manifest at ``where`` (path or URL) that is not one uqdrape wrote."""
+    return OSError(errno.EIO, f"not a uqdrape run manifest ({why}); run the study again with --no-resume, "
+                              "or delete the folder", str(where))
+
+
+def parse_manifest(text: bytes, where) -> dict:
+    """The manifest in ``text`` (read from ``where``), checked as :func:`read_manifest` says."""
     try:
-        if path.stat().st_size > MAX_MANIFEST_BYTES:
-            raise corrupt(f"larger than {MAX_MANIFEST_BYTES // 2**20} MB")
-        manifest = json.loads(path.read_text(encoding="utf-8"))
+        manifest = json.loads(text.decode("utf-8"))
     except (UnicodeDecodeError, ValueError, RecursionError) as err:
-        raise corrupt(f"not JSON text: {type(err).__name__}") from None
+        raise corrupt_manifest(where, f"not JSON text: {type(err).__name__}") from None
     if not isinstance(manifest, dict):
-        raise corrupt("not a JSON object")
+        raise corrupt_manifest(where, "not a JSON object")
     study, chunks, size = manifest.get("study"), manifest.get("chunks"), manifest.get("chunk_size")
     if not (isinstance(study, dict) and all(isinstance(v, dict) for v in study.values())
             and isinstance(study.get("study"), dict)):
-        raise corrupt('"study" must be the study record, a table of sections')
+        raise corrupt_manifest(where, '"study" must be the study record, a table of sections')
     if not (isinstance(chunks, list) and all(isinstance(c, str) and CHUNK_NAME.match(c) for c in chunks)):
-        raise corrupt('"chunks" must be a list of chunk file names such as r0000000-0000063.nc')
+        raise corrupt_manifest(where, '"chunks" must be a list of chunk file names such as r0000000-0000063.nc')
     if isinstance(size, bool) or not isinstance(size, int) or size < 1:
-        raise corrupt('"chunk_size" must be a positive integer')
+        raise corrupt_manifest(where, '"chunk_size" must be a positive integer')
     wall = manifest.get("wall_time_s", 0.0)
     if isinstance(wall, bool) or not isinstance(wall, (int, float)) or not 0 <= wall < 1e9:
-        raise corrupt('"wall_time_s" must be a number of seconds')
+        raise corrupt_manifest(where, '"wall_time_s" must be a number of seconds')
     return manifest
 
 
 def write_manifest(output_dir, manifest: dict) -> None:
-    """Write the manifest atomically (uqdrape.files: temporary file + rename)."""
-    write_text_atomic(Path(output_dir) / MANIFEST, json.dumps(manifest, indent=1))
+    """Write the manifest atomically (uqdrape.files: temporary file + rename; a store's as
+    one object put)."""
+    from .zarrstore import write_store_manifest
+
+    if is_url(output_dir):
+        write_store_manifest(output_dir, manifest)
+    else:
+        write_text_atomic(Path(output_dir) / MANIFEST, json.dumps(manifest, indent=1))
 
 
 def open_ensemble(output_dir) -> xr.Dataset:
@@ -88,7 +100,7 @@ def open_ensemble(output_dir) -> xr.Dataset:
     them: resume the run to compute them), ValueError for a run written before the force
     was always a dimension.
     """
-    from .zarrstore import is_url, open_store
+    from .zarrstore import open_store
 
     if is_url(output_dir):  # a zarr store by fsspec URL (uqdrape.ensemble.zarrstore)
         return open_store(output_dir)

@@ -15,6 +15,7 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..files import location
 from .. import geometry as _geometry
 from .. import material as _material
 from .. import stochastic as _stochastic
@@ -284,7 +285,8 @@ class Study:
     sampling: Sampling
     sensitivity: Sensitivity
     report: Report
-    output_dir: Path
+    #: a run folder (Path), or an fsspec URL (str) of a zarr store (``uqdrape.ensemble.zarrstore``)
+    output_dir: Path | str
     #: the [design] section, None for a study without one
     design: Design | None = None
     #: chunks store floats as float32 with zlib (``uqdrape.conventions.cf_encode``)
@@ -421,7 +423,7 @@ def from_dict(doc: dict, path) -> Study:
         sensitivity=section(Sensitivity, doc["sensitivity"]),
         report=section(Report, report, histogram_nodes=tuple(tuple(n) for n in report["histogram_nodes"]),
                        experimental_csv=Path(report["experimental_csv"]) if report.get("experimental_csv") else None),
-        output_dir=Path(doc["output"]["directory"]),
+        output_dir=location(doc["output"]["directory"]),
         design=section(Design, doc["design"], rare=RareLimit(**doc["design"]["rare"]) if "rare" in doc["design"]
                        else None) if "design" in doc else None,
         float32=doc["output"].get("float32", False),

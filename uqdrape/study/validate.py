@@ -62,7 +62,9 @@ a study read as data reads nothing its folder does not hold). ``output.directory
 relative to the current working directory, as ``results/<study name>`` is meant to be, and
 a relative one must stay inside it ('..' climbing out is refused); an absolute directory is
 taken as written and shown by ``uqdrape validate``; ``--out DIR`` on the command line
-replaces it and may be anywhere.
+replaces it and may be anywhere. A directory with ``://`` is an fsspec URL
+(``s3://bucket/prefix``, ``file:///abs/path``): the run writes one zarr store there
+(``uqdrape.ensemble.zarrstore``).
 
 Errors. Every problem raises :class:`StudyError` naming the file, the dotted key, the
 bad value and what is valid, in one line, e.g. ``studies/x.toml:
@@ -94,7 +96,7 @@ from .. import geometry as _geometry
 from .. import material as _material
 from .. import stochastic as _stochastic
 from ..experimental import read_experimental
-from ..files import REQUIRED, Document, FileFormatError, Table, fmt, inside, is_int, is_number
+from ..files import REQUIRED, Document, FileFormatError, Table, fmt, inside, is_int, is_number, is_url, location
 from ..stochastic.sampling import EXTENDABLE_PLANS, RQMC, STUDY_PLANS, rqmc_points
 from ..schema import (BLANKHOLDER_MODELS, MAX_RINGS, MAX_TOLERANCE_DEG, MODES, QOI_ATTRS, SENSITIVITY_QOIS,
                       SOLVER_INPUTS, SPACING_RANGE_MM)
@@ -653,17 +655,17 @@ def _report(src: _Source, doc: dict, rings: int) -> Report:
     return Report(tuple((int(i), int(j)) for i, j in nodes), csv)
 
 
-def _output(src: _Source, doc: dict, name: str) -> tuple[Path, bool]:
+def _output(src: _Source, doc: dict, name: str) -> tuple[Path | str, bool]:
     t = Table(src, "output", doc.get("output", {}), ("directory", "float32"))
     directory = t.string("directory", f"results/{name}", hint="directory must be a non-empty path without NUL",
                          valid=lambda d: bool(d) and "\0" not in d)
-    if not Path(directory).is_absolute() and not inside(directory):
+    if not is_url(directory) and not Path(directory).is_absolute() and not inside(directory):
         t.invalid("directory", "a relative directory is taken from the current folder and must stay in it "
                                "('..' climbing out is refused); write the absolute path")
     float32 = t.raw("float32", False, "float32 must be true or false")
     if not isinstance(float32, bool):
         t.invalid("float32", "float32 must be true or false")
-    return Path(directory), float32
+    return location(directory), float32
 
 
 # ----------------------------------------------------------------------------- public API

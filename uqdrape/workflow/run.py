@@ -76,7 +76,7 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
     out = study.output_dir
     provenance = study.to_dict()
     if method != study.sensitivity.method:
-        out = out.with_name(f"{out.name}-{method}")
+        out = f"{out}-{method}" if is_url(out) else out.with_name(f"{out.name}-{method}")
         provenance["sensitivity"]["method"] = method
         provenance["sensitivity"].pop("base_samples", None)
     attrs = {}
