@@ -1,0 +1,94 @@
+"""The hierarchical ensemble's correlation lengths (issue 25): a zero-angle field's lengths
+drawn per realisation (``[uncertainty.zero_angle] length_log_sd``), and ``uqdrape
+calibrate`` writing the key only for lengths the data identify."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.stats
+
+from conftest import assert_one_line_error, write_study
+from uqdrape.cli import main
+from uqdrape.ensemble import sampled_inputs
+from uqdrape.ensemble.inputs import realization_length_mm, realization_sd_deg
+from uqdrape.study import load_study
+
+LENGTH = [12.0, 30.0]
+
+
+def _study(tmp_path, name="l", realizations=4000, plan="monte_carlo", **field):
+    zero = {"mean_deg": -2.3, "sd_deg": 5.6, "correlation": "exponential", "length_mm": LENGTH, **field}
+    return load_study(write_study(tmp_path, name, study={"realizations": realizations},
+                                  uncertainty={"zero_angle": zero}, sampling={"plan": plan}))
+
+
+@pytest.mark.parametrize("plan", ["monte_carlo", "latin_hypercube"])
+def test_drawn_log_lengths_are_normal_about_the_study_length(tmp_path, plan):
+    """ln L_r over 4000 realisations is Normal(ln L, s) (Kolmogorov-Smirnov), both lengths
+    moved by the same factor."""
+    study = _study(tmp_path, plan=plan, length_log_sd=0.3)
+    lengths = realization_length_mm(study, np.arange(4000))
+    z = np.log(lengths / LENGTH) / 0.3
+    np.testing.assert_allclose(z[:, 0], z[:, 1], rtol=0, atol=1e-12)
+    assert scipy.stats.kstest(z[:, 0], "norm").pvalue > 1e-3
+    fixed = realization_length_mm(_study(tmp_path, name="f", plan=plan), np.arange(3))
+    assert np.all(fixed == LENGTH)
+
+
+@pytest.mark.parametrize("extra", [{}, {"sd_dof": 37.0}])
+def test_every_other_number_is_unchanged_bitwise(tmp_path, extra):
+    """The lengths' normal comes last: the drawn sds and every factor are bitwise those of
+    the run without length_log_sd."""
+    factors = {"friction": {"dist": "normal", "mean": 0.2, "sd": 0.01}}
+    path = write_study(tmp_path, "a", study={"realizations": 64},
+                       uncertainty={"zero_angle": {"sd_deg": 2.0, "correlation": "exponential",
+                                                   "length_mm": LENGTH, **extra}, **factors})
+    drawn = write_study(tmp_path, "b", study={"realizations": 64},
+                        uncertainty={"zero_angle": {"sd_deg": 2.0, "correlation": "exponential", "length_mm": LENGTH,
+                                                    "length_log_sd": 0.5, **extra}, **factors})
+    base, hier = load_study(path), load_study(drawn)
+    r = np.arange(64)
+    assert np.array_equal(sampled_inputs(base, r)["friction"], sampled_inputs(hier, r)["friction"])
+    assert np.array_equal(realization_sd_deg(base, r), realization_sd_deg(hier, r))
+    assert not np.array_equal(sampled_inputs(base, r)["gamma0"], sampled_inputs(hier, r)["gamma0"])
+
+
+@pytest.mark.parametrize("extra", [{}, {"sd_dof": 37.0}])
+def test_a_tiny_log_sd_gives_the_fixed_length_fields(tmp_path, extra):
+    """s = 1e-12: each realisation's field, rebuilt for its own L_r, is the fixed-length
+    (and, with sd_dof, the same drawn-sd) run's to round-off."""
+    r = np.arange(24)
+    base = sampled_inputs(_study(tmp_path, name="f", realizations=24, **extra), r)["gamma0"]
+    tiny = sampled_inputs(_study(tmp_path, realizations=24, length_log_sd=1e-12, **extra), r)["gamma0"]
+    np.testing.assert_allclose(tiny, base, rtol=0, atol=1e-9)
+    assert np.max(np.abs(base + 2.3)) > 5.0  # the fields are not flat
+
+
+def test_a_drawn_length_changes_the_field_s_correlation(tmp_path):
+    """Neighbour correlation of γ0 along fibre 1 follows each realisation's own L_r: over
+    realisations whose L_r is short it is lower than over those whose L_r is long."""
+    study = _study(tmp_path, realizations=400, length_log_sd=0.8)
+    r = np.arange(400)
+    g = sampled_inputs(study, r)["gamma0"] + 2.3
+    lengths = realization_length_mm(study, r)[:, 0]
+    rho = np.mean(g[:, 1:, :] * g[:, :-1, :], axis=(1, 2)) / np.mean(g ** 2, axis=(1, 2))
+    short, long = lengths < np.quantile(lengths, 0.25), lengths > np.quantile(lengths, 0.75)
+    assert rho[short].mean() < rho[long].mean() - 0.1
+
+
+def test_bad_length_log_sd_is_one_line(tmp_path, capsys):
+    key = "uncertainty.zero_angle.length_log_sd"
+    correlated = {"sd_deg": 2.0, "correlation": "exponential", "length_mm": LENGTH}
+    for field, sampling, sensitivity in (({**correlated, "length_log_sd": 0}, {}, {}),
+                                         ({**correlated, "length_log_sd": -0.1}, {}, {}),
+                                         ({**correlated, "length_log_sd": 1.5}, {}, {}),
+                                         ({**correlated, "length_log_sd": "wide"}, {}, {}),
+                                         ({"sd_deg": 2.0, "length_log_sd": 0.3}, {}, {}),
+                                         ({**correlated, "length_log_sd": 0.3}, {"plan": "rqmc", "randomizations": 4}, {}),
+                                         ({**correlated, "length_log_sd": 0.3}, {},
+                                          {"method": "sobol", "base_samples": 8})):
+        path = write_study(tmp_path, "bad", study={"realizations": 64},
+                           uncertainty={"zero_angle": field}, sampling=sampling, sensitivity=sensitivity)
+        assert main(["validate", str(path)]) != 0, (field, sampling, sensitivity)
+        assert_one_line_error(capsys.readouterr().err, file=path.name, key=key)
