@@ -4,6 +4,8 @@ calibrate`` writing the key only for lengths the data identify."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import scipy.stats
@@ -92,3 +94,38 @@ def test_bad_length_log_sd_is_one_line(tmp_path, capsys):
                            uncertainty={"zero_angle": field}, sampling=sampling, sensitivity=sensitivity)
         assert main(["validate", str(path)]) != 0, (field, sampling, sensitivity)
         assert_one_line_error(capsys.readouterr().err, file=path.name, key=key)
+
+
+# -- written by `uqdrape calibrate` --------------------------------------------------------
+
+
+def test_calibrate_writes_the_lengths_log_sd_of_an_identified_field(tmp_path, capsys):
+    """An exponential 8 x 8 grid: both profile intervals finite, so the block carries
+    length_log_sd = the wider ln(upper / lower) / (2 x 1.645), and a study reads it back."""
+    from test_calibration import _grid_csv
+
+    out = tmp_path / "z.toml"
+    points = _grid_csv(tmp_path, "exponential")
+    assert main(["calibrate", str(points), "--family", "exponential", "--out", str(out), "-q"]) == 0
+    from uqdrape.calibration import calibrate_points, read_points
+
+    est = calibrate_points(read_points(points), family="exponential").fit.estimates
+    widest = max(np.log(est[k].upper / est[k].lower) for k in ("length_1_mm", "length_2_mm"))
+    expected = float(f"{widest / (2 * scipy.stats.norm.ppf(0.95)):.4g}")
+    text = out.read_text(encoding="utf-8")
+    assert f"length_log_sd = {expected}\n" in text and "# length_log_sd = " in text
+    study = tmp_path / "s.toml"
+    study.write_text(write_study(tmp_path, "s").read_text(encoding="utf-8") + "\n" + text, encoding="utf-8")
+    assert load_study(study).uncertainty.fields["zero_angle"].length_log_sd == expected
+
+
+def test_calibrate_leaves_the_shipped_points_lengths_fixed(tmp_path, capsys):
+    """The shipped 38 points: the posterior piles both lengths against the prior's bound,
+    so no length_log_sd, and a comment says why."""
+    pytest.importorskip("emcee")
+    shipped = Path(__file__).resolve().parents[1] / "studies" / "measurements" / "fibre-angles.csv"
+    out = tmp_path / "z.toml"
+    assert main(["calibrate", str(shipped), "--out", str(out), "--posterior", "-q"]) == 0
+    text = out.read_text(encoding="utf-8")
+    assert "length_log_sd =" not in text and "length_mm = [" in text
+    assert "# no length_log_sd: a correlation length is not identified by the data" in text
