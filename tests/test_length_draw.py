@@ -141,9 +141,8 @@ def test_the_report_states_the_drawn_lengths_spread(tmp_path):
     r = np.arange(200)
     said = hierarchical_summary(study, r)
     low, mid, high = np.quantile(realization_length_mm(study, r)[:, 1] / LENGTH[1], [0.05, 0.5, 0.95])
-    assert said["zero-angle correlation lengths drawn per realisation"] == (
-        f"length_log_sd 0.4: both lengths x {mid:.3g} (median; 5-95 %: x {low:.3g} to x {high:.3g}) "
-        "of the estimate [12, 30] mm")
+    assert said["zero-angle lengths drawn per realisation (x the estimate, both)"] == (
+        f"length_log_sd 0.4: median x {mid:.3g}, 5-95 % x {low:.3g} to x {high:.3g}")
     assert 0.45 < low < 0.6 and 1.7 < high < 2.1  # exp(-+1.645 x 0.4) = 0.52, 1.93, to 200 draws' error
     sd_only = hierarchical_summary(_study(tmp_path, name="s", realizations=200, sd_dof=37.0), r)
     assert {k: v for k, v in said.items() if "length" not in k} == sd_only

@@ -268,9 +268,8 @@ def hierarchical_summary(study, realizations) -> dict | None:
     if field.length_log_sd is not None:
         factor = realization_length_mm(whole, r)[:, 0] / field.length_mm[0]
         low, mid, high = np.quantile(factor, [0.05, 0.5, 0.95])
-        said["zero-angle correlation lengths drawn per realisation"] = (
-            f"length_log_sd {field.length_log_sd:g}: both lengths x {mid:.3g} (median; 5-95 %: x {low:.3g} to "
-            f"x {high:.3g}) of the estimate [{field.length_mm[0]:.4g}, {field.length_mm[1]:.4g}] mm")
+        said["zero-angle lengths drawn per realisation (x the estimate, both)"] = (
+            f"length_log_sd {field.length_log_sd:g}: median x {mid:.3g}, 5-95 % x {low:.3g} to x {high:.3g}")
     return said
 
 
