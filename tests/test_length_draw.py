@@ -82,18 +82,20 @@ def test_a_drawn_length_changes_the_field_s_correlation(tmp_path):
 def test_bad_length_log_sd_is_one_line(tmp_path, capsys):
     key = "uncertainty.zero_angle.length_log_sd"
     correlated = {"sd_deg": 2.0, "correlation": "exponential", "length_mm": LENGTH}
-    for field, sampling, sensitivity in (({**correlated, "length_log_sd": 0}, {}, {}),
-                                         ({**correlated, "length_log_sd": -0.1}, {}, {}),
-                                         ({**correlated, "length_log_sd": 1.5}, {}, {}),
-                                         ({**correlated, "length_log_sd": "wide"}, {}, {}),
-                                         ({"sd_deg": 2.0, "length_log_sd": 0.3}, {}, {}),
-                                         ({**correlated, "length_log_sd": 0.3}, {"plan": "rqmc", "randomizations": 4}, {}),
-                                         ({**correlated, "length_log_sd": 0.3}, {},
-                                          {"method": "sobol", "base_samples": 8})):
-        path = write_study(tmp_path, "bad", study={"realizations": 64},
-                           uncertainty={"zero_angle": field}, sampling=sampling, sensitivity=sensitivity)
-        assert main(["validate", str(path)]) != 0, (field, sampling, sensitivity)
-        assert_one_line_error(capsys.readouterr().err, file=path.name, key=key)
+    drawn = {**correlated, "length_log_sd": 0.3}
+    rare = {"rare": {"qoi": "mean_shear_positive", "threshold": 10.9}}
+    for field, sections, valid in (({**correlated, "length_log_sd": 0}, {}, ("> 0",)),
+                                   ({**correlated, "length_log_sd": -0.1}, {}, ("> 0",)),
+                                   ({**correlated, "length_log_sd": 1.5}, {}, ("(0, 1]",)),
+                                   ({**correlated, "length_log_sd": "wide"}, {}, ("a number",)),
+                                   ({"sd_deg": 2.0, "length_log_sd": 0.3}, {}, ('"exponential"',)),
+                                   (drawn, {"sampling": {"plan": "rqmc", "randomizations": 4}}, ('"rqmc"',)),
+                                   (drawn, {"sensitivity": {"method": "sobol", "base_samples": 8}}, ('"sobol"',)),
+                                   (drawn, {"study": {"realizations": 64, **rare}}, ("a [study] rare",))):
+        sections = {"study": {"realizations": 64}, **sections}
+        path = write_study(tmp_path, "bad", uncertainty={"zero_angle": field}, **sections)
+        assert main(["validate", str(path)]) == 2, (field, sections)
+        assert_one_line_error(capsys.readouterr().err, file=path.name, key=key, valid=valid)
 
 
 # -- written by `uqdrape calibrate` --------------------------------------------------------
