@@ -291,7 +291,7 @@ def test_the_block_is_a_study_block_a_study_uses_as_is(tmp_path):
     cal = calibrate_points(read_points(_grid_csv(tmp_path, "exponential")), family="exponential")
     text = block_text(cal, "uqdrape calibrate points.csv")
     table = study_block(cal)["uncertainty"]["zero_angle"]
-    assert set(table) == {"mean_deg", "sd_deg", "correlation", "length_mm", "sd_dof"}
+    assert set(table) == {"mean_deg", "sd_deg", "correlation", "length_mm", "sd_dof", "length_log_sd"}
     assert table["sd_deg"] == float(f"{cal.fit.estimates['sd_deg'].value:.4g}")
     study = tmp_path / "s.toml"
     study.write_text(study_text(tmp_path, "s") + "\n" + text, encoding="utf-8")

@@ -10,9 +10,10 @@ family chosen by AIC or BIC and every parameter given a profile-likelihood inter
 from known fields to check a fit.
 
 With emcee (optional extra ``calibrate``) :mod:`.posterior` samples the parameters'
-posterior; the block's ``sd_dof`` (a hierarchical ensemble drawing each realisation's sd,
-``uqdrape.ensemble.inputs``) is then matched to the posterior's sd interval instead of
-the profile's.
+posterior; the block's ``sd_dof`` and ``length_log_sd`` (a hierarchical ensemble drawing
+each realisation's sd and correlation lengths, ``uqdrape.ensemble.inputs``) are then
+matched to the posterior's intervals instead of the profile's, and ``length_log_sd`` is
+left out when a length is unidentified.
 
 :mod:`.image` reads fibre angles off an image of the fabric (scikit-image's structure
 tensor, optional extra ``calibrate``) as points for the same fit (``uqdrape calibrate
@@ -24,8 +25,7 @@ profile interval, or a posterior piling against the prior's bound).
 Measured drapes -> study parameters: :mod:`.emulator` (a GP per ensemble statistic over a
 Latin-hypercube design, scikit-learn) and :mod:`.drapes` (the parts' likelihood, its
 posterior by emcee, the posterior-predictive bands); the drapes themselves are run by
-``uqdrape.workflow.calibrate``. Not here yet: correlation lengths drawn per realisation
-(only the sd is).
+``uqdrape.workflow.calibrate``.
 """
 
 from __future__ import annotations

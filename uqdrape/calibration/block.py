@@ -7,7 +7,8 @@ criterion, each estimate with its interval and the measurement error left out of
 field. The table holds only what a study reads: ``mean_deg``, ``sd_deg``,
 ``correlation`` and, for a correlated family, ``length_mm = [L1, L2]`` (mm along fibre 1
 and fibre 2), each rounded to 4 significant digits, and ``sd_dof``: the sd's estimation
-uncertainty for a hierarchical ensemble (:func:`sd_dof`), unless its interval is open.
+uncertainty for a hierarchical ensemble (:func:`sd_dof`), unless its interval is open,
+and ``length_log_sd``: the lengths' (:func:`length_log_sd`), unless a length is unidentified.
 """
 
 from __future__ import annotations
@@ -68,14 +69,33 @@ def unidentified(calibration) -> list[str]:
     return out
 
 
-def _sd_interval(calibration):
-    """The sd's estimate with the interval sd_dof is matched to: the posterior's if
-    sampled and bounded by the data (:func:`unidentified`), else the profile's."""
-    est = calibration.fit.estimates["sd_deg"]
+def _matched_interval(calibration, name: str = "sd_deg"):
+    """A parameter's estimate with the interval sd_dof or length_log_sd is matched to: the
+    posterior's if sampled and bounded by the data (:func:`unidentified`), else the profile's."""
+    est = calibration.fit.estimates[name]
     if not _posterior_bounded(calibration):
         return est
-    lower, upper = calibration.posterior.interval("sd_deg", calibration.fit.level)
+    lower, upper = calibration.posterior.interval(name, calibration.fit.level)
     return type(est)(est.value, lower, upper)
+
+
+LENGTHS = ("length_1_mm", "length_2_mm")
+
+
+def length_log_sd(calibration) -> float | None:
+    """The sd s of ln L for a hierarchical run's lengths L exp(s z) (``[uncertainty.zero_angle]
+    length_log_sd``, one z for both): the log-normal whose equal-tailed ``level`` interval is
+    as wide as the wider of the two lengths' intervals, ln(upper / lower) / (2 z_(1+level)/2).
+    None for iid, and when a length is not identified (:func:`unidentified`: its profile
+    interval is open or its posterior reaches the prior's bound)."""
+    fit = calibration.fit
+    if fit.family == "iid" or any(name in _posterior_ends(calibration) for name in LENGTHS):
+        return None
+    ests = [_matched_interval(calibration, name) for name in LENGTHS]
+    if any(e.lower_open or e.upper_open or not 0 < e.lower < e.upper for e in ests):
+        return None
+    quantile = scipy.stats.norm.ppf(0.5 + fit.level / 2)
+    return max(math.log(e.upper / e.lower) for e in ests) / (2 * quantile)
 
 
 def sd_dof(estimate, level: float) -> float | None:
@@ -105,9 +125,12 @@ def study_block(calibration) -> dict:
              "correlation": fit.family}
     if fit.family != "iid":
         table["length_mm"] = [_round(est["length_1_mm"].value), _round(est["length_2_mm"].value)]
-    m = sd_dof(_sd_interval(calibration), fit.level)
+    m = sd_dof(_matched_interval(calibration), fit.level)
     if m is not None:
         table["sd_dof"] = _round(m)
+    s = length_log_sd(calibration)
+    if s is not None:
+        table["length_log_sd"] = _round(s)
     return {"uncertainty": {"zero_angle": table}}
 
 
@@ -140,14 +163,21 @@ def block_text(calibration, command: str = "uqdrape calibrate") -> str:
                      f"{post.seconds:.1f} s), {100 * fit.level:g} % equal-tailed intervals (uqdrape.calibration.posterior):")
         lines += [f"  {name:12s} [{lo:.4g}, {hi:.4g}]  autocorrelation {post.autocorrelation[name]:.0f} steps"
                   for name in post.samples for lo, hi in [post.interval(name, fit.level)]]
-    m = sd_dof(_sd_interval(calibration), fit.level)
+    m = sd_dof(_matched_interval(calibration), fit.level)
     source = "posterior" if _posterior_bounded(calibration) else "profile"
     lines += [f"WARNING: {u}" for u in unidentified(calibration)]
     lines.append(f"sd_dof = {m:.4g}: the sd's {source} interval as a scaled-inverse-chi-square one"
                  + (" (not the posterior's: it reaches its prior bound)" if post is not None and source == "profile"
                     else "") + "; a run draws each "
-                 "realisation's sd from it (delete sd_dof for a fixed sd; correlation lengths stay fixed)"
+                 "realisation's sd from it (delete sd_dof for a fixed sd)"
                  if m is not None else "no sd_dof: the sd's interval is open, the data do not bound it")
+    if fit.family != "iid":
+        s = length_log_sd(calibration)
+        lines.append(f"length_log_sd = {s:.4g}: the wider length's {source} interval as a log-normal one about "
+                     "its estimate (the median); a run draws each realisation's lengths length_mm exp(s z), one z "
+                     "for both (delete length_log_sd for fixed lengths)" if s is not None else
+                     "no length_log_sd: a correlation length is not identified by the data (see the warning), "
+                     "so the lengths stay fixed at their estimates")
     if points.sd_deg.any():
         lines.append(f"per-point measurement sd from the file: {points.sd_deg.min():.3g} to "
                      f"{points.sd_deg.max():.3g} deg (left out of sd_deg)")

@@ -27,8 +27,15 @@ A zero-angle field with ``sd_dof`` (a hierarchical ensemble) also draws each
 realisation's sd, :func:`realization_sd_deg`: one more standard normal z of the
 realisation's stream, after all the others (so the other numbers stay as without it),
 mapped to sd_r = sd_deg √(m / χ²_m(Φ(z))), m = sd_dof; the field is then
-γ0 = μ0 + sd_r ξ_c. Only :func:`sampled_inputs` does this (validation refuses ``sd_dof``
-with rqmc and sensitivity designs).
+γ0 = μ0 + sd_r ξ_c. A correlated zero-angle field with ``length_log_sd`` = s draws its
+correlation lengths per realisation likewise, :func:`realization_length_mm`: one more
+normal z after the sd's (so every other number, the sd's included, stays as without it),
+both lengths L_r = L exp(s z), so the study's L is their median (and geometric mean); the
+field of realisation r is sampled exactly from a field rebuilt for L_r (two 2n x 2n
+eigendecompositions per realisation, eigenvector signs matched to the study's field so
+that the same noise gives a nearby field for a nearby length; ξ_c keeps its values).
+Only :func:`sampled_inputs` does this (validation refuses both keys with rqmc and
+sensitivity designs).
 
 Returned inputs are a dict of arrays with a leading realisation axis: ``seg_i``
 (R, 2n, 2n+1) and ``seg_j`` (R, 2n+1, 2n) in mm if spacing varies, ``gamma0``
@@ -37,6 +44,8 @@ named as in the study (``friction``, ``orientation``, ``crossover_x``, ...).
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 from scipy.special import ndtr
@@ -81,17 +90,31 @@ def _inputs(study, fields: dict, xi: dict, u: np.ndarray) -> dict:
 
 
 def _hierarchical(study):
-    """The zero-angle field whose sd is drawn per realisation, or None."""
+    """The zero-angle field whose sd or lengths are drawn per realisation, or None."""
     field = study.uncertainty.fields.get("zero_angle")
-    return field if field is not None and field.sd_dof is not None else None
+    drawn = field is not None and (field.sd_dof is not None or field.length_log_sd is not None)
+    return field if drawn else None
 
 
 def _normals(study, r, fields) -> tuple:
     """Each realisation's stream: the fields' noise, the factors' (monte_carlo), then the
-    hierarchical sd's one normal."""
+    hierarchical sd's one normal, then the hierarchical lengths' one normal."""
     d = len(study.uncertainty.factors)
     sizes = [inp.n_variables for inp in fields.values()] + ([d] if study.sampling.plan == "monte_carlo" else [])
-    return realization_normals(study.seed, r, sizes + ([1] if _hierarchical(study) else []))
+    field = _hierarchical(study)
+    if field is not None:
+        sizes += [1] * ((field.sd_dof is not None) + (field.length_log_sd is not None))
+    return realization_normals(study.seed, r, sizes)
+
+
+def _drawn(field, normals) -> tuple:
+    """(sd_r in deg or None, (R, 2) lengths L_r in mm or None) of a hierarchical field from
+    the tail of its realisations' ``normals``."""
+    tail = iter(normals[::-1])
+    lengths = None if field.length_log_sd is None else (
+        np.asarray(field.length_mm) * np.exp(field.length_log_sd * next(tail)[:, :1]))
+    sd = None if field.sd_dof is None else _sd_from_normal(field, next(tail)[:, 0])
+    return sd, lengths
 
 
 def _sd_from_normal(field, z) -> np.ndarray:
@@ -100,15 +123,29 @@ def _sd_from_normal(field, z) -> np.ndarray:
     return field.params["sd_deg"] * np.sqrt(m / chi2.ppf(ndtr(np.asarray(z, dtype=float)), m))
 
 
+def _drawn_or_fixed(study, realizations, which: int, fixed) -> np.ndarray:
+    """Entry ``which`` of :func:`_drawn` for the given realisations, or ``fixed`` per
+    realisation where the study does not draw it."""
+    r = _realizations(study, realizations)
+    field = _hierarchical(study)
+    value = None if field is None else _drawn(field, _normals(study, r, _field_inputs(study, kl=False)))[which]
+    return np.array([fixed] * r.size, dtype=float) if value is None else value
+
+
 def realization_sd_deg(study, realizations) -> np.ndarray:
     """The zero-angle sd (deg) of each given realisation: drawn as in the module
     docstring under ``sd_dof``, else the study's sd_deg (or 0 without a zero-angle field)."""
-    r = _realizations(study, realizations)
-    field = _hierarchical(study)
-    if field is None:
-        plain = study.uncertainty.fields.get("zero_angle")
-        return np.full(r.size, plain.params["sd_deg"] if plain is not None else 0.0)
-    return _sd_from_normal(field, _normals(study, r, _field_inputs(study, kl=False))[-1][:, 0])
+    plain = study.uncertainty.fields.get("zero_angle")
+    return _drawn_or_fixed(study, realizations, 0, plain.params["sd_deg"] if plain is not None else 0.0)
+
+
+def realization_length_mm(study, realizations) -> np.ndarray:
+    """The zero-angle field's correlation lengths (R, 2) in mm (along fibre 1, fibre 2) of
+    each given realisation: drawn as in the module docstring under ``length_log_sd``, else
+    the study's length_mm (NaN for an iid field or none)."""
+    plain = study.uncertainty.fields.get("zero_angle")
+    fixed = plain.length_mm if plain is not None and plain.length_mm is not None else (np.nan, np.nan)
+    return _drawn_or_fixed(study, realizations, 1, fixed)
 
 
 def sampled_inputs(study, realizations) -> dict:
@@ -125,11 +162,23 @@ def sampled_inputs(study, realizations) -> dict:
     else:
         u = sample_uniforms(study.sampling.plan, study.realizations, d, study.seed)[r]
     field = _hierarchical(study)
-    if field is not None:  # the field at unit sd, scaled per realisation (the field is linear in its sd)
+    if field is not None:
         unit = fields["zero_angle"]
-        sd = _sd_from_normal(field, normals[-1][:, 0])
-        fields = dict(fields, zero_angle=lambda z: _scaled(unit, z, sd))
+        sd, lengths = _drawn(field, normals)
+        fields = dict(fields, zero_angle=lambda z: _zero_angle(study, field, unit, z, sd, lengths))
     return _inputs(study, fields, xi, u)
+
+
+def _zero_angle(study, field, inp, xi, sd, lengths) -> np.ndarray:
+    """γ0 (deg) of rows ``xi`` of a hierarchical zero-angle field: each row's field rebuilt
+    for its drawn lengths (exact sampling) and, the field being linear in its sd, rescaled
+    to its drawn sd."""
+    if lengths is None:
+        return _scaled(inp, xi, sd)
+    rows = [dataclasses.replace(field, length_mm=tuple(L)).build_input(study.solver.rings, study.fabric.spacing_mm)
+            .aligned_to(inp) for L in lengths]
+    return np.concatenate([f(xi[k:k + 1]) if sd is None else _scaled(f, xi[k:k + 1], sd[k:k + 1])
+                           for k, f in enumerate(rows)])
 
 
 def _scaled(inp, xi, sd) -> np.ndarray:

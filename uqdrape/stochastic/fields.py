@@ -123,6 +123,15 @@ class GaussianField:
             raise ValueError(f"xi must have trailing shape {self.shape}, got {xi.shape}")
         return self._synthesise(xi)
 
+    def align_to(self, other: GaussianField) -> None:
+        """Flip the sign of each eigenvector that points against ``other``'s of the same
+        rank (same lattice, another length), in place: eigenvectors are defined up to sign,
+        so without this the same noise could give an unrelated field for a nearby length.
+        With it, a field rebuilt for a length drawn near ``other``'s maps the same noise to
+        a nearby field."""
+        for mine, theirs in ((self._phi1, other._phi1), (self._phi2, other._phi2)):
+            mine *= np.where(np.sum(mine * theirs, axis=0) < 0, -1.0, 1.0)
+
     def kl(self, retained: float | None = 0.95, n_modes: int | None = None) -> KLField:
         """Truncated Karhunen–Loève expansion; see :class:`KLField`."""
         return KLField(self, retained=retained, n_modes=n_modes)

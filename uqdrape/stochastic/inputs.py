@@ -54,6 +54,13 @@ class _FieldInput:
         new.fields = tuple(f.kl(retained=retained, n_modes=n_modes) for f in self._exact)
         return new
 
+    def aligned_to(self, other: _FieldInput) -> _FieldInput:
+        """This input with its exact fields' eigenvector signs matched to ``other``'s (the
+        same lattices, other lengths; :meth:`GaussianField.align_to`)."""
+        for mine, theirs in zip(self._exact, other._exact):
+            mine.align_to(theirs)
+        return self
+
     def _field_values(self, xi) -> list[np.ndarray]:
         xi = np.asarray(xi, dtype=float)
         if xi.ndim < 1 or xi.shape[-1] != self.n_variables:

@@ -133,7 +133,10 @@ class RandomField:
     fibre 2) is None for iid. ``sd_dof`` (zero angle only; None: the sd is known) makes
     the ensemble hierarchical: each realisation draws its own sd, ``sd_deg`` √(m / χ²_m)
     with m = ``sd_dof``, the sd's uncertainty from a calibration on few points
-    (:func:`uqdrape.ensemble.inputs.realization_sd_deg`).
+    (:func:`uqdrape.ensemble.inputs.realization_sd_deg`). ``length_log_sd`` (zero angle,
+    correlated; None: the lengths are known) draws each realisation's lengths too,
+    ``length_mm`` · exp(s z), s = ``length_log_sd``, one z for both lengths
+    (:func:`uqdrape.ensemble.inputs.realization_length_mm`).
     """
 
     name: str
@@ -143,6 +146,7 @@ class RandomField:
     kl_retained: float
     material: str | None = None
     sd_dof: float | None = None
+    length_log_sd: float | None = None
 
     def build_input(self, rings: int, spacing_mm: float):
         """The exact-sampling input map (uqdrape.stochastic SpacingInput / ZeroAngleInput /

@@ -13,7 +13,7 @@ Sections and keys (units: mm, N, degrees)::
                    rare = {qoi (RARE_QOIS), threshold, cov = 0.1, max_drapes = 20000}: P(qoi >= threshold)
                    at every force level after the run, by importance sampling at the design point of
                    subset levels (uqdrape.workflow.rare), in the report with its CoV and drapes;
-                   not with a [design] or a per-realisation sd (sd_dof)
+                   not with a [design] or a per-realisation sd or length (sd_dof, length_log_sd)
     [geometry]     kind + that kind's shape parameters (see uqdrape.geometry.KINDS)
     [fabric]       material, spacing_mm, orientation_deg = 0, pre_shear_deg = 0, skew_deg = 0, crossover = [0, 0]
     [process]      blankholder_force_N (a number, or a list: a sweep), friction = 0.2, sectors,
@@ -25,7 +25,10 @@ Sections and keys (units: mm, N, degrees)::
     [uncertainty.zero_angle]  mean_deg = 0, sd_deg, correlation = "iid", length_mm, kl_retained = 0.95,
                    sd_dof (> 0; a hierarchical ensemble: each realisation's sd is sd_deg sqrt(m / chi2_m),
                    m = sd_dof, the estimation uncertainty of a calibrated sd; `uqdrape calibrate` writes it;
-                   sampling plans other than rqmc, no sensitivity design)
+                   sampling plans other than rqmc, no sensitivity design),
+                   length_log_sd (in (0, 1], a correlated field; likewise: each realisation's lengths are
+                   length_mm exp(s z), s = length_log_sd, one standard normal z for both, so length_mm
+                   is their median)
     [uncertainty.stitch_prestrain]  mean, sd (fractions), correlation = "iid", length_mm, kl_retained = 0.95:
                    each cell's stitch pre-strain, mapped to its zero-energy angle gamma0 through the
                    material card's [architecture] (uqdrape.material.architecture.material_zero_force_table);
@@ -123,6 +126,9 @@ _NAME_RE = re.compile(r"^[A-Za-z0-9_-]+$")
 #: How far a random input's values reach, in standard deviations: a few million draws of a
 #: standard normal (a large ensemble's cells) stay within 7 with all but 1e-5 probability.
 REACH_SD = 7.0
+#: Largest sd of ln length a study may draw its lengths with: a factor e^7 ~ 1,100 at the
+#: reach, past which a drawn field is constant over any net or iid on its lattice.
+MAX_LENGTH_LOG_SD = 1.0
 
 
 class _Source(Document):
@@ -330,7 +336,7 @@ def _solver(src: _Source, doc: dict) -> Solver:
 
 def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, material: str) -> RandomField:
     section = f"uncertainty.{name}"
-    extra = ("sd_dof",) if name == "zero_angle" else ()
+    extra = ("sd_dof", "length_log_sd") if name == "zero_angle" else ()
     t = Table(src, section, data, (*FIELD_KEYS[name], "correlation", "length_mm", "kl_retained", *extra))
     if name == "spacing":
         params = {"cv": t.number("cv")}  # its range is checked by SpacingInput
@@ -367,9 +373,10 @@ def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, materia
             t.invalid("sd_dof", f"a realisation's sd reaches {top:.3g} deg (99.9 % quantile of sd_deg sqrt(m / chi2_m)), "
                                 f"and |mean_deg| + {REACH_SD:g} x that passes 90 deg: the measurement bounds the sd too "
                                 "loosely for a hierarchical run; use a larger sd_dof (more points) or remove it")
+    length_log_sd = _length_log_sd(t, correlation) if t.has("length_log_sd") else None
     _reach(src, name, t, params)
     spec = RandomField(name, params, correlation, length, retained,
-                       material if name == "stitch_prestrain" else None, sd_dof)
+                       material if name == "stitch_prestrain" else None, sd_dof, length_log_sd)
     given = {k: (t.dotted(k), v) for k, v in t.data.items()}
     given["retained"] = (t.dotted("kl_retained"), retained)
     required = {"length_mm": t.dotted("length_mm")} if length is None and correlation != "iid" else {}
@@ -378,6 +385,20 @@ def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, materia
     except ValueError as err:
         src.wrap(err, section, given, required)
     return spec
+
+
+def _length_log_sd(t: Table, correlation: str) -> float:
+    """The sd s of ln L of lengths drawn per realisation, in (0, MAX_LENGTH_LOG_SD]: out to the
+    field's reach (REACH_SD sd) L exp(+-s z) stays within a factor e^REACH_SD of L."""
+    if correlation == "iid":
+        t.invalid("length_log_sd", 'length_log_sd draws a correlated field\'s lengths: set correlation = '
+                                   '"exponential" or "squared_exponential", or remove length_log_sd')
+    s = t.number("length_log_sd", gt=0)
+    if s > MAX_LENGTH_LOG_SD:
+        t.invalid("length_log_sd", f"length_log_sd (the sd of ln length) must lie in (0, {MAX_LENGTH_LOG_SD:g}]: "
+                                   f"at {REACH_SD:g} sd a length would move by a factor e^{REACH_SD * s:.3g}, "
+                                   "too loose a length for a hierarchical run; remove length_log_sd")
+    return s
 
 
 def _reach(src: _Source, name: str, t: Table, params: dict) -> None:
@@ -524,13 +545,16 @@ def _sampling(src: _Source, doc: dict, realizations: int, seed: int, uncertainty
 
 
 def _fixed_sd(src: _Source, uncertainty: Uncertainty, what: str) -> None:
-    """Refuse a hierarchical zero-angle sd (``sd_dof``) under a design of standard
-    variables (rqmc, a sensitivity design): its columns hold no variable for the sd."""
+    """Refuse a hierarchical zero-angle sd or length (``sd_dof``, ``length_log_sd``) under a
+    design of standard variables (rqmc, a sensitivity design) or a rare estimate: its
+    columns hold no variable for them."""
     field = uncertainty.fields.get("zero_angle")
-    if field is not None and field.sd_dof is not None:
-        src.invalid("uncertainty.zero_angle.sd_dof", field.sd_dof,
-                    f"a sd drawn per realisation is not supported with {what}: use plan = \"monte_carlo\", "
-                    "\"latin_hypercube\" or \"sobol\" without a sensitivity design, or remove sd_dof")
+    for key, what_drawn in (("sd_dof", "a sd"), ("length_log_sd", "a correlation length")):
+        value = getattr(field, key, None)
+        if value is not None:
+            src.invalid(f"uncertainty.zero_angle.{key}", value,
+                        f"{what_drawn} drawn per realisation is not supported with {what}: use plan = "
+                        f"\"monte_carlo\", \"latin_hypercube\" or \"sobol\" without a sensitivity design, or remove {key}")
 
 
 def _sensitivity(src: _Source, doc: dict, uncertainty: Uncertainty) -> Sensitivity:

@@ -35,7 +35,7 @@ import xarray as xr
 from ..design import DESIGN_FILE, EVALUATIONS, Evaluator, drape_design, optimise, problem, result_dataset
 from ..ensemble import (Progress, design_variables, is_url, local_pool, made_from, open_ensemble, read_dataset,
                         read_manifest, reach_scheduler, run_ensemble, run_lock, run_name, store_lock, write_dataset)
-from ..ensemble.inputs import realization_sd_deg
+from ..ensemble.inputs import realization_length_mm, realization_sd_deg
 from ..report import write_design_report, write_report
 from ..sensitivity import map_indices, qoi_indices, study_design
 from ..schema import REALIZATION
@@ -247,21 +247,30 @@ def run_report(output_dir, out_dir=None, formats=()) -> Path | str:
 def hierarchical_summary(study, realizations) -> dict | None:
     """The report's statement of how much of a hierarchical ensemble's scatter is the
     measurement's: this run's drawn zero-angle sds (``[uncertainty.zero_angle] sd_dof``)
-    against the estimate. A response linear in the sd (a small zero-angle scatter) has its
-    sd wider than the fixed-sd run's by rms(sd_r) / sd - 1, and 1 - sd² / mean(sd_r²) of
-    its variance comes from the sd's estimation uncertainty, the rest from the fabric."""
+    against the estimate, and the spread of its drawn correlation lengths (``length_log_sd``).
+    A response linear in the sd (a small zero-angle scatter) has its sd wider than the
+    fixed-sd run's by rms(sd_r) / sd - 1, and 1 - sd² / mean(sd_r²) of its variance comes
+    from the sd's estimation uncertainty, the rest from the fabric."""
     field = study.uncertainty.fields.get("zero_angle")
-    if field is None or field.sd_dof is None:
+    if field is None or (field.sd_dof is None and field.length_log_sd is None):
         return None
-    sd = field.params["sd_deg"]
     r = np.asarray(realizations, dtype=int)
-    drawn = realization_sd_deg(dataclasses.replace(study, realizations=max(study.realizations, int(r.max()) + 1)), r)
-    rms = float(np.sqrt(np.mean(drawn ** 2)))
-    return {"zero-angle sd drawn per realisation": f"sd_dof {field.sd_dof:g}: rms {rms:.4g} deg against the "
-            f"estimate {sd:.4g} deg",
-            "limits wider than a fixed sd's (a response linear in the sd)": f"{100 * (rms / sd - 1):.1f} %",
-            "share of the variance from the small measurement": f"{100 * (1 - sd ** 2 / rms ** 2):.1f} % "
-            "(the rest: the fabric)"}
+    whole = dataclasses.replace(study, realizations=max(study.realizations, int(r.max()) + 1))
+    said = {}
+    if field.sd_dof is not None:
+        sd = field.params["sd_deg"]
+        rms = float(np.sqrt(np.mean(realization_sd_deg(whole, r) ** 2)))
+        said = {"zero-angle sd drawn per realisation": f"sd_dof {field.sd_dof:g}: rms {rms:.4g} deg against the "
+                f"estimate {sd:.4g} deg",
+                "limits wider than a fixed sd's (a response linear in the sd)": f"{100 * (rms / sd - 1):.1f} %",
+                "share of the variance from the small measurement": f"{100 * (1 - sd ** 2 / rms ** 2):.1f} % "
+                "(the rest: the fabric)"}
+    if field.length_log_sd is not None:
+        factor = realization_length_mm(whole, r)[:, 0] / field.length_mm[0]
+        low, mid, high = np.quantile(factor, [0.05, 0.5, 0.95])
+        said["zero-angle lengths drawn per realisation (x the estimate, both)"] = (
+            f"length_log_sd {field.length_log_sd:g}: median x {mid:.3g}, 5-95 % x {low:.3g} to x {high:.3g}")
+    return said
 
 
 def design_outcome(out) -> str:
