@@ -392,8 +392,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "uqdrape.material.sheartest.reader).\n\n"
                     "Examples:\n"
                     "  uqdrape materials\n"
-                    "  uqdrape materials ebxhd936_like --plot ebx.png\n"
-                    "  uqdrape materials derive fge106hd --out fge.toml --plot\n"
+                    "  uqdrape materials ebxhd936_like --plot results/cards/ebx.png\n"
+                    "  uqdrape materials derive fge106hd --out results/cards/fge.toml --plot\n"
                     "  uqdrape materials derive my_fabric.toml --out cards/my_fabric.toml\n"
                     "  uqdrape materials fit pf_rig.toml --out cards/pf.toml --plot\n\n"
                     "Shipped architectures: " + ", ".join(architectures()))
@@ -424,7 +424,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "runs, sampled with emcee (needs uqdrape[calibrate]); writes the study at the posterior\n"
                     "medians (--out, beside the study) and the sample (-posterior.nc).\n\n"
                     "Examples:\n"
-                    "  uqdrape calibrate points.csv --out zero_angle.toml --plot --report calibration/\n"
+                    "  uqdrape calibrate points.csv --out results/calibration/zero_angle.toml --plot --report results/calibration/\n"
                     "  uqdrape calibrate --drapes part1.csv part2.csv --study studies/my.toml \\\n"
                     "      --parameter uncertainty.zero_angle.sd_deg=0.5:8 --out studies/my-calibrated.toml")
     cal.add_argument("points", nargs="?", help="CSV of measured fibre angles, or an image (with --mm-per-px)")
