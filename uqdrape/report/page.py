@@ -23,7 +23,7 @@ body {{ font-family: system-ui, sans-serif; max-width: {PAGE_MAX_PX}px; margin: 
 h1 {{ font-size: 1.6em; margin-bottom: 0.2em; }} h2 {{ font-size: 1.25em; margin-top: 1.6em; border-bottom: 1px solid #ccc; }}
 table {{ border-collapse: collapse; margin: 0.5em 0; }} td, th {{ border: 1px solid #ccc; padding: 0.3em 0.7em; }}
 th {{ background: #f2f2f2; text-align: left; white-space: nowrap; }}
-td.num {{ text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }}
+td.num {{ text-align: right; font-variant-numeric: tabular-nums; }}
 .figures {{ display: grid; grid-template-columns: repeat(2, minmax(0, 1fr)); gap: {GAP_PX}px; align-items: start; }}
 .wide {{ grid-column: 1 / -1; }}
 figure {{ margin: 0; }} figure img {{ width: 100%; height: auto; border: 1px solid #ddd; }}
