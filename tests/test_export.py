@@ -280,7 +280,7 @@ def test_cli_drape_file_is_cf_encoded_and_records_its_command(drape_file):
     with netCDF4.Dataset(drape_file) as nc:
         assert nc.getncattr("history").endswith(f"uqdrape drape --geometry hemisphere --param radius=50 "
                                                 f"--spacing 5 --rings 10 --out {drape_file.with_suffix('')}")
-        assert nc.getncattr("title").startswith("uqdrape geodesic drape of hemisphere(")
+        assert nc.getncattr("title").startswith("uqdrape geodesic drape of hemisphere (radius 50 mm")
         assert nc["shear"].getncattr("coordinates") == "x y z"
 
 

@@ -126,7 +126,10 @@ def png_shape(path, min_bytes=5000):
 def test_plot_net_node_and_cell_variables(ensemble, tmp_path):
     rows, cols = png_shape(plot_net(ensemble, tmp_path / "net.png"))
     # one panel of 7.0 x 5.6 in, drawn a page column wide (style.COLUMN_IN) at the report's DPI
-    assert (rows, cols) == (round(5.6 * COLUMN_IN / 7.0 * DPI), round(COLUMN_IN * DPI))
+    height_px, width_px = 5.6 * COLUMN_IN / 7.0 * DPI, COLUMN_IN * DPI
+    # the lowest allowed matplotlib (3.8.4) gave 1123 rows where the newest gives 1124: one truncates
+    # the canvas's inches x dpi to whole pixels, the other rounds
+    assert rows in {int(height_px), round(height_px)} and cols in {int(width_px), round(width_px)}
     png_shape(plot_net(ensemble, tmp_path / "cells.png", var="cell_shear", realization=3, title="cells"))
 
 
