@@ -129,13 +129,12 @@ def read_store_manifest(url: str) -> dict | None:
     fs, root = _fs(url)
     _check_reachable(fs, root, url)
     where = f"{url}/{MANIFEST}"
-    try:
-        with fs.open(f"{root}/{MANIFEST}", "rb") as f:
-            text = f.read(MAX_MANIFEST_BYTES + 1)
+    try:  # its size first: a read of the limit's length would allocate the limit (64 MB) every time
+        if fs.size(f"{root}/{MANIFEST}") > MAX_MANIFEST_BYTES:
+            raise corrupt_manifest(where, f"larger than {MAX_MANIFEST_BYTES // 2**20} MB")
+        text = fs.cat_file(f"{root}/{MANIFEST}")
     except FileNotFoundError:
         return None
-    if len(text) > MAX_MANIFEST_BYTES:
-        raise corrupt_manifest(where, f"larger than {MAX_MANIFEST_BYTES // 2**20} MB")
     manifest = parse_manifest(text, where)
     held = manifest.get("realizations")
     if isinstance(held, bool) or not isinstance(held, int) or held < 1:
