@@ -102,6 +102,9 @@ def test_the_twin_differs_only_by_the_drawn_sd(tmp_path):
 
 def test_the_command_says_the_twin_is_draped_and_a_resume_keeps_both(tmp_path, capsys):
     path = write_study(tmp_path, "hier", **SMALL, uncertainty={"zero_angle": dict(IID, sd_dof=6.0)})
+    assert main(["validate", str(path)]) == 0
+    said = capsys.readouterr().out
+    assert "(mean_deg 0, sd_deg 1; iid, sd_dof 6)" in said and "its fixed-parameter twin in fixed/ (twice" in said
     assert main(["run", str(path), "--scheduler", "synchronous", "--no-report"]) == 0
     captured = capsys.readouterr()
     assert "hier: draping its fixed-parameter twin into " in captured.err
@@ -182,3 +185,16 @@ def test_a_bad_fixed_twin_is_one_line(tmp_path, capsys):
         path = write_study(tmp_path, "bad", **SMALL, uncertainty=uncertainty, report={"fixed_twin": value}, **sections)
         assert main(["validate", str(path)]) == 2, (uncertainty, value, sections)
         assert_one_line_error(capsys.readouterr().err, file=path.name, key=key, valid=valid)
+
+
+def test_a_store_s_twin_is_under_its_url(tmp_path, capsys):
+    """A run into a file:// store drapes its twin into URL/fixed, and its report measures
+    the widening from the two stores."""
+    url = f"file://{tmp_path}/store"
+    path = write_study(tmp_path, "hier", **SMALL, uncertainty={"zero_angle": dict(IID, sd_dof=6.0)})
+    assert main(["run", str(path), "--out", url, "--scheduler", "synchronous", "-q"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[1] == f"fixed-parameter twin: ensemble written to {url}/fixed: 2 chunks drawn"
+    assert read_manifest(f"{url}/fixed")["study"]["study"]["realizations"] == 32
+    page = (tmp_path / "store" / "report" / "index.html").read_text(encoding="utf-8")
+    assert "32 realisations, " in page and "node-shear sd wider than the twin&#x27;s by" in page
