@@ -33,8 +33,9 @@ MEDIAN = re.compile(r"(-?[\d.]+) %")
 SPREAD = re.compile(r"median over the nodes \(5-95 %: (-?[\d.]+) to (-?[\d.]+) %\) of .*")
 
 
-def _run(tmp_path, name, zero, report=None, study=None):
-    sections = dict(SMALL, study={**SMALL["study"], **(study or {})}, uncertainty={"zero_angle": zero})
+def _run(tmp_path, name, zero, report=None, study=None, process=None):
+    sections = dict(SMALL, study={**SMALL["study"], **(study or {})}, uncertainty={"zero_angle": zero},
+                    process={**SMALL["process"], **(process or {})})
     path = write_study(tmp_path, name, **sections, **({"report": report} if report else {}))
     return path, run_study(path, scheduler="synchronous", progress=False)
 
@@ -56,11 +57,11 @@ def _expected(out) -> dict:
     sd is above MOVING of its largest."""
     with open_ensemble(out) as h, open_ensemble(Path(out) / "fixed") as f:
         assert np.array_equal(h["realization"].values, f["realization"].values)
-        hier, fixed = (ds["shear"].transpose("realization", ...).values.reshape(ds.sizes["realization"], -1)
-                       for ds in (h, f))
-    sd_h, sd_f = np.nanstd(hier, axis=0, ddof=1), np.nanstd(fixed, axis=0, ddof=1)
+        hier, fixed = (ds["shear"].transpose("realization", "blankholder_force", ...).values
+                       .reshape(ds.sizes["realization"], ds.sizes["blankholder_force"], -1) for ds in (h, f))
+    sd_h, sd_f = np.nanstd(hier, axis=0, ddof=1), np.nanstd(fixed, axis=0, ddof=1)  # (levels, nodes)
     band_h, band_f = (np.diff(np.nanquantile(x, [0.05, 0.95], axis=0), axis=0)[0] for x in (hier, fixed))
-    moving = sd_f > MOVING * np.nanmax(sd_f)
+    moving = sd_f > MOVING * np.nanmax(sd_f, axis=1, keepdims=True)  # of the largest at its level
     spread = [0.05, 0.5, 0.95]
     ratio = sd_h[moving] / sd_f[moving]
     return {"nodes": int(moving.sum()), "sd": 100 * (np.quantile(ratio, spread) - 1),
@@ -68,16 +69,19 @@ def _expected(out) -> dict:
             "share": 100 * np.quantile(1 - ratio ** -2, spread)}
 
 
-@pytest.mark.parametrize("zero", [dict(IID, sd_dof=6.0), dict(LENGTHS, length_log_sd=0.5)], ids=["sd", "lengths"])
-def test_the_stated_widening_is_the_two_ensembles(tmp_path, zero):
-    """A drawn sd (sd_dof 6) or drawn lengths (length_log_sd 0.5): the run drapes its twin
-    with the same realisations, and each stated number is the two ensembles' own to the
-    printed precision (0.1 %); the drawn sd widens the limits (median sd and band wider)."""
-    _, out = _run(tmp_path, "hier", zero)
+@pytest.mark.parametrize("zero, forces", [(dict(IID, sd_dof=6.0), 150.0), (dict(LENGTHS, length_log_sd=0.5), 150.0),
+                                          (dict(IID, sd_dof=6.0), [0.0, 300.0])], ids=["sd", "lengths", "sweep"])
+def test_the_stated_widening_is_the_two_ensembles(tmp_path, zero, forces):
+    """A drawn sd (sd_dof 6) or drawn lengths (length_log_sd 0.5), at one force or two: the
+    run drapes its twin with the same realisations, and each stated number is the two
+    ensembles' own to the printed precision (0.1 %), the levels' nodes pooled; the drawn sd
+    widens the limits (median sd and band wider)."""
+    _, out = _run(tmp_path, "hier", zero, process={"blankholder_force_N": forces})
     said, expected = _said(out), _expected(out)
-    assert said[MEASURED]["value"] == f"32 realisations, {expected['nodes']:,} nodes"
+    levels = "" if forces == 150.0 else " x levels (of 2 force levels)"
+    assert said[MEASURED]["value"] == f"32 realisations, {expected['nodes']:,} nodes{levels}"
     assert said[MEASURED]["how"].startswith("its twin in fixed/: the same realisations with sd and lengths at")
-    assert expected["nodes"] > 150  # of 169: the pole is fixed
+    assert expected["nodes"] > 150 * (1 if forces == 150.0 else 2)  # of 169 a level: the pole is fixed
     for row, key in ((SD_WIDER, "sd"), (BAND_WIDER, "band"), (SHARE, "share")):
         np.testing.assert_allclose(_percents(said[row]), expected[key], rtol=0, atol=0.05 + 1e-9, err_msg=row)
     page = (out / "report" / "index.html").read_text(encoding="utf-8")

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..ensemble import is_url, open_ensemble, read_manifest
 from ..ensemble.inputs import realization_length_mm, realization_sd_deg
-from ..schema import REALIZATION, by_force
+from ..schema import FORCE, REALIZATION, by_force
 from ..stats import node_statistics
 from ..study import identity
 
@@ -149,7 +149,9 @@ def hierarchical_summary(study, ds, out) -> dict | None:
         said[MEASURED] = ("not measured", f"{why}; run the study again with [report] fixed_twin = true (the "
                                           f"default) to drape its twin into {TWIN}/ (the run's own drapes are kept)")
         return said
-    said[MEASURED] = (f"{r.size} realisations, {measured['nodes']:,} nodes",
+    levels = by_force(ds).sizes[FORCE]
+    said[MEASURED] = (f"{r.size} realisations, {measured['nodes']:,} nodes"
+                      + (f" x levels (of {levels} force levels)" if levels > 1 else ""),
                       f"its twin in {TWIN}/: the same realisations with sd and lengths at the estimates"
                       + (f" ({took:g} s of drapes)" if took is not None else "")
                       + f"; over the nodes that move (twin sd above {100 * MOVING:g} % of its largest)")
