@@ -135,16 +135,23 @@ def test_calibrate_leaves_the_shipped_points_lengths_fixed(tmp_path, capsys):
 
 def test_the_report_states_the_drawn_lengths_spread(tmp_path):
     """The hierarchical statement gives this run's quantiles of L_r / L (one factor for
-    both lengths), computed here from the drawn lengths themselves; with sd_dof too, the
-    sd's lines are those of the sd-only run."""
-    from uqdrape.workflow.run import hierarchical_summary
+    both lengths) and of sd_r, computed here from the drawn values themselves; with sd_dof
+    too, the sd's lines are those of the sd-only run. No twin here: not measured."""
+    import xarray as xr
+
+    from uqdrape.workflow.twin import DRAWN_LENGTHS, DRAWN_SD, MEASURED, hierarchical_summary
 
     study = _study(tmp_path, realizations=200, length_log_sd=0.4, sd_dof=37.0)
     r = np.arange(200)
-    said = hierarchical_summary(study, r)
+    ds, out = xr.Dataset(coords={"realization": r}), tmp_path / "no-run"
+    said = hierarchical_summary(study, ds, out)
     low, mid, high = np.quantile(realization_length_mm(study, r)[:, 1] / LENGTH[1], [0.05, 0.5, 0.95])
-    assert said["zero-angle lengths drawn per realisation (x the estimate, both)"] == (
-        f"length_log_sd 0.4: median x {mid:.3g}, 5-95 % x {low:.3g} to x {high:.3g}")
+    assert said[DRAWN_LENGTHS] == (f"x {mid:.3g}", f"median (5-95 %: x {low:.3g} to x {high:.3g}) of exp(s z), "
+                                   "s = length_log_sd = 0.4, both lengths")
     assert 0.45 < low < 0.6 and 1.7 < high < 2.1  # exp(-+1.645 x 0.4) = 0.52, 1.93, to 200 draws' error
-    sd_only = hierarchical_summary(_study(tmp_path, name="s", realizations=200, sd_dof=37.0), r)
-    assert {k: v for k, v in said.items() if "length" not in k} == sd_only
+    low, mid, high = np.quantile(realization_sd_deg(study, r), [0.05, 0.5, 0.95])
+    assert said[DRAWN_SD] == (f"{mid:.3g}", f"median (5-95 %: {low:.3g} to {high:.3g}) of sd_deg 5.6 x "
+                              "sqrt(m / chi2_m), m = sd_dof = 37")
+    assert said[MEASURED][0] == "not measured" and said[MEASURED][1].startswith("fixed/ holds no run; ")
+    sd_only = hierarchical_summary(_study(tmp_path, name="s", realizations=200, sd_dof=37.0), ds, out)
+    assert {k: v for k, v in said.items() if k != DRAWN_LENGTHS} == sd_only

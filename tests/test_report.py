@@ -410,6 +410,8 @@ def test_write_report_bad_input_writes_nothing(ensemble, tmp_path):
         write_report(ensemble, out, title=" ")
     with pytest.raises(ValueError, match=r"summary\['x'\]"):
         write_report(ensemble, out, title="t", summary={"x": [1, 2]})
+    with pytest.raises(ValueError, match=r"summary\['x'\]"):  # a (value, how) pair's how is a string
+        write_report(ensemble, out, title="t", summary={"x": ("1 %", 2)})
     assert not out.exists()
 
 

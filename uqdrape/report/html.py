@@ -134,20 +134,26 @@ def _rows(numbers: Mapping, extra: Mapping, dominant: list | None) -> list[tuple
     for d in dominant or ():
         rows.append((f"largest total-order Sobol' index ST, F_BH = {d['blankholder_force_N']:g} N", f"{d['factor']} {d['ST']:.2f} ± {d['ST_conf']:.2f}",
                      f"of {d['qoi']}, the largest over all factors and quantities of interest"))
-    rows.extend((str(k), _fmt(v), "supplied by the caller") for k, v in extra.items())
+    rows.extend((str(k), _fmt(v["value"]), v["how"]) if isinstance(v, dict) else (str(k), _fmt(v), "supplied by the caller")
+                for k, v in extra.items())
     return rows
 
 
 def _check_extra(summary) -> dict:
+    """The caller's headline items, a (value, how) pair as {"value": value, "how": how}."""
     if summary is None:
         return {}
     if not isinstance(summary, Mapping):
         raise ValueError(f"summary must be a mapping of name -> number or string, got {type(summary).__name__}")
+    scalar = (str, int, float, bool)
+    out = {}
     for key, value in summary.items():
-        if not isinstance(key, str) or not (value is None or isinstance(value, (str, int, float, bool))):
+        pair = isinstance(value, tuple) and len(value) == 2 and isinstance(value[0], scalar) and isinstance(value[1], str)
+        if not isinstance(key, str) or not (value is None or isinstance(value, scalar) or pair):
             raise ValueError(f"summary[{key!r}] = {value!r}: keys must be strings and values numbers, "
-                             "strings, booleans or None")
-    return dict(summary)
+                             "strings, booleans, None or (value, how) pairs of one of them and a string")
+        out[key] = dict(zip(("value", "how"), value)) if pair else value
+    return out
 
 
 #: Ensembles up to this size (bytes) are read into memory once for their report; the
@@ -171,8 +177,9 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None
     the study TOML, shown once, verbatim. ``histogram_nodes``: [(i, j), ...] (default:
     node 6, or the largest valid k below it, of a + and a - max-shear line).
     ``experimental_csv``: measured points overlaid on the line plots (checked first).
-    ``summary``: extra headline items (name -> number/string) for the table and the JSON
-    (under ``extra``). ``sensitivity`` / ``sensitivity_maps``: the QoI indices and
+    ``summary``: extra headline items (name -> number/string, or a (value, how) pair whose
+    ``how`` fills the table's where/how column) for the table and the JSON (under
+    ``extra``; a pair as {"value", "how"}). ``sensitivity`` / ``sensitivity_maps``: the QoI indices and
     node-shear index maps of a sensitivity run (``uqdrape.workflow.open_sensitivity``),
     shown first. ``wall_time_s``: the run's wall time for the provenance line. ``rare``:
     the run's rare-event record (``uqdrape.workflow.rare``), a headline row per force level

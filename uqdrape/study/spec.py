@@ -267,8 +267,13 @@ class RareLimit:
 
 @dataclass(frozen=True)
 class Report:
+    """What the report shows. ``fixed_twin`` (a hierarchical study only, else None): the
+    run also drapes the study with the drawn sd and lengths removed, the same realisations
+    (``uqdrape.workflow.twin``), and the report measures the widening against it."""
+
     histogram_nodes: tuple[tuple[int, int], ...]
     experimental_csv: Path | None
+    fixed_twin: bool | None = None
 
 
 @dataclass(frozen=True)
@@ -373,9 +378,11 @@ def identity(doc: dict) -> dict:
     change a drape: the chunk size, the number of realisations (realisation r is the same
     in a larger run, so a run extends; ``uqdrape.ensemble.run`` refuses plans where it is
     not), an rqmc plan's number of randomisations (its points per randomisation stay), the
-    target that chose the size, the rare probability asked for, the output folder and the
-    [design] section (its candidates are keyed by their own settings)."""
+    target that chose the size, the rare probability asked for, the output folder, the
+    [design] section (its candidates are keyed by their own settings) and whether a fixed
+    twin is draped beside the run (``report.fixed_twin``)."""
     doc = json.loads(json.dumps(doc))
+    doc.get("report", {}).pop("fixed_twin", None)
     sampling = doc.get("sampling", {})
     if "randomizations" in sampling:  # rqmc: K randomisations of M points; M is what a drape depends on
         sampling["points"] = doc["study"]["realizations"] // sampling.pop("randomizations")

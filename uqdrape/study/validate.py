@@ -49,7 +49,9 @@ Sections and keys (units: mm, N, degrees)::
                    (a constraint: the statistic of P(qoi >= threshold), estimated per candidate as a
                    [study] rare is, at most max_probability; not with a per-realisation sd):
                    a blank-holder design (uqdrape.design); the study's own force is the baseline design
-    [report]       histogram_nodes = [], experimental_csv
+    [report]       histogram_nodes = [], experimental_csv, fixed_twin = true (a hierarchical study without a
+                   [design] only: also drape the study with sd and lengths at their estimates, the same
+                   realisations, into <output>/fixed, and measure the widening from the two; twice the drapes)
     [output]       directory = "results/<study name>", float32 = false (true: chunks store floats as
                    float32 with zlib, about a third of the size, rounded to 7 significant digits)
 
@@ -661,8 +663,8 @@ def _design(src: _Source, doc: dict, process: Process, uncertainty: Uncertainty,
                   evaluations, tolerance, validation, draw_in, rare)
 
 
-def _report(src: _Source, doc: dict, rings: int) -> Report:
-    t = Table(src, "report", doc.get("report", {}), ("histogram_nodes", "experimental_csv"))
+def _report(src: _Source, doc: dict, rings: int, uncertainty: Uncertainty, design: Design | None) -> Report:
+    t = Table(src, "report", doc.get("report", {}), ("histogram_nodes", "experimental_csv", "fixed_twin"))
     hint = f"histogram_nodes must be a list of [i, j] integer pairs with |i|, |j| <= rings = {rings}"
     nodes = t.raw("histogram_nodes", [], hint)
     ok = isinstance(nodes, list) and all(
@@ -676,7 +678,25 @@ def _report(src: _Source, doc: dict, rings: int) -> Report:
             read_experimental(csv)  # a run must not find a bad CSV only when it writes the report
         except ValueError as err:
             src.invalid("report.experimental_csv", t.data["experimental_csv"], str(err))
-    return Report(tuple((int(i), int(j)) for i, j in nodes), csv)
+    return Report(tuple((int(i), int(j)) for i, j in nodes), csv, _fixed_twin(t, uncertainty, design))
+
+
+def _fixed_twin(t: Table, uncertainty: Uncertainty, design: Design | None) -> bool | None:
+    """``report.fixed_twin``: true by default for a hierarchical ensemble (a zero-angle sd
+    or length drawn per realisation), refused where no twin would be draped."""
+    field = uncertainty.fields.get("zero_angle")
+    drawn = field is not None and (field.sd_dof is not None or field.length_log_sd is not None)
+    if not t.has("fixed_twin"):
+        return True if drawn and design is None else None
+    value = t.data["fixed_twin"]
+    if not isinstance(value, bool):
+        t.invalid("fixed_twin", "fixed_twin must be true or false")
+    if not drawn:
+        t.invalid("fixed_twin", "fixed_twin applies to a hierarchical study (sd_dof or length_log_sd in "
+                                "[uncertainty.zero_angle]); remove it")
+    if design is not None:
+        t.invalid("fixed_twin", "a [design] study drapes no fixed twin; remove fixed_twin")
+    return value
 
 
 def _output(src: _Source, doc: dict, name: str) -> tuple[Path | str, bool]:
@@ -728,7 +748,7 @@ def load_study(path, overrides: dict | None = None) -> Study:
     design = _design(src, doc, process, uncertainty, sensitivity, head["realizations"])
     _target_rules(src, head, sampling, sensitivity, design)
     _rare_rules(src, head, uncertainty, design)
-    report = _report(src, doc, solver.rings)
+    report = _report(src, doc, solver.rings, uncertainty, design)
     output_dir, float32 = _output(src, doc, head["name"])  # checked last, as the sections are ordered
     return Study(path=path, **head, geometry=geometry, fabric=fabric, process=process, solver=solver,
                  uncertainty=uncertainty, sampling=sampling, sensitivity=sensitivity, report=report,

@@ -123,11 +123,13 @@ def check_placement(study, realization: int = 0, force: float | None = None, des
 def run_preflight(study, output_dir, *, chunk_size: int | None = None, design_rows=None, quiet: bool = False):
     """The ``preflight`` of ``uqdrape.ensemble.run_ensemble`` for a run of ``study`` into
     ``output_dir``: resources for the drapes still to write (a target run's round: also
-    those its later rounds may add up to ``max_realizations``), placement of the first."""
+    those its later rounds may add up to ``max_realizations``; a hierarchical run with its
+    fixed twin: twice them), placement of the first."""
     later = (budget(study)[1] - study.realizations) * len(study.force_levels)
+    twice = 2 if study.report.fixed_twin else 1
 
     def check(drapes: int, first: int, force: float) -> None:
-        check_resources(study, output_dir, drapes + later, chunk_size)
+        check_resources(study, output_dir, twice * (drapes + later), chunk_size)
         check_placement(study, first, force, design_rows, quiet=quiet)
     return check
 
@@ -135,10 +137,10 @@ def run_preflight(study, output_dir, *, chunk_size: int | None = None, design_ro
 def validate_study(path):
     """Read a study file (``uqdrape.study.load_study``) and run the preflight a run of it
     would run: resources for the whole ensemble in its output folder, and the placement of
-    its first realisation (a run to a target: for its budget, ``max_realizations``).
-    Returns the Study; raises StudyError naming file and key."""
+    its first realisation (a run to a target: for its budget, ``max_realizations``; twice
+    with a fixed twin). Returns the Study; raises StudyError naming file and key."""
     study = load_study(path)
-    drapes = budget(study)[1] * len(study.force_levels)
+    drapes = budget(study)[1] * len(study.force_levels) * (2 if study.report.fixed_twin else 1)
     check_resources(study, study.output_dir, 0 if study.design is not None else drapes)
     check_placement(study)
     return study

@@ -22,28 +22,25 @@ same worker pool as an ensemble.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import hashlib
 import json
 import sys
 import time
 from pathlib import Path
 
-import numpy as np
 import xarray as xr
 
 from ..design import DESIGN_FILE, EVALUATIONS, Evaluator, drape_design, optimise, problem, result_dataset
 from ..ensemble import (Progress, design_variables, is_url, local_pool, made_from, open_ensemble, read_dataset,
                         read_manifest, reach_scheduler, run_ensemble, run_lock, run_name, store_lock, write_dataset)
-from ..ensemble.inputs import realization_length_mm, realization_sd_deg
 from ..report import write_design_report, write_report
 from ..sensitivity import map_indices, qoi_indices, study_design
-from ..schema import REALIZATION
 from ..stats import SENSITIVITY_QOIS, realization_qois
 from ..study import SENSITIVITY_METHODS, Study, from_dict, identity, load_study
 from .preflight import check_placement, check_resources, run_preflight
 from .rare import design_rare, rare_probabilities, read_rare
 from .target import run_to_target
+from .twin import fixed_twin, hierarchical_summary, twin_location
 
 #: Files a sensitivity run writes into its output folder.
 INDICES_FILE = "sensitivity.nc"
@@ -61,6 +58,9 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
     ``uqdrape.ensemble.run_ensemble``. A study with a [design] section runs its design
     (:func:`run_design`); ``method`` must then be None. A study with a ``[study] target``
     (and no sensitivity method) runs in rounds until it is met (``uqdrape.workflow.target``).
+    A hierarchical study (a zero-angle sd or length drawn per realisation) then drapes its
+    fixed-parameter twin into ``<output_dir>/fixed`` as many times, unless ``[report]
+    fixed_twin = false`` (``uqdrape.workflow.twin``).
     """
     study = study if isinstance(study, Study) else load_study(study)
     if study.design is not None:
@@ -84,13 +84,14 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
         provenance["sensitivity"]["base_samples"] = design.meta["base_samples"]
         attrs = dict(design_method=design.method, design_base_samples=design.meta["base_samples"],
                      design_evaluations=design.n_evaluations)
+    def run(sample, where, again):
+        return run_ensemble(sample, output_dir=where, scheduler=scheduler, workers=workers, chunk_size=chunk_size,
+                            resume=again, progress=progress, verbose=verbose,
+                            preflight=run_preflight(sample, where, chunk_size=chunk_size, quiet=not progress))
     if design is None and study.target is not None:
-        def run_round(sample, again):
-            return run_ensemble(sample, output_dir=out, scheduler=scheduler, workers=workers, chunk_size=chunk_size,
-                                resume=again, progress=progress, verbose=verbose,
-                                preflight=run_preflight(sample, out, chunk_size=chunk_size, quiet=not progress))
-        out = run_to_target(study, run_round, chunk_size=chunk_size or study.chunk_size, resume=resume,
-                            progress=progress)
+        out = run_to_target(study, lambda sample, again: run(sample, out, again),
+                            chunk_size=chunk_size or study.chunk_size, resume=resume, progress=progress)
+        _twin(study, out, run, resume, progress)
         return _rare(study, out, resume, progress)
     out = run_ensemble(study, design_rows=None if design is None else design.standard, output_dir=out,
                        provenance=provenance, attrs=attrs, scheduler=scheduler, workers=workers,
@@ -98,6 +99,8 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
                        preflight=run_preflight(study, out, chunk_size=chunk_size,
                                                design_rows=None if design is None else design.standard,
                                                quiet=not progress))
+    if design is None:
+        _twin(study, out, run, resume, progress)
     if design is not None and resume and analysed(out):
         if progress:
             print(f"{study.name}: {design.method} indices already analysed in {out}", file=sys.stderr)
@@ -107,6 +110,20 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
                   + (f" at {len(study.force_levels)} force levels" if study.is_sweep else ""), file=sys.stderr)
         write_sensitivity(out, design, qoi=study.sensitivity.qoi, seed=study.seed, progress=progress)
     return _rare(study, out, resume, progress)
+
+
+def _twin(study, out, run, resume: bool, progress: bool) -> None:
+    """Drape the fixed-parameter twin of a hierarchical run in ``out`` with as many
+    realisations as the run holds (``uqdrape.workflow.twin``), by ``run(twin, where,
+    resume)``, if the study asks for it (``[report] fixed_twin``)."""
+    if not study.report.fixed_twin:
+        return
+    twin = fixed_twin(study, read_manifest(out)["study"]["study"]["realizations"], out)
+    if progress:
+        print(f"{study.name}: draping its fixed-parameter twin into {twin.output_dir}: the same {twin.realizations} "
+              "realisations with sd and lengths at their estimates, to measure the widening "
+              "(twice the drapes; [report] fixed_twin = false skips it)", file=sys.stderr)
+    run(twin, twin.output_dir, resume)
 
 
 def _rare(study, out: Path, resume: bool, progress: bool) -> Path:
@@ -233,7 +250,7 @@ def run_report(output_dir, out_dir=None, formats=()) -> Path | str:
     ds.attrs.update({f"target_{k}": v for k, v in target.items() if k not in ("forces", "rounds")})
     if target:
         ds.attrs["target_rounds"] = [r["realizations"] for r in target["rounds"]]
-    return write_report(ds, report, title=study.name, summary=hierarchical_summary(study, ds[REALIZATION].values),
+    return write_report(ds, report, title=study.name, summary=hierarchical_summary(study, ds, output_dir),
                         description=study.description or None, study_text=ds.attrs.get("study_toml"),
                         histogram_nodes=list(study.report.histogram_nodes) or None,
                         experimental_csv=study.report.experimental_csv,
@@ -242,35 +259,6 @@ def run_report(output_dir, out_dir=None, formats=()) -> Path | str:
                         formats=formats,
                         rare=read_rare(from_dict(manifest["study"], Path(output_dir)), output_dir),
                         **({} if sensitivity is None else dict(zip(("sensitivity", "sensitivity_maps"), sensitivity))))
-
-
-def hierarchical_summary(study, realizations) -> dict | None:
-    """The report's statement of how much of a hierarchical ensemble's scatter is the
-    measurement's: this run's drawn zero-angle sds (``[uncertainty.zero_angle] sd_dof``)
-    against the estimate, and the spread of its drawn correlation lengths (``length_log_sd``).
-    A response linear in the sd (a small zero-angle scatter) has its sd wider than the
-    fixed-sd run's by rms(sd_r) / sd - 1, and 1 - sd² / mean(sd_r²) of its variance comes
-    from the sd's estimation uncertainty, the rest from the fabric."""
-    field = study.uncertainty.fields.get("zero_angle")
-    if field is None or (field.sd_dof is None and field.length_log_sd is None):
-        return None
-    r = np.asarray(realizations, dtype=int)
-    whole = dataclasses.replace(study, realizations=max(study.realizations, int(r.max()) + 1))
-    said = {}
-    if field.sd_dof is not None:
-        sd = field.params["sd_deg"]
-        rms = float(np.sqrt(np.mean(realization_sd_deg(whole, r) ** 2)))
-        said = {"zero-angle sd drawn per realisation": f"sd_dof {field.sd_dof:g}: rms {rms:.4g} deg against the "
-                f"estimate {sd:.4g} deg",
-                "limits wider than a fixed sd's (a response linear in the sd)": f"{100 * (rms / sd - 1):.1f} %",
-                "share of the variance from the small measurement": f"{100 * (1 - sd ** 2 / rms ** 2):.1f} % "
-                "(the rest: the fabric)"}
-    if field.length_log_sd is not None:
-        factor = realization_length_mm(whole, r)[:, 0] / field.length_mm[0]
-        low, mid, high = np.quantile(factor, [0.05, 0.5, 0.95])
-        said["zero-angle lengths drawn per realisation (x the estimate, both)"] = (
-            f"length_log_sd {field.length_log_sd:g}: median x {mid:.3g}, 5-95 % x {low:.3g} to x {high:.3g}")
-    return said
 
 
 def design_outcome(out) -> str:
@@ -285,7 +273,16 @@ def design_outcome(out) -> str:
 
 
 def run_outcome(out: Path) -> str:
-    """What ``uqdrape run`` did to ``out``: chunks drawn, or how many of them a resume kept."""
+    """What ``uqdrape run`` did to ``out``: chunks drawn, or how many of them a resume kept;
+    a second line for its fixed-parameter twin if it has one."""
+    twin = twin_location(out)
+    if read_manifest(twin) is not None:
+        return f"{_outcome(out)}\nfixed-parameter twin: {_outcome(twin)}"
+    return _outcome(out)
+
+
+def _outcome(out) -> str:
+    """:func:`run_outcome` of one run folder or store."""
     call = (read_manifest(out) or {}).get("last_call")
     if not isinstance(call, dict):  # a target study's rounds or a sensitivity run without the record
         return f"ensemble written to {out}"

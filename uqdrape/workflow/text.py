@@ -36,7 +36,9 @@ def describe_study(s) -> str:
     for name, f in s.uncertainty.fields.items():
         what = ", ".join(f"{k} {v:g}" for k, v in f.params.items())
         length = f", L = {f.length_mm[0]:g} x {f.length_mm[1]:g} mm" if f.length_mm else ""
-        varying.append(f"{name} field ({what}; {f.correlation}{length})")
+        drawn = "".join(f", {key} {getattr(f, key):g}" for key in ("sd_dof", "length_log_sd")
+                        if getattr(f, key, None) is not None)
+        varying.append(f"{name} field ({what}; {f.correlation}{length}{drawn})")
     varying += [f"{name} ~ {factor.describe()}" for name, factor in s.uncertainty.factors.items()]
     sens = s.sensitivity.method
     if sens != "none":
@@ -47,5 +49,6 @@ def describe_study(s) -> str:
         f"material {material}; spacing {s.fabric.spacing_mm:g} mm, {s.solver.rings} rings, {s.solver.mode} mode",
         f"  blank-holder force {force}, friction {s.process.friction:g}, {s.process.blankholder_model} friction model",
         f"  varying: {'; '.join(varying) if varying else 'nothing (deterministic)'}",
-        f"  sensitivity: {sens}; output: {s.output_dir}",
+        f"  sensitivity: {sens}; output: {s.output_dir}"
+        + (" and its fixed-parameter twin in fixed/ (twice the drapes)" if s.report.fixed_twin else ""),
     ])
