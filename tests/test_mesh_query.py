@@ -80,3 +80,28 @@ def test_memoised_queries_give_the_cold_answer_bitwise(moulds, name):
         assert mq.normal(p, x, y, z, memo) == mq.normal(p, x, y, z, mq.new_memo())
     # the walks reach the memo: a third of the queries or more are answered from it
     assert hits > len(points) / 3, hits
+
+
+@pytest.mark.parametrize("name", ["sphere", "thin plate", "c-spar", "fold"])
+def test_the_cell_grid_gives_the_hierarchy_answer_bitwise(moulds, name):
+    """A query answered from its grid cell's face list equals the hierarchy's search (the same
+    mesh with every grid cell emptied) to the last bit, and near the mesh the grid answers."""
+    surface = moulds[name]
+    p = surface.kernel[1]
+    bare = p.copy()
+    table = int(p[mq.OFF_HASH])
+    bare[table:table + 3 * int(p[mq.GRID_SLOTS]):3] = -1.0  # no cell: every query searches the hierarchy
+    points = _walks(surface, np.random.default_rng(11))
+    answered = 0
+    for x, y, z in points:
+        grid = mq._grid_search(p, (x, y, z))
+        assert mq._grid_search(bare, (x, y, z))[0] == -1
+        tree = mq.closest(bare, x, y, z, mq.new_memo())
+        if grid[0] >= 0:
+            answered += 1
+            assert grid[:5] == tree
+            assert grid[5] >= grid[4]  # no other face nearer than the answer
+        assert mq.closest(p, x, y, z, mq.new_memo()) == tree
+        assert mq.signed_distance(p, x, y, z, mq.new_memo()) == mq.signed_distance(bare, x, y, z, mq.new_memo())
+    # the walks start on the mesh, on its edges and about 1 mm off it: most points lie within a cell's margin
+    assert answered > len(points) / 2, answered
