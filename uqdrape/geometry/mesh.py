@@ -225,41 +225,46 @@ def _boxes(tri: np.ndarray, leaves: int) -> np.ndarray:
 
 
 def _cell_grid(tri: np.ndarray, cell: float, margin: float, origin: np.ndarray):
-    """The cell grid of faces ``tri`` (nf, 3, 3) mm: the hash table (slots, 3) [key, first,
-    end] and the face lists of ``meshquery``; a face is listed in every cell its box, widened
-    by 1.01 ``margin`` (a margin over the round-off of the cells' bounds), overlaps."""
+    """The cell grid of faces ``tri`` (nf, 3, 3) mm: the hash table's size (a power of 2, for
+    the home slots), the table (at least that many rows, 3) [key, first, end] and the face
+    lists of ``meshquery`` (in no particular order within a cell). A face is listed in every
+    cell its box, widened by 1.01 ``margin`` (a margin over the round-off of the cells'
+    bounds), overlaps."""
     wide = 1.01 * margin
     lo = np.floor((tri.min(1) - wide - origin) / cell).astype(np.int64)
     hi = np.floor((tri.max(1) + wide - origin) / cell).astype(np.int64)
     n = hi - lo + 1
-    count = n.prod(1)
-    face = np.repeat(np.arange(tri.shape[0]), count)
-    k = np.arange(face.size) - np.repeat(np.cumsum(count) - count, count)
-    n0, n1 = n[face, 0], n[face, 1]
-    ix, iy, iz = lo[face, 0] + k % n0, lo[face, 1] + (k // n0) % n1, lo[face, 2] + k // (n0 * n1)
-    key = ix + mq.GRID_AXIS * (iy + mq.GRID_AXIS * iz)
-    order = np.argsort(key, kind="stable")  # stable: each cell's faces in ascending order
+    keys, faces = [], []
+    # the cells of every face by offset (dx, dy, dz) from its lowest one: each offset takes the
+    # faces that reach that far (most faces span 1-3 cells an axis), so the work is the entries
+    every = np.arange(tri.shape[0])
+    for dz in range(int(n[:, 2].max())):
+        fz = every[n[every, 2] > dz]
+        for dy in range(int(n[fz, 1].max(initial=0))):
+            fy = fz[n[fz, 1] > dy]
+            for dx in range(int(n[fy, 0].max(initial=0))):
+                f = fy[n[fy, 0] > dx]
+                keys.append((lo[f, 0] + dx) + mq.GRID_AXIS * ((lo[f, 1] + dy) + mq.GRID_AXIS * (lo[f, 2] + dz)))
+                faces.append(f)
+    key, face = np.concatenate(keys), np.concatenate(faces)
+    del keys, faces
+    order = np.argsort(key)
     key, face = key[order], face[order]
+    del order
     first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
     end = np.r_[first[1:], key.size]
-    cx, cy, cz = ix[order][first], iy[order][first], iz[order][first]
-    slots = 1 << int(math.ceil(math.log2(2 * first.size)))
+    cx, cy, cz = key[first] % mq.GRID_AXIS, key[first] // mq.GRID_AXIS % mq.GRID_AXIS, key[first] // mq.GRID_AXIS**2
+    slots = 1 << int(math.ceil(math.log2(1.25 * first.size)))
     home = ((cx * 73856093) ^ (cy * 19349663) ^ (cz * 83492791)) & (slots - 1)  # meshquery._cell_hash
-    table = np.full((slots, 3), -1.0)
-    # linear probing, all cells at once: a cell takes the first free slot from its home on; of
-    # cells reaching the same free slot in a round, the first takes it and the others move on
-    todo, probe = np.arange(first.size), np.zeros(first.size, np.int64)
-    while todo.size:
-        slot = (home[todo] + probe[todo]) & (slots - 1)
-        free = table[slot, 0] < 0
-        _, win = np.unique(slot[free], return_index=True)
-        taken = todo[free][win]
-        table[slot[free][win]] = np.stack([key[first[taken]], first[taken], end[taken]], 1)
-        placed = np.zeros(todo.size, bool)
-        placed[np.flatnonzero(free)[win]] = True
-        probe[todo[~placed]] += 1
-        todo = todo[~placed]
-    return table, face
+    # linear probing without wrap-around: in the order of their home slots, each cell takes the
+    # first free slot from its home on (slot i = i + the running max of home - i), so the slots
+    # from a cell's home to its own are all taken; the table ends with an empty slot
+    by_home = np.argsort(home, kind="stable")
+    rank = np.arange(first.size)
+    slot = rank + np.maximum.accumulate(home[by_home] - rank)
+    table = np.full((int(slot[-1]) + 2, 3), -1.0)
+    table[slot] = np.stack([key[first[by_home]], first[by_home], end[by_home]], 1)
+    return slots, table, face
 
 
 def pack(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh", edge_blend_mm: float = EDGE_BLEND_MM) -> np.ndarray:
@@ -302,7 +307,7 @@ def pack(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh", edge_blend
     cell = max(GRID_CELL * edge, 2 * size / (mq.GRID_AXIS - 8))  # a cell no smaller than the grid allows
     margin = GRID_MARGIN * edge
     origin = vertices.min(0) - 2 * margin - cell
-    table, lists = _cell_grid(tri, cell, margin, origin)
+    slots, table, lists = _cell_grid(tri, cell, margin, origin)
     parts = [tri, np.where(creased, -faces - 1, faces), nb, vn, vb, boxes, table, lists]
     head = np.zeros(mq.HEADER)
     head[[mq.NV, mq.NF, mq.LEAVES]] = nv, nf, leaves
@@ -314,7 +319,7 @@ def pack(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh", edge_blend
     head[mq.EDGE_BLEND] = edge_blend_mm
     head[mq.REACH] = MEMO_REACH * edge
     head[[mq.GRID_CELL, mq.GRID_MARGIN, mq.GRID_X0, mq.GRID_Y0, mq.GRID_Z0, mq.GRID_SLOTS]] = (
-        cell, margin, *origin, table.shape[0])
+        cell, margin, *origin, slots)
     return np.concatenate([head] + [np.asarray(p, float).ravel() for p in parts])
 
 

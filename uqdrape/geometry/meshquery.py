@@ -16,10 +16,12 @@ VB   1.0 for a vertex on a boundary edge (nv,)
 BOX  node boxes (2 L - 1, 6) [xmin, ymin, zmin, xmax, ymax, zmax] of a complete binary tree
      in heap order (children of node i: 2 i + 1, 2 i + 2); leaf l (node L - 1 + l) holds
      faces LEAF l .. LEAF (l + 1) - 1; padding leaves are empty (+inf, -inf)
-HASH a cell grid's hash table (slots, 3) [cell key, first, end] (key -1: an empty slot),
-     open addressing with linear probing, for the cells of size GRID_CELL (from GRID_X0,
-     GRID_Y0, GRID_Z0) that some face's box, widened by GRID_MARGIN, overlaps
-LIST the faces of those cells, cell by cell, each cell's in ascending order
+HASH a cell grid's hash table (rows, 3) [cell key, first, end] (key -1: an empty slot),
+     open addressing with linear probing from a home slot below GRID_SLOTS (a power of 2)
+     onwards, no wrap-around (the table ends with an empty slot), for the cells of size
+     GRID_CELL (from GRID_X0, GRID_Y0, GRID_Z0) that some face's box, widened by
+     GRID_MARGIN, overlaps
+LIST the faces of those cells, cell by cell
 
 Indices are stored as floats (exact below 2**53). The signed distance is phi = (p - c) . n
 inside a face's region (c the closest point, n the face normal), +-|p - c| with the sign of
@@ -178,7 +180,7 @@ def _distance2(p, f, q):
 
 @jit
 def _cell_hash(ix, iy, iz, slots):
-    """Home slot of cell (ix, iy, iz) in a hash table of ``slots`` (a power of 2) entries."""
+    """Home slot of cell (ix, iy, iz) in a hash table of ``slots`` (a power of 2) home slots."""
     return ((ix * 73856093) ^ (iy * 19349663) ^ (iz * 83492791)) & (slots - 1)
 
 
@@ -199,10 +201,10 @@ def _grid_search(p, q):
     slots = int(p[GRID_SLOTS])
     table = int(p[OFF_HASH])
     s = _cell_hash(ix, iy, iz, slots)
-    while p[table + 3 * s] != key:
+    while p[table + 3 * s] != key:  # the table ends with an empty slot: no wrap-around
         if p[table + 3 * s] < 0.0:
             return none
-        s = (s + 1) & (slots - 1)
+        s += 1
     # q lies in its cell: every face within the margin plus q's distance to the cell's sides is listed
     inner = min(ux - ix, ix + 1 - ux, uy - iy, iy + 1 - uy, uz - iz, iz + 1 - uz) * g
     certain = p[GRID_MARGIN] + inner
@@ -231,7 +233,7 @@ def _grid_search(p, q):
         pt, w, region = _closest_on_triangle(q, a, b, c)
         dv = _sub(q, pt)
         d2 = _dot(dv, dv)
-        if d2 < best:  # the list is in ascending face order: an equal distance keeps the lower index
+        if d2 < best or (d2 == best and f < best_f):
             second = min(second, best)
             best, best_f, best_c, best_w, best_r = d2, f, pt, w, region
             r = math.sqrt(best) + eps  # a face whose box lies farther is farther than round-off can hide
