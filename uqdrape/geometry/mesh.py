@@ -51,6 +51,10 @@ MEMO_REACH = 0.1
 #: 170,000 faces; cells of 1.5 edges with a 0.3 margin (half the memory, 13 faces a cell)
 #: gave 3-9 % slower drapes (one interleaved run).
 GRID_CELL, GRID_MARGIN = 1.0, 0.2
+#: Most list entries a face on average: a mesh whose faces would fill more cells (a few faces
+#: far larger than the median edge, e.g. a CAD export's flat sides beside fine fillets) gets
+#: no grid, and every query searches the hierarchy.
+GRID_BUDGET = 32
 #: Formats read by trimesh; others go to meshio.
 _TRIMESH_FORMATS = {".stl", ".obj", ".ply", ".off", ".glb", ".gltf"}
 
@@ -229,11 +233,13 @@ def _cell_grid(tri: np.ndarray, cell: float, margin: float, origin: np.ndarray):
     the home slots), the table (at least that many rows, 3) [key, first, end] and the face
     lists of ``meshquery`` (in no particular order within a cell). A face is listed in every
     cell its box, widened by 1.01 ``margin`` (a margin over the round-off of the cells'
-    bounds), overlaps."""
+    bounds), overlaps; no cell at all beyond GRID_BUDGET entries a face."""
     wide = 1.01 * margin
     lo = np.floor((tri.min(1) - wide - origin) / cell).astype(np.int64)
     hi = np.floor((tri.max(1) + wide - origin) / cell).astype(np.int64)
     n = hi - lo + 1
+    if n.prod(1).sum() > GRID_BUDGET * tri.shape[0]:
+        return 1, np.full((2, 3), -1.0), np.zeros(0)  # no cell: one home slot, empty
     keys, faces = [], []
     # the cells of every face by offset (dx, dy, dz) from its lowest one: each offset takes the
     # faces that reach that far (most faces span 1-3 cells an axis), so the work is the entries
