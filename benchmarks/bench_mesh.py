@@ -1,5 +1,5 @@
-"""Mesh moulds: build time, memory and accuracy of the compiled closest-point hierarchy for
-about 1e4, 1e5 and 1e6 triangles, and drape time on a meshed against the analytic
+"""Mesh moulds: build time, memory and accuracy of the compiled closest-point query (cell grid
+and hierarchy) for about 1e4, 1e5 and 1e6 triangles, and drape time on a meshed against the analytic
 hemisphere (issue 23).
 
 ``python benchmarks/bench_mesh.py [--sizes 1e4 1e5 1e6]`` writes a closed tool (a
@@ -53,7 +53,7 @@ def _icosphere_cap(radius: float, subdivisions: int) -> trimesh.Trimesh:
 
 def _query_costs(surfaces, nodes, repeats):
     """CPU time per query (us) of ``compiled.gap`` at the analytic net's nodes (5 mm apart,
-    so a mesh's memo never answers) and at each node followed by the same node moved
+    so a mesh's memo never answers: a search, of the cell grid near the mesh) and at each node followed by the same node moved
     1e-6 mm (the memo answers the second: its cost is the difference), medians of
     ``repeats``."""
     from uqdrape.geometry import compiled

@@ -80,3 +80,48 @@ def test_memoised_queries_give_the_cold_answer_bitwise(moulds, name):
         assert mq.normal(p, x, y, z, memo) == mq.normal(p, x, y, z, mq.new_memo())
     # the walks reach the memo: a third of the queries or more are answered from it
     assert hits > len(points) / 3, hits
+
+
+@pytest.mark.parametrize("name", ["sphere", "thin plate", "c-spar", "fold"])
+def test_the_cell_grid_gives_the_hierarchy_answer_bitwise(moulds, name):
+    """A query answered from its grid cell's face list equals the hierarchy's search (the same
+    mesh with every grid cell emptied) to the last bit, and near the mesh the grid answers."""
+    surface = moulds[name]
+    p = surface.kernel[1]
+    bare = p.copy()
+    table = int(p[mq.OFF_HASH])
+    bare[table:int(p[mq.OFF_LIST]):3] = -1.0  # no cell: every query searches the hierarchy
+    points = _walks(surface, np.random.default_rng(11))
+    answered = 0
+    for x, y, z in points:
+        grid = mq._grid_search(p, (x, y, z))
+        assert mq._grid_search(bare, (x, y, z))[0] == -1
+        tree = mq.closest(bare, x, y, z, mq.new_memo())
+        if grid[0] >= 0:
+            answered += 1
+            assert grid[:5] == tree
+            assert grid[5] >= grid[4]  # no other face nearer than the answer
+        assert mq.closest(p, x, y, z, mq.new_memo()) == tree
+        assert mq.signed_distance(p, x, y, z, mq.new_memo()) == mq.signed_distance(bare, x, y, z, mq.new_memo())
+    # the walks start on the mesh, on its edges and about 1 mm off it: most points lie within a cell's margin
+    assert answered > len(points) / 2, answered
+
+
+def test_a_mesh_with_a_few_huge_faces_gets_no_grid_and_the_same_answers(tmp_path):
+    """A 200 mm triangle standing askew beside a plate of 6 mm edges would fill some 40,000
+    cells of the plate's edge length, against 32 a face allowed: the mesh gets no grid (its
+    memory stays bounded) and every query searches the hierarchy."""
+    plate = trimesh.creation.box(extents=(50.0, 50.0, 1.0)).subdivide().subdivide().subdivide()
+    big = trimesh.Trimesh([[100.0, 0.0, 0.0], [300.0, 0.0, 100.0], [100.0, 200.0, 200.0]], [[0, 1, 2]],
+                          process=False)
+    trimesh.util.concatenate([plate, big]).export(tmp_path / "askew.stl")
+    surface = MeshSurface(tmp_path / "askew.stl")
+    p = surface.kernel[1]
+    assert int(p[mq.OFF_LIST]) - int(p[mq.OFF_HASH]) == 6  # two empty rows
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr("uqdrape.geometry.mesh.GRID_BUDGET", 10**9)
+        # without the budget the big face fills its cells, and a point on it is answered there
+        assert mq._grid_search(MeshSurface(tmp_path / "askew.stl").kernel[1], (160.0, 60.0, 90.0))[0] >= 0
+    for x, y, z in _walks(surface, np.random.default_rng(3), starts=30):
+        assert mq._grid_search(p, (x, y, z))[0] == -1
+        assert mq.closest(p, x, y, z, mq.new_memo())[0] >= 0
