@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import warnings
+
+import dask
 import numpy as np
 import pytest
 import xarray as xr
@@ -17,6 +20,7 @@ from uqdrape.stats import (
     mean_statistics,
     node_histogram,
     node_statistics,
+    quantile_statistics,
     samples_needed,
     wilson_interval,
 )
@@ -65,22 +69,73 @@ def test_node_statistics_matches_numpy_scipy(chunked):
     assert st.attrs["locking_angle_deg"] == 8.0
 
 
-@pytest.mark.filterwarnings("ignore:All-NaN slice:RuntimeWarning")
-def test_quantiles_are_numpys_nanquantile_bit_for_bit():
-    """The vectorised quantiles equal np.nanquantile exactly, rows with no, one or some
-    valid values included, over magnitudes from 1e-3 to 1e3."""
-    from uqdrape.stats.summary import _linear_quantiles
+def sorted_reference(x, probs, confidence):
+    """(np.nanquantile, lower, upper limits) of ``x`` along its last axis, the limits as
+    the l-th and u-th of the sorted valid values (QUANTILE_INTERVAL), NaN where absent."""
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN rows
+        q = np.moveaxis(np.nanquantile(x, probs, axis=-1), 0, -1)
+    xs = np.sort(x, axis=-1)
+    n = np.count_nonzero(~np.isnan(x), axis=-1)[..., None]
+    alpha = 1 - confidence
+    with np.errstate(invalid="ignore"):
+        ranks = stats.binom.ppf(alpha / 2, n, probs), stats.binom.ppf(1 - alpha / 2, n, probs) + 1
+    limits = [np.where(ok, np.take_along_axis(xs, np.where(ok, r - 1, 0).astype(int), axis=-1), np.nan)
+              for r, ok in ((ranks[0], (ranks[0] >= 1) & (n > 0)), (ranks[1], (ranks[1] <= n) & (n > 0)))]
+    return q, *limits
 
+
+@pytest.mark.parametrize("chunk_size", ["128MiB", "8KiB"])  # gathered at once, or narrowed in passes first
+def test_quantiles_and_limits_are_numpys_bit_for_bit(chunk_size):
+    """Quantiles equal np.nanquantile exactly and their limits the sorted values' l-th
+    and u-th, over magnitudes 1e-3..1e3, nodes with no, one or some valid values, ties,
+    a constant node, signed zeros, infinities and subnormals, in any chunking."""
     rng = np.random.default_rng(3)
     probs = np.array([0.05, 0.1, 0.25, 0.5, 0.75, 0.9, 0.95, 0.99, 1 / 3])
-    for _ in range(50):
-        x = rng.normal(size=(5, 7, rng.integers(1, 70))) * 10 ** rng.uniform(-3, 3)
+    for trial in range(24):
+        x = rng.normal(size=(5, 7, rng.integers(1, 300))) * 10 ** rng.uniform(-3, 3)
+        if trial % 4 == 0:
+            x = np.round(x, 1)  # ties, and 0.0 with -0.0
         x[rng.random(x.shape) < rng.uniform(0, 0.9)] = np.nan
         x[0, 0] = np.nan
         x[0, 1, 1:] = np.nan
-        expected = np.moveaxis(np.nanquantile(x, probs, axis=-1), 0, -1)
-        n = np.count_nonzero(~np.isnan(x), axis=-1)[..., None]
-        np.testing.assert_array_equal(_linear_quantiles(np.sort(x, axis=-1), n, probs), expected)
+        x[1, 1] = 2.5
+        x[2, 2, ::3] = (np.inf, -np.inf, 5e-324)[trial % 3]
+        expected = sorted_reference(x, probs, 0.9)
+        da = xr.DataArray(x, dims=("i", "j", "realization"))
+        for data in (da, da.chunk({"realization": int(rng.integers(1, 40)), "i": 2})):
+            with dask.config.set({"array.chunk-size": chunk_size}):
+                got = quantile_statistics(data, probs, 0.9)
+            for name, want in zip(("quantile_value", "quantile_lower", "quantile_upper"), expected):
+                assert got[name].dims == ("i", "j", "quantile")
+                np.testing.assert_array_equal(got[name].values, want, err_msg=f"{name}, trial {trial}")
+
+
+def test_quantiles_take_a_few_passes():
+    """A dask ensemble is read in a few passes (dask graph runs): its moments and
+    range, histogram passes narrowing the ranks' regions while the values left in them
+    exceed a quarter of dask's array.chunk-size, then one gathering them: 2 passes
+    when everything fits at once; with a 64 KiB chunk-size (histograms of 16 bins,
+    4 bits a pass) an ensemble 8 times larger (3 bits) needs at most one more pass."""
+    class Count(Callback):
+        runs = 0
+
+        def _start(self, dsk):
+            Count.runs += 1
+
+    def passes(n, chunk_size):
+        ds = ensemble(n_real=n, ni=6, nj=6, seed=n, nan_frac=0.05).chunk({"realization": 250})
+        Count.runs = 0
+        with Count(), dask.config.set({"array.chunk-size": chunk_size}):
+            st = node_statistics(ds)
+        q, lower, upper = sorted_reference(np.moveaxis(ds.shear.values, 0, -1), st["quantile"].values, 0.95)
+        np.testing.assert_array_equal(st["quantile_value"].values, q)
+        np.testing.assert_array_equal(st["quantile_upper"].values, upper)
+        return Count.runs
+
+    assert passes(1000, "128MiB") == 2
+    few = passes(1000, "64KiB")
+    assert 2 < few <= passes(8000, "64KiB") <= few + 1
 
 
 def test_chunked_equals_in_memory_with_force_sweep():
@@ -96,7 +151,7 @@ def test_chunked_equals_in_memory_with_force_sweep():
     np.testing.assert_allclose(st["mean"].values, np.nanmean(ds.shear.values, axis=1), rtol=1e-12)
 
 
-def test_out_of_core_from_netcdf_chunk_files_in_one_pass(tmp_path):
+def test_out_of_core_from_netcdf_chunk_files_in_two_passes(tmp_path):
     ds = ensemble(n_real=28)
     for k in range(4):
         ds.isel(realization=slice(7 * k, 7 * k + 7)).to_netcdf(tmp_path / f"chunk{k}.nc")
@@ -111,7 +166,7 @@ def test_out_of_core_from_netcdf_chunk_files_in_one_pass(tmp_path):
 
         with Count():
             st = node_statistics(lazy)
-        assert Count.runs == 1  # every statistic from a single graph execution
+        assert Count.runs == 2  # the moments and each node's range, then the order statistics gathered
         xr.testing.assert_allclose(st, node_statistics(ds), rtol=1e-12)
 
 

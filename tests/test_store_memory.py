@@ -6,9 +6,11 @@ computed lazily from the store under tracemalloc (numpy's and zarr's buffers are
 traced), with dask's block size set to 512 KiB so that the ensemble is many blocks:
 the peak must not grow with the ensemble (its first 1,000 realisations against all
 4,000) and must stay below one variable of the ensemble (the node shear, 3.9 MB),
-which a single rechunk of the variable to whole columns held at once (before
-``blockwise_quantiles``, with the same settings: 8.15 MB at 4,000 against 5.21 MB at
-1,000, failing both assertions; now about 3.25 and 3.04 MB). The numbers equal those of the ensemble in memory.
+which a single rechunk of the variable to whole columns held at once (8.15 MB at 4,000
+against 5.21 MB at 1,000 with the same settings, failing both assertions; blocks of
+nodes each read with every realisation: 3.25 and 3.04 MB; the order statistics narrowed
+by histograms, ``stats.summary.order_statistics``: 3.66 and 3.26 MB). The numbers equal
+those of the ensemble in memory.
 ``uqdrape export --to netcdf`` of the store streams it: its peak stays below a quarter
 of the ensemble (4.7 MB measured).
 """

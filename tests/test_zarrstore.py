@@ -7,13 +7,14 @@ of every variable, coordinate and variable attribute. S3 runs against moto's ser
 """
 
 import errno
+import os
 
-import numpy as np
 import pytest
 import xarray as xr
 
 from uqdrape.ensemble import open_ensemble, run_ensemble
-from uqdrape.ensemble.zarrstore import DATA, DONE, LOCK, ZARR_FORMAT, done_regions, run_store
+from uqdrape.ensemble.zarrstore import (DATA, DONE, LOCK, MANIFEST, PROBE, ZARR_FORMAT, check_store, done_regions,
+                                        read_store_manifest, run_store, write_store_manifest)
 from uqdrape.stats import node_statistics
 from uqdrape.study import load_study
 
@@ -88,6 +89,64 @@ def test_bad_url_is_one_line_oserror(reference):
     with pytest.raises(OSError, match="not a store URL fsspec can open") as err:
         run_store(study, "nosuchproto://x/y", scheduler="synchronous", progress=False)
     assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("url", ["file://{tmp}/store", "memory://zarr28-manifest"])
+def test_a_failed_manifest_write_leaves_the_old_manifest(tmp_path, monkeypatch, url):
+    """The manifest is put beside and moved over: a write that fails half-way (a full
+    disk) leaves the old manifest whole and no part behind."""
+    import fsspec
+
+    url = url.format(tmp=tmp_path)
+    old, new = ({"study": {"study": {"name": name}}, "chunk_size": 10, "realizations": n,
+                 "chunks": [f"r{k:07d}-{k + 9:07d}.nc" for k in range(0, n, 10)]} for name, n in (("old", 10), ("new", 20)))
+    write_store_manifest(url, old)
+    fs, root = fsspec.core.url_to_fs(url)
+    put = type(fs).pipe_file
+
+    def half_then_full(self, path, value, **kwargs):
+        put(self, path, value[:len(value) // 2], **kwargs)
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(type(fs), "pipe_file", half_then_full)
+    with pytest.raises(OSError, match="No space left"):
+        write_store_manifest(url, new)
+    monkeypatch.undo()
+    assert read_store_manifest(url) == old
+    assert not fs.exists(f"{root}/{MANIFEST}.part")
+    write_store_manifest(url, new)
+    assert read_store_manifest(url) == new and not fs.exists(f"{root}/{MANIFEST}.part")
+
+
+def test_a_probe_left_by_a_killed_process_is_removed_by_the_next(monkeypatch):
+    """check_store's probe object has one name: one left behind (its process killed
+    between the put and the removal) is overwritten and removed by the next probe, and
+    a probe removed by another process meanwhile is no error."""
+    import fsspec
+
+    url = "memory://zarr28-probe/runs"
+    fs, root = fsspec.core.url_to_fs(url)
+    remove = type(fs).rm
+
+    def killed(self, path, *args, **kwargs):
+        raise KeyboardInterrupt  # SIGINT or a kill between the put and the removal
+
+    monkeypatch.setattr(type(fs), "rm", killed)
+    monkeypatch.setattr(os, "getpid", lambda pid=os.getpid(): pid + 1)  # the killed probe was another process's
+    with pytest.raises(KeyboardInterrupt):
+        check_store(url)
+    assert fs.exists(f"{root}/{PROBE}")  # the litter of a killed probe
+    monkeypatch.undo()
+    check_store(url)
+    assert fs.find(root) == []
+
+    def raced(self, path, *args, **kwargs):
+        remove(self, path, *args, **kwargs)  # another process's probe removed ours first
+        remove(self, path, *args, **kwargs)
+
+    monkeypatch.setattr(type(fs), "rm", raced)
+    check_store(url)
+    assert fs.find(root) == []
 
 
 # -- S3 against moto's server on 127.0.0.1 ---------------------------------------------

@@ -6,7 +6,8 @@ stays a run folder of netCDF chunks (``uqdrape.ensemble.store``), the default, a
 run folders are read, not refused: every reader takes either
 (``uqdrape.ensemble.location``). Layout under the URL::
 
-    run.json        the manifest: study record, chunk size, chunk names, realisations
+    run.json        the manifest: study record, chunk size, chunk names, realisations;
+                    written as run.json.part, then moved over the old one
     run.lock        one writer at a time: created with exclusive create ("xb": on S3 a
                     conditional put, If-None-Match: *), removed when the run ends; a
                     lock whose process is gone from this host is taken over
@@ -38,7 +39,6 @@ from __future__ import annotations
 import contextlib
 import errno
 import json
-import os
 import sys
 import time
 from pathlib import Path
@@ -62,6 +62,8 @@ from .store import MAX_MANIFEST_BYTES, corrupt_manifest, parse_manifest
 
 MANIFEST = "run.json"
 LOCK = "run.lock"
+#: the object ``check_store`` puts and removes to learn that a store takes writes
+PROBE = ".uqdrape-probe"
 DATA = "data"
 DONE = "done"
 #: zarr on-disk format written (zarr-python >= 3 writes format 3).
@@ -110,16 +112,18 @@ def _check_reachable(fs, root: str, url: str) -> None:
 def check_store(url: str) -> None:
     """Raise a one-line OSError naming ``url`` unless a run can write there: fsspec opens
     the URL, an S3 bucket exists and takes the credentials, and a probe object can be
-    written and removed (a read-only or full bucket). A file:// store is a local folder:
+    written and removed (a read-only or full bucket). The probe has one name for every
+    process (``PROBE``), so one left by a process killed while probing is overwritten
+    and removed by the next probe, never piled up. A file:// store is a local folder:
     the preflight checks it as one (``uqdrape.workflow.preflight``)."""
     fs, root = _fs(url)
     _check_reachable(fs, root, url)
     if url.startswith("file://"):
         return
-    probe = f"{root}/.uqdrape-probe-{os.getpid()}"
     with _writing(url, "a probe object"):
-        fs.pipe_file(probe, b"probe\n")
-        fs.rm(probe)
+        fs.pipe_file(f"{root}/{PROBE}", b"probe\n")
+        with contextlib.suppress(FileNotFoundError):  # another process's probe removed it
+            fs.rm(f"{root}/{PROBE}")
 
 
 def read_store_manifest(url: str) -> dict | None:
@@ -143,9 +147,19 @@ def read_store_manifest(url: str) -> dict | None:
 
 
 def write_store_manifest(url: str, manifest: dict) -> None:
-    """Write the manifest of the store at ``url`` (one object put)."""
+    """Write the manifest of the store at ``url`` whole: put as ``run.json.part``, then
+    moved over the old one (a rename on a local disk; on an object store a put is whole
+    anyway), so a failed or killed write leaves the old manifest (the part is removed
+    on a failure that returns)."""
     fs, root = _fs(url)
-    fs.pipe_file(f"{root}/{MANIFEST}", json.dumps(manifest, indent=1).encode())
+    part = f"{root}/{MANIFEST}.part"
+    try:
+        fs.pipe_file(part, json.dumps(manifest, indent=1).encode())
+    except BaseException:
+        with contextlib.suppress(OSError):
+            fs.rm(part)
+        raise
+    fs.mv(part, f"{root}/{MANIFEST}")
 
 
 class _StoreLock:

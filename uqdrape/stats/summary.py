@@ -2,19 +2,20 @@
 
 Reductions run along ``realization`` only, so a dask-backed ensemble (a run folder's
 chunk files or a zarr store, ``uqdrape.ensemble.open_ensemble``) is processed chunk by
-chunk: moments in one pass of shifted power sums, quantiles per block of nodes holding
-every realisation of that block, one block at a time (:func:`node_statistics`).
+chunk, memory bounded by a few chunks whatever the ensemble's size: moments in one pass
+of shifted power sums, quantiles and their limits as exact order statistics found by
+narrowing histograms of integer keys in a few more passes (:func:`order_statistics`).
 """
 
 from __future__ import annotations
 
-import itertools
-import math
 from collections.abc import Sequence
 
 import dask
+import dask.array
 import numpy as np
 import xarray as xr
+from dask.delayed import Delayed
 from scipy import stats
 
 from ._common import REALIZATION, check_confidence, get_variable, t_quantile
@@ -84,96 +85,264 @@ def moment_statistics(da: xr.DataArray, confidence: float, dim: str = REALIZATIO
     )
 
 
-def _linear_quantiles(xs: np.ndarray, n: np.ndarray, probs: np.ndarray) -> np.ndarray:
-    """numpy's default ("linear") quantiles of rows sorted with NaN last, ``n`` (..., 1)
-    valid values each, by the same arithmetic as ``np.nanquantile`` (so the same numbers)
-    but in whole arrays: ``np.nanquantile`` along an axis loops over the rows in Python,
-    which made it most of a design study's statistics. NaN where a row has no valid value."""
+#: the sign bit of a float64, which orders the keys of :func:`_keys`
+_SIGN = np.uint64(1 << 63)
+#: a key range past every region (an unused region slot)
+_NONE = np.uint64(2**64 - 1)
+
+
+def _keys(x) -> np.ndarray:
+    """Order-preserving uint64 keys of the values ``x`` as float64: a < b exactly when
+    key(a) < key(b) (-0.0 is taken as 0.0; a NaN's key means nothing, mask it)."""
+    u = (np.asarray(x, dtype=np.float64) + 0.0).view(np.uint64)
+    return np.where(u & _SIGN, ~u, u | _SIGN)
+
+
+def _from_keys(keys) -> np.ndarray:
+    """The float64 values of :func:`_keys`."""
+    keys = np.asarray(keys, dtype=np.uint64)
+    return np.where(keys & _SIGN, keys & ~_SIGN, ~keys).view(np.float64)
+
+
+def _bit_length(w: np.ndarray) -> np.ndarray:
+    """Bits of the uint64 values ``w`` (0 for 0), exactly."""
+    bits = np.zeros(w.shape, dtype=np.uint64)
+    for k in (32, 16, 8, 4, 2, 1):
+        big = w >= np.uint64(1 << k)
+        bits += np.where(big, np.uint64(k), np.uint64(0))
+        w = np.where(big, w >> np.uint64(k), w)
+    return bits + (w > 0)
+
+
+def _locate(x, base, lo, hi):
+    """(node, slot, offset key) of each valid value of the block ``x`` (realisations
+    first, then its nodes) that lies in a region of its node: slot s of node k holds
+    the keys base[k] + lo[k, s] .. base[k] + hi[k, s], lo ascending along s (unused
+    slots lo = 2**64 - 1)."""
+    x = x.reshape(x.shape[0], -1)
+    d = _keys(x) - base
+    slot = np.full(d.shape, -1, dtype=np.intp)
+    for s in range(lo.shape[1]):
+        slot += d >= lo[:, s]
+    rows, nodes = np.nonzero(~np.isnan(x) & (slot >= 0))
+    slot, d = slot[rows, nodes], d[rows, nodes]
+    inside = d <= hi[nodes, slot]
+    return nodes[inside], slot[inside], d[inside]
+
+
+def _histogram_block(x, base, lo, hi, shift, bins: int) -> np.ndarray:
+    """Counts (node, slot, bin) of a block's values in each region, cut into ``bins``
+    bins of 2**shift keys from its lower end."""
+    nodes, slot, d = _locate(x, base, lo, hi)
+    width = lo.shape[1] * bins
+    at = nodes * width + slot * bins + ((d - lo[nodes, slot]) >> shift[nodes, slot]).astype(np.intp)
+    counts = np.bincount(at, minlength=lo.shape[0] * width).astype(np.int32)  # < 2**31 realisations
+    return counts.reshape(lo.shape[0], lo.shape[1], bins)
+
+
+def _gather_block(x, base, lo, hi, node_ids) -> tuple[np.ndarray, np.ndarray]:
+    """(region id = node id * slots + slot, offset key) of a block's values in the regions."""
+    nodes, slot, d = _locate(x, base, lo, hi)
+    return node_ids[nodes] * lo.shape[1] + slot, d
+
+
+def _blocks(data) -> list:
+    """(block, its node slices) of an array with realisations first: every dask block
+    as a delayed object, a numpy array whole."""
+    if not isinstance(data, dask.array.Array):
+        return [(data, (slice(None),) * (data.ndim - 1))]
+    edges = [np.cumsum((0, *c)) for c in data.chunks[1:]]
+    blocks = data.to_delayed()
+    return [(blocks[at], tuple(slice(e[k], e[k + 1]) for e, k in zip(edges, at[1:]))) for at in np.ndindex(blocks.shape)]
+
+
+def _part(node_shape: tuple, a: np.ndarray, where: tuple) -> np.ndarray:
+    """The rows of ``a`` (nodes flattened first) of the nodes ``where`` of ``node_shape``."""
+    return a.reshape(node_shape + a.shape[1:])[where].reshape(-1, *a.shape[1:])
+
+
+def _call(func, block, *args):
+    """``func(block, *args)``, delayed if ``block`` is a dask block."""
+    return dask.delayed(func)(block, *args) if isinstance(block, Delayed) else func(block, *args)
+
+
+def _tree_sum(parts: list):
+    """The sum of ``parts``, added in pairs (a few partial sums alive at once)."""
+    while len(parts) > 1:
+        parts = [_call(np.add, *parts[k:k + 2]) if k + 1 < len(parts) else parts[k] for k in range(0, len(parts), 2)]
+    return parts[0]
+
+
+def _regions(lo, hi, count, active):
+    """The distinct regions of each node's active targets as slots, ascending: (slot lo,
+    slot hi, slot count, each target's slot); unused slots lo = 2**64 - 1."""
+    key = np.where(active, lo, _NONE)
+    ordered = np.sort(key, axis=1)
+    first = np.ones(ordered.shape, dtype=bool)
+    first[:, 1:] = ordered[:, 1:] != ordered[:, :-1]
+    first &= ordered != _NONE
+    position = np.cumsum(first, axis=1) - 1
+    slots = max(int(first.sum(axis=1).max()), 1)
+    node = np.broadcast_to(np.arange(lo.shape[0])[:, None], lo.shape)
+    slot_lo = np.full((lo.shape[0], slots), _NONE)
+    slot_lo[node[first], position[first]] = ordered[first]
+    of = np.count_nonzero(slot_lo[:, None, :] <= lo[:, :, None], axis=-1) - 1
+    slot_hi = np.zeros_like(slot_lo)
+    slot_count = np.zeros(slot_lo.shape, dtype=np.int64)
+    slot_hi[node[active], of[active]] = hi[active]
+    slot_count[node[active], of[active]] = count[active]
+    return slot_lo, slot_hi, slot_count, of
+
+
+def _pass_bytes() -> int:
+    """Memory of one pass of :func:`order_statistics`: a quarter of dask's
+    ``array.chunk-size`` (32 MiB by default)."""
+    return dask.utils.parse_bytes(dask.config.get("array.chunk-size")) // 4
+
+
+def _histograms(blocks, node_shape: tuple, base, slot_lo, slot_hi, shift, bins: int) -> np.ndarray:
+    """One pass: the counts (node, slot, bin) of the values of every region, summed
+    over the blocks of each block of nodes in pairs."""
+    parts = {}
+    for block, where in blocks:
+        state = (_part(node_shape, a, where) for a in (base, slot_lo, slot_hi, shift))
+        parts.setdefault(tuple((w.start, w.stop) for w in where), (where, []))[1].append(
+            _call(_histogram_block, block, *state, bins))
+    sums = dask.compute(*(_tree_sum(p) for _, p in parts.values()))
+    hist = np.empty((*node_shape, slot_lo.shape[1], bins), dtype=np.int64)
+    for (where, _), part in zip(parts.values(), sums):
+        hist[where] = part.reshape(hist[where].shape)
+    return hist.reshape(slot_lo.shape[0], slot_lo.shape[1], bins)
+
+
+def _gathered(blocks, node_shape: tuple, base, slot_lo, slot_hi) -> tuple[np.ndarray, np.ndarray]:
+    """One pass: (region ids, offset keys) of the values of every region, sorted."""
+    ids = np.arange(slot_lo.shape[0])
+    parts = dask.compute(*(_call(_gather_block, block, *(_part(node_shape, a, where) for a in (base, slot_lo, slot_hi, ids)))
+                           for block, where in blocks))
+    region = np.concatenate([p[0] for p in parts])
+    keys = np.concatenate([p[1] for p in parts])
+    order = np.lexsort((keys, region))
+    return region[order], keys[order]
+
+
+def order_statistics(data, n, low, high, ranks, need) -> np.ndarray:
+    """Exact order statistics of ``data`` (realisations first, NaN invalid) along its
+    first axis: element [..., t] is the ``ranks[..., t]``-th smallest (0-based) valid
+    value of the node (NaN where ``need`` is False), as float64, with memory bounded by
+    a few blocks of ``data`` (a dask array is read a block at a time) and a few passes.
+
+    ``n``, ``low``, ``high``: each node's number of valid values, smallest and largest.
+    Every value is mapped to an order-preserving integer key (:func:`_keys`) so that
+    bins are exact. Each wanted rank lies in a region of keys of its node, at first
+    [key(low), key(high)]; a pass counts the values of every region in up to 2**b bins
+    (b such that the histograms take half of :func:`_pass_bytes`) and narrows each
+    rank's region to its bin, until the values left in the regions fit in
+    :func:`_pass_bytes` (16 bytes each): a last pass gathers them and sorts. A region of
+    one key is the value itself (ties need no pass). Each pass shortens every region by
+    b bits of 64 (4 <= b <= 16: 16 bins at least, whatever the histograms' memory), so
+    passes are bounded, and an ensemble 2**b times larger needs about one more;
+    an ensemble of smooth fields of 441 nodes needs one or two before the gathering
+    pass (10^4 to 10^6 realisations, default ``array.chunk-size``)."""
+    shape, node_shape = ranks.shape, ranks.shape[:-1]
+    ranks, need = ranks.reshape(-1, shape[-1]), need.reshape(-1, shape[-1])
+    base = _keys(np.where(np.isnan(low), 0.0, low)).reshape(-1)
+    top = _keys(np.where(np.isnan(high), 0.0, high)).reshape(-1)
+    lo = np.zeros(ranks.shape, dtype=np.uint64)  # each rank's region: keys base + lo .. base + hi
+    hi = np.broadcast_to(np.where(top >= base, top - base, 0)[:, None], ranks.shape).copy()
+    before = np.zeros(ranks.shape, dtype=np.int64)  # the node's values below the region
+    count = np.broadcast_to(np.reshape(n, (-1, 1)), ranks.shape).astype(np.int64)  # and in it
+    node = np.broadcast_to(np.arange(lo.shape[0])[:, None], lo.shape)
+    blocks = _blocks(data)
+    limit = _pass_bytes()
+    while (active := need & (lo < hi)).any():
+        slot_lo, slot_hi, slot_count, of = _regions(lo, hi, count, active)
+        region = node[active] * slot_lo.shape[1] + of[active]
+        if slot_count[slot_lo != _NONE].sum() * 16 <= limit:
+            ids, keys = _gathered(blocks, node_shape, base, slot_lo, slot_hi)
+            lo[active] = keys[np.searchsorted(ids, region) + ranks[active] - before[active]]
+            break
+        bits = int(np.clip(np.log2(limit / 16 / slot_lo.size), 4, 16))
+        shift = np.where(slot_lo != _NONE, _bit_length(slot_hi - slot_lo), np.uint64(bits))
+        shift = np.maximum(shift, np.uint64(bits)) - np.uint64(bits)  # bins of 2**shift keys
+        hist = _histograms(blocks, node_shape, base, slot_lo, slot_hi, shift, 1 << bits).reshape(-1)
+        total = np.cumsum(hist)  # one running total over every region's bins: search each rank's bin
+        first = region << bits
+        offset = np.where(first > 0, total[first - 1], 0)
+        at = np.searchsorted(total, offset + ranks[active] - before[active], side="right")
+        count[active] = hist[at]
+        before[active] += total[at] - hist[at] - offset
+        step = shift.reshape(-1)[region]
+        start = lo[active] + ((at - first).astype(np.uint64) << step)
+        lo[active] = start
+        hi[active] = np.minimum(start + ((np.uint64(1) << step) - np.uint64(1)), hi[active])
+    return np.where(need, _from_keys(base[:, None] + lo), np.nan).reshape(shape)
+
+
+def _ranks(n: np.ndarray, probs: np.ndarray, confidence: float):
+    """The order statistics behind the quantiles of nodes of ``n`` (..., 1) valid values:
+    (ranks, need, virtual, below), ranks (..., 4 Q) 0-based: numpy's "linear" quantile
+    interpolates at virtual rank (n-1) p between ranks floor and floor + 1 (the largest
+    value at or past it), and its order-statistic limits are ranks l and u
+    (QUANTILE_INTERVAL); need is False where a rank does not exist (n = 0, l < 1, u > n)."""
     virtual = (n - 1) * probs
     below = np.floor(virtual)
     top = virtual >= n - 1  # at or past the largest valid value: take it
-    lo = np.clip(np.where(top, n - 1, below), 0, None).astype(np.intp)
-    hi = np.clip(np.where(top, n - 1, below + 1), 0, None).astype(np.intp)
-    a, b = np.take_along_axis(xs, lo, axis=-1), np.take_along_axis(xs, hi, axis=-1)
-    t = virtual - below
-    diff = b - a
-    q = np.where(t >= 0.5, b - diff * (1 - t), a + diff * t)
-    return np.where(n > 0, q, np.nan)
-
-
-def _quantile_block(x: np.ndarray, probs: np.ndarray, confidence: float):
-    """Quantiles and their order-statistic limits along the last axis of ``x`` (NaN = invalid)."""
-    xs = np.sort(x, axis=-1)  # NaN sorts last, so ranks 1..n are the valid values
-    n = np.count_nonzero(~np.isnan(x), axis=-1)[..., None]
-    q = _linear_quantiles(xs, n, probs)
     alpha = 1.0 - confidence
     with np.errstate(invalid="ignore"):
-        lo = stats.binom.ppf(alpha / 2.0, n, probs)
-        hi = stats.binom.ppf(1.0 - alpha / 2.0, n, probs) + 1.0
-    limits = []
-    for rank, ok in ((lo, (lo >= 1) & (n > 0)), (hi, (hi <= n) & (n > 0))):
-        idx = np.where(ok, rank - 1, 0).astype(np.intp)
-        limits.append(np.where(ok, np.take_along_axis(xs, idx, axis=-1), np.nan))
-    return q, limits[0], limits[1]
+        lower = stats.binom.ppf(alpha / 2.0, n, probs)
+        upper = stats.binom.ppf(1.0 - alpha / 2.0, n, probs) + 1.0
+    some = np.broadcast_to(n > 0, virtual.shape)
+    ok_lower, ok_upper = (lower >= 1) & some, (upper <= n) & some
+    ranks = np.concatenate([np.where(top, n - 1, below), np.where(top, n - 1, below + 1),
+                            np.where(ok_lower, lower - 1, 0), np.where(ok_upper, upper - 1, 0)], axis=-1)
+    need = np.concatenate([some, some, ok_lower, ok_upper], axis=-1)
+    return np.clip(ranks, 0, None).astype(np.int64), need, virtual, below
 
 
-def quantile_statistics(
-    da: xr.DataArray, quantiles: Sequence[float], confidence: float, dim: str = REALIZATION
-) -> xr.Dataset:
-    """Lazy quantiles of ``da`` along ``dim`` with distribution-free confidence limits.
+def quantile_statistics(da: xr.DataArray, quantiles: Sequence[float], confidence: float,
+                        dim: str = REALIZATION, *, moments: bool = False) -> xr.Dataset:
+    """Quantiles of ``da`` along ``dim`` with distribution-free confidence limits, computed.
 
-    A dask-backed input is rechunked to hold the whole ``dim`` per block and "auto"
-    (memory-bounded) blocks along the other dims, so memory stays at one block.
-    """
+    Quantiles are numpy's "linear" method of the valid (non-NaN) values, the same numbers
+    as ``np.nanquantile`` in float64 (NaN for a node with none); their limits are order
+    statistics. All are exact order statistics found by :func:`order_statistics`, with
+    memory bounded by a few dask blocks of ``da``, not by the ensemble: a first pass
+    over a dask-backed ``da`` counts each node's valid values and finds their range
+    (with ``moments``, :func:`moment_statistics` is computed in that pass and merged into
+    the result), then usually two or three more passes."""
     probs = np.asarray(quantiles, dtype=float)
     if probs.ndim != 1 or probs.size == 0 or np.any(~(probs > 0) | ~(probs < 1)):
         raise ValueError(f"quantiles must be a non-empty sequence of probabilities in (0, 1), got {quantiles!r}")
-    if da.chunks is not None:
-        da = da.chunk({d: (-1 if d == dim else "auto") for d in da.dims})
-    q, lo, hi = xr.apply_ufunc(
-        _quantile_block, da,
-        kwargs={"probs": probs, "confidence": confidence},
-        input_core_dims=[[dim]], output_core_dims=[["quantile"]] * 3,
-        dask="parallelized", output_dtypes=[float] * 3,
-        dask_gufunc_kwargs={"output_sizes": {"quantile": probs.size}},
-    )
+    rest = [d for d in da.dims if d != dim]
+    first = xr.Dataset({"n": da.count(dim), "low": da.fillna(np.inf).min(dim), "high": da.fillna(-np.inf).max(dim)})
+    if moments:
+        first = xr.merge([moment_statistics(da, confidence, dim), first], combine_attrs="override")
+    first = first.compute()
+    n = first["n"].transpose(*rest).values[..., None]
+    ranks, need, virtual, below = _ranks(n, probs, confidence)
+    found = order_statistics(da.transpose(dim, *rest).data, n[..., 0], first["low"].transpose(*rest).values,
+                             first["high"].transpose(*rest).values, ranks, need)
+    a, b, lower, upper = np.split(found, 4, axis=-1)
+    t = virtual - below
+    with np.errstate(invalid="ignore"):  # inf - inf between infinite values, as in numpy
+        diff = b - a
+        value = np.where(n > 0, np.where(t >= 0.5, b - diff * (1 - t), a + diff * t), np.nan)
     units = da.attrs.get("units")
     name = da.attrs.get("long_name", da.name)
+    coords = {k: c for k, c in da.coords.items() if dim not in c.dims}
+    coords["quantile"] = ("quantile", probs, {"long_name": "probability level", "units": "1"})
+    dims = (*rest, "quantile")
     out = xr.Dataset(
         {
-            "quantile_value": q.assign_attrs(_attrs(units, f"ensemble quantile of {name}", method=QUANTILE_METHOD)),
-            **_limits("quantile", lo, hi, units, "the quantile", confidence, QUANTILE_INTERVAL),
+            "quantile_value": (dims, value, _attrs(units, f"ensemble quantile of {name}", method=QUANTILE_METHOD)),
+            **{k: (dims, v.values, v.attrs) for k, v in _limits(
+                "quantile", xr.DataArray(lower), xr.DataArray(upper), units, "the quantile", confidence,
+                QUANTILE_INTERVAL).items()},
         },
-        coords={"quantile": ("quantile", probs, {"long_name": "probability level", "units": "1"})},
+        coords=coords,
     )
-    return out
-
-
-def blockwise_quantiles(da: xr.DataArray, quantiles: Sequence[float], confidence: float,
-                        dim: str = REALIZATION) -> xr.Dataset:
-    """``quantile_statistics`` of ``da`` computed one block of nodes at a time, each block
-    every realisation of at most dask's ``array.chunk-size`` bytes of nodes (one node at
-    least). Memory is then a block and the chunks being read, not the ensemble: one
-    rechunk of a whole variable to columns would hold every piece of it at once. A
-    dask-backed ensemble is read once per block. Returns the same numbers: lazily if
-    one block holds every node (so that one pass computes it with the moments), else
-    computed."""
-    template = quantile_statistics(da, quantiles, confidence, dim)
-    limit = dask.utils.parse_bytes(dask.config.get("array.chunk-size"))
-    block = {d: n for d, n in da.sizes.items() if d != dim}
-    while math.prod(block.values()) * da.sizes[dim] * da.dtype.itemsize > limit and max(block.values()) > 1:
-        widest = max(block, key=block.get)
-        block[widest] = -(-block[widest] // 2)
-    if da.chunks is None or block == {d: n for d, n in da.sizes.items() if d != dim}:
-        return template
-    out = {name: np.empty(var.shape, var.dtype) for name, var in template.data_vars.items()}
-    for starts in itertools.product(*(range(0, da.sizes[d], size) for d, size in block.items())):
-        where = {d: slice(a, a + block[d]) for d, a in zip(block, starts)}
-        part = quantile_statistics(da.isel(where), quantiles, confidence, dim).compute()
-        for name, values in out.items():
-            dims = template[name].dims
-            values[tuple(where.get(d, slice(None)) for d in dims)] = part[name].transpose(*dims).values
-    return template.copy(data=out)
+    return xr.merge([first.drop_vars(["n", "low", "high"]), out], combine_attrs="override") if moments else out
 
 
 def mean_statistics(da: xr.DataArray, confidence: float = 0.95, dim: str = REALIZATION) -> xr.Dataset:
@@ -203,8 +372,8 @@ def node_statistics(
     ``mean, sd, skewness, count, mean_lower, mean_upper`` and, along dim ``quantile``,
     ``quantile_value, quantile_lower, quantile_upper``; units those of ``var``. The mean
     interval is Student t; quantile limits are distribution-free order statistics (see
-    each variable's ``method`` attr). The moments are one dask pass, the quantiles one a
-    block of nodes (``blockwise_quantiles``); returns in-memory data.
+    each variable's ``method`` attr). The moments are computed in the first pass of the
+    quantiles' few passes (:func:`quantile_statistics`); returns in-memory data.
     ``replicates`` K: the realisations are K equal consecutive randomisations of one
     randomised-QMC point set (``[sampling] plan = "rqmc"``): the mean's interval is then
     Student t over the K randomisations' means (REPLICATE_INTERVAL), as the points within
@@ -212,7 +381,7 @@ def node_statistics(
     """
     c = check_confidence(confidence)
     da = get_variable(ds, var)
-    out = xr.merge([moment_statistics(da, c), blockwise_quantiles(da, quantiles, c)], combine_attrs="override")
+    out = quantile_statistics(da, quantiles, c, moments=True)
     if replicates is not None:
         out.update(_replicate_limits(da, int(replicates), c))
     out.attrs = {**ds.attrs, "variable": var, "confidence": c}
