@@ -20,7 +20,6 @@ import errno
 import json
 import random
 import re
-import shutil
 import socket
 import subprocess
 import sys
