@@ -480,7 +480,7 @@ class _Version(argparse.Action):
         super().__init__(option_strings, dest, nargs=0, help="print the version and exit")
 
     def __call__(self, parser, namespace, values, option_string=None):
-        from .conventions import version_text
+        from .workflow.text import version_text
 
         print(version_text())
         parser.exit()

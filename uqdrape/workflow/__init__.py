@@ -26,7 +26,7 @@ _EXPORTS = {
     "preflight": ("load_study", "location", "validate_study", "check_resources", "check_placement", "run_preflight"),
     "commands": ("check_drape_inputs", "drape_to_files", "material_list", "material_text", "derive_material", "fit_material",
                  "export_result"),
-    "text": ("geometry_help", "architectures", "describe_study"),
+    "text": ("geometry_help", "architectures", "describe_study", "version_text"),
     "serve": ("serve_study", "input_names", "nominal_input"),
     "calibrate": ("calibrate_fibre_angles", "calibrate_drapes", "calibrate_parts", "synthetic_parts"),
 }

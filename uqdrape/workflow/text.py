@@ -7,6 +7,7 @@ from __future__ import annotations
 import inspect
 from pathlib import Path
 
+from ..conventions import version_text  # noqa: F401  (re-exported for the CLI)
 from ..geometry import KINDS
 
 
