@@ -4,13 +4,16 @@ A 4,000-realisation geodesic ensemble of an 11 x 11 net (28 MB, 40 regions of 10
 realisations, 0.7 MB each) is written to a file:// store. Its per-node statistics are
 computed lazily from the store under tracemalloc (numpy's and zarr's buffers are
 traced), with dask's block size set to 512 KiB so that the ensemble is many blocks:
-the peak must not grow with the ensemble (its first 1,000 realisations against all
-4,000) and must stay below one variable of the ensemble (the node shear, 3.9 MB),
-which a single rechunk of the variable to whole columns held at once (8.15 MB at 4,000
-against 5.21 MB at 1,000 with the same settings, failing both assertions; blocks of
-nodes each read with every realisation: 3.25 and 3.04 MB; the order statistics narrowed
-by histograms, ``stats.summary.order_statistics``: 3.66 and 3.26 MB). The numbers equal
-those of the ensemble in memory.
+the peak must not grow with the ensemble: from its first 1,000 realisations to all
+4,000 it may rise by less than a quarter and by less than a third of the node shear the
+three extra thousand add (0.97 MB), which a single rechunk of the variable to whole
+columns held at once fails (8.15 MB at 4,000 against 5.21 MB at 1,000 with the same
+settings: +2.94 MB; blocks of nodes each read with every realisation: 3.25 and 3.04 MB;
+the order statistics narrowed by histograms, ``stats.summary.order_statistics``: 3.26 to
+3.66 MB here, 3.86 to 3.90 MB in CI). The peak is not compared with the whole shear
+(3.87 MB): about 3.3-3.9 MB of it is the same at any size (dask's graph, zarr's
+metadata, the statistics' own arrays), so that margin was noise (CI measured 3.90 MB
+once). The numbers equal those of the ensemble in memory.
 ``uqdrape export --to netcdf`` of the store streams it: its peak stays below a quarter
 of the ensemble (4.7 MB measured).
 """
@@ -59,8 +62,9 @@ def test_store_statistics_memory_does_not_grow_with_the_ensemble(tmp_path):
             stats, peaks[n] = peak_bytes(lambda: node_statistics(open_ensemble(url).isel(realization=slice(0, n))))
     print(f"peak traced memory: {peaks[1000] / 1e6:.2f} MB for 1,000 realisations, {peaks[4000] / 1e6:.2f} MB for "
           f"4,000 (ensemble {full.nbytes / 1e6:.1f} MB, its shear {shear_bytes / 1e6:.2f} MB)")
-    assert peaks[REALIZATIONS] < 1.25 * peaks[REALIZATIONS // 4]
-    assert peaks[REALIZATIONS] < shear_bytes
+    growth = peaks[REALIZATIONS] - peaks[REALIZATIONS // 4]
+    assert growth < 0.25 * peaks[REALIZATIONS // 4]
+    assert growth < (shear_bytes - shear_bytes // 4) / 3  # a whole column in memory would add all of it
     _, peaks["netcdf"] = peak_bytes(lambda: export_result(url, ["netcdf"], out=tmp_path / "all.nc"))
     print(f"peak traced memory of export --to netcdf: {peaks['netcdf'] / 1e6:.2f} MB")
     assert peaks["netcdf"] < full.nbytes / 4  # streamed: a few chunks of every variable, not the ensemble
