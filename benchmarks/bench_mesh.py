@@ -11,7 +11,7 @@ point-triangle closest points over every face whose box lies within |phi| of the
 the same distance computed another way).
 
 ``python benchmarks/bench_mesh.py --drape [--repeats 7]`` times geodesic and energy drapes
-on two meshes of the hemisphere against the analytic one (``drapes``).
+on four meshes of the hemisphere against the analytic one (``drapes``).
 """
 
 import argparse
@@ -76,11 +76,13 @@ def _query_costs(surfaces, nodes, repeats):
 
 
 def drapes(repeats):
-    """Drape time on two meshes of Hemisphere(100) against the closed form, the same nets,
+    """Drape time on four meshes of Hemisphere(100) against the closed form, the same nets,
     interleaved ``repeats`` times in one run (CPU time of one thread; medians): its height
     field exported on a 1 mm plan grid (whose facets near the vertical rim are up to 14 mm
-    long down the slope) and an icosphere's cap (the nets' nodes all lie on the dome, at
-    plan radii below 99.7 mm, so the ground plane the cap lacks is never reached)."""
+    long down the slope) and an icosphere's cap at three refinements, edges 3.6, 1.8 and
+    0.9 mm (the nets' nodes all lie on the dome, at plan radii below 99.7 mm, so the ground
+    plane the cap lacks is never reached): the mesh's size sets how often a node's first
+    search misses the cache."""
     from uqdrape.drape import drape
     from uqdrape.geometry import Hemisphere, export_stl
     from uqdrape.material import load_material
@@ -88,12 +90,13 @@ def drapes(repeats):
     analytic = Hemisphere(100.0)
     with tempfile.TemporaryDirectory() as folder:
         folder = Path(folder)
-        cap = _icosphere_cap(100.0, 7)
-        cap.export(folder / "cap.stl")
-        edge = np.median(cap.edges_unique_length)
         meshes = {"plan grid 1 mm": MeshSurface(export_stl(analytic, folder / "grid.stl", half_width=150.0,
-                                                             resolution_mm=1.0)),
-                  f"icosphere cap, edges {edge:.2f} mm": MeshSurface(folder / "cap.stl")}
+                                                             resolution_mm=1.0))}
+        for subdivisions in (5, 6, 7):  # caps of about 10,000, 41,000 and 164,000 faces
+            cap = _icosphere_cap(100.0, subdivisions)
+            cap.export(folder / f"cap{subdivisions}.stl")
+            edge = np.median(cap.edges_unique_length)
+            meshes[f"icosphere cap, edges {edge:.2f} mm"] = MeshSurface(folder / f"cap{subdivisions}.stl")
     surfaces = {"analytic": analytic, **meshes}
     rng = np.random.default_rng(4)
     cases = {
