@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 from ..files import write_text_atomic
+from .ensemble_figures import RISK_CMAP
 from .figures import panels, save
 from .style import NOTE_PT, canvas, check_formats, styled, vector_formats
 from .page import figures_html, page, provenance, provenance_line
@@ -177,24 +178,28 @@ def plot_sectors(ds: xr.Dataset, path, surface) -> Path:
 
 @styled
 def plot_risk_maps(ds: xr.Dataset, path) -> Path:
-    """P(node locked) of the baseline and the optimum design (validation sample), in plan."""
+    """P(node locked) of the baseline and the optimum design (validation sample), in plan,
+    on one colour scale from 0 to the larger of the two maps' maxima: a design's
+    probabilities are small (a few drapes of 64), and on a 0-1 scale they would read as
+    blank paper."""
     roles = ("baseline", "optimum")
     n = _n_forces(ds)
     val = _validation(ds)
+    top = max(float(ds[f"{role}_node_p_locked"].max()) for role in roles) or 1.0
     fig, axes = panels(2, size=(5.5, 4.8))
     for ax, role in zip(axes, roles):
         p = ds[f"{role}_node_p_locked"].values.ravel()
         x, y = ds[f"{role}_node_x"].values.ravel(), ds[f"{role}_node_y"].values.ravel()
         ax.scatter(x[p == 0], y[p == 0], s=3, color="0.8", label="P = 0", rasterized=True)
         hot = p > 0
-        im = ax.scatter(x[hot], y[hot], c=p[hot], s=10, cmap="Reds", vmin=0, vmax=1, rasterized=True)
+        im = ax.scatter(x[hot], y[hot], c=p[hot], s=10, cmap=RISK_CMAP, vmin=0, vmax=top, rasterized=True)
         if not hot.any():
             ax.legend(loc="upper right")
         ax.set_aspect("equal")
         ax.set_title(f"{role}: total {sum(val[role]['x'][:n]):.0f} N, max P = {float(p.max()):.2f}")
         ax.set_xlabel("x (mm)")
         ax.set_ylabel("y (mm)")
-    fig.colorbar(im, ax=axes, label="P(node next to a locked cell), validation sample")
+    fig.colorbar(im, ax=axes, label=f"P(node next to a locked cell), validation sample (scale 0-{top:.2g})")
     return save(fig, path)
 
 
