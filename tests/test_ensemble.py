@@ -22,7 +22,7 @@ import xarray as xr
 from uqdrape.ensemble import (
     design_variables, drape_inputs, inputs_from_design, open_ensemble, sampled_inputs,
 )
-from uqdrape.ensemble.store import read_manifest
+from uqdrape.ensemble import read_manifest
 from uqdrape.stats import varying_factors
 from uqdrape.study import FACTOR_SETTINGS, load_study
 from uqdrape.workflow import run_study

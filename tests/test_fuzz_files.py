@@ -31,10 +31,12 @@ import pytest
 import trimesh
 
 import uqdrape.cli as cli
-import uqdrape.ensemble.run as run_module
+from uqdrape.ensemble.location import plan_chunks
 from conftest import assert_one_line_error, write_study
 from uqdrape.ensemble.hygiene import LOCK, run_lock
-from uqdrape.ensemble.store import MANIFEST, open_ensemble, read_manifest
+from uqdrape.ensemble import open_ensemble, read_manifest
+from uqdrape.ensemble.location import MANIFEST
+from uqdrape.ensemble.store import Folder, chunk_intact
 from uqdrape.calibration import read_points
 from uqdrape.experimental import read_experimental
 from uqdrape.geometry import build
@@ -126,7 +128,7 @@ def bases(tmp_path_factory):
     run_it(load_study(run_study), scheduler="synchronous", progress=False)
     resumed = load_study(run_study)
     chunk = sorted((run / "chunks").glob("*.nc"))[0]
-    chunk_plan = run_module.plan_chunks(resumed, resumed.chunk_size)[0]
+    chunk_plan = plan_chunks(resumed, resumed.chunk_size)[0]
     mesh = trimesh.creation.icosphere(subdivisions=1, radius=50.0)
     mesh.export(d / "m.stl")
     mesh.export(d / "m.obj")
@@ -137,14 +139,13 @@ def bases(tmp_path_factory):
 
     def manifest(path):
         if read_manifest(path.parent) is not None:  # as a resuming run reads it, then a report
-            run_module._kept_chunks(path.parent, resumed.to_dict(), resumed, resumed.chunk_size,
-                                    resumed.realizations, True)
+            Folder(path.parent).plan(resumed, resumed.to_dict(), resumed.chunk_size, resumed.realizations, True)
             if len(opened) < MAX_OPENED:
                 opened.append(path)
                 open_ensemble(path.parent).close()
 
     def intact(path):  # as a resuming run checks it, then as a report opens it (a report does not check)
-        if run_module.chunk_intact(path, chunk_plan):
+        if chunk_intact(path, chunk_plan):
             if len(opened) >= MAX_INTACT_OPENED:
                 return
             opened.append(path)

@@ -13,7 +13,7 @@ import pytest
 import xarray as xr
 
 from uqdrape import design
-from uqdrape.ensemble import read_dataset
+from uqdrape.ensemble import at
 from uqdrape.study import load_study
 from uqdrape.workflow import run_design, run_report
 
@@ -33,7 +33,7 @@ def test_design_in_a_store_equals_the_folders_resumes_and_reports(tmp_path, s3, 
     folder = run_design(study, scheduler="synchronous", progress=False, drape=synthetic_drape)
     url = {"file": f"file://{tmp_path}/store", "s3": f"s3://runs/design-{tmp_path.name}"}[kind]
     assert run_design(study, output_dir=url, scheduler="synchronous", progress=False, drape=synthetic_drape) == url
-    want, got = xr.load_dataset(folder / design.DESIGN_FILE), read_dataset(url, design.DESIGN_FILE)
+    want, got = xr.load_dataset(folder / design.DESIGN_FILE), at(url).read_dataset(design.DESIGN_FILE)
     for ds in (want, got):
         del ds.attrs["wall_time_s"]
     xr.testing.assert_identical(want, got)
@@ -41,7 +41,7 @@ def test_design_in_a_store_equals_the_folders_resumes_and_reports(tmp_path, s3, 
     records = sorted(p.rsplit("/", 1)[-1] for p in fs.ls(f"{root}/{design.EVALUATIONS}"))
     assert records == sorted(p.name for p in (folder / design.EVALUATIONS).iterdir()) and len(records) > 3
     again = run_design(study, output_dir=url, scheduler="synchronous", progress=False, drape=no_drape)
-    resumed = read_dataset(again, design.DESIGN_FILE)
+    resumed = at(again).read_dataset(design.DESIGN_FILE)
     np.testing.assert_array_equal(resumed["x"].values, want["x"].values)
     index = run_report(url)
     assert index == f"{url}/report/index.html"

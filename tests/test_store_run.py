@@ -17,7 +17,7 @@ import xarray as xr
 
 from uqdrape.cli import main
 from uqdrape.ensemble import open_ensemble, read_manifest, run_ensemble
-from uqdrape.ensemble.zarrstore import DONE, LOCK, run_store
+from uqdrape.ensemble.zarrstore import DONE, LOCK
 from uqdrape.study import load_study
 from uqdrape.workflow import run_study
 
@@ -139,13 +139,13 @@ def test_a_lock_left_by_a_killed_run_on_this_host_is_taken_over(tmp_path):
     (tmp_path / "store").mkdir()
     (tmp_path / "store" / LOCK).write_text(json.dumps({"pid": gone, "host": socket.gethostname(),
                                                        "started": "earlier"}))
-    run_store(study, url, scheduler="synchronous", progress=False)
+    run_ensemble(study, output_dir=url, scheduler="synchronous", progress=False)
     assert not (tmp_path / "store" / LOCK).exists() and open_ensemble(url).sizes["realization"] == 20
     (tmp_path / "store" / LOCK).write_text(json.dumps({"pid": os.getpid(), "host": socket.gethostname(),
                                                        "started": "now"}))
     with pytest.raises(OSError, match=rf"another run holds run.lock of this store \(pid {os.getpid()} on "
                                       rf"{socket.gethostname()}, started now\)") as err:
-        run_store(study, url, scheduler="synchronous", progress=False)
+        run_ensemble(study, output_dir=url, scheduler="synchronous", progress=False)
     assert err.value.errno == errno.EBUSY
 
 

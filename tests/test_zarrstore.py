@@ -13,8 +13,7 @@ import pytest
 import xarray as xr
 
 from uqdrape.ensemble import open_ensemble, run_ensemble
-from uqdrape.ensemble.zarrstore import (DATA, DONE, LOCK, MANIFEST, PROBE, ZARR_FORMAT, check_store, done_regions,
-                                        read_store_manifest, run_store, write_store_manifest)
+from uqdrape.ensemble.zarrstore import DATA, DONE, LOCK, MANIFEST, PROBE, ZARR_FORMAT, ZarrStore, check_store
 from uqdrape.stats import node_statistics
 from uqdrape.study import load_study
 
@@ -51,14 +50,14 @@ def test_store_from_two_workers_equals_folder(reference, tmp_path):
     ds = open_ensemble(url)
     assert ds["shear"].chunks[1] == (7, 7, 6)  # lazy, one dask chunk per region
     same(ref, ds.load())
-    assert done_regions(url) == {f"f{k:03d}-r{a:07d}-{min(a + 6, 19):07d}.nc" for k in (0, 1) for a in (0, 7, 14)}
+    assert ZarrStore(url).done() == {f"f{k:03d}-r{a:07d}-{min(a + 6, 19):07d}.nc" for k in (0, 1) for a in (0, 7, 14)}
     assert not (tmp_path / "store" / LOCK).exists()
 
 
 def test_statistics_read_store_lazily(reference, tmp_path):
     study, ref = reference
     url = "memory://zarr28-stats"
-    run_store(study, url, scheduler="synchronous", progress=False)
+    run_ensemble(study, output_dir=url, scheduler="synchronous", progress=False)
     lazy = open_ensemble(url)
     assert lazy["shear"].data.__class__.__module__.startswith("dask")
     with open_ensemble(study.output_dir) as folder:  # the same dask chunks, so the same sums
@@ -68,7 +67,7 @@ def test_statistics_read_store_lazily(reference, tmp_path):
 def test_resume_redoes_only_unmarked_regions(reference, tmp_path, capsys):
     study, ref = reference
     url = f"file://{tmp_path}/store"
-    run_store(study, url, scheduler="synchronous", progress=False)
+    run_ensemble(study, output_dir=url, scheduler="synchronous", progress=False)
     lost = "f001-r0000007-0000013.nc"
     (tmp_path / "store" / DONE / lost).unlink()  # a killed writer: its region half-written, no marker
     z = xr.open_zarr(f"{tmp_path}/store/{DATA}")
@@ -78,7 +77,7 @@ def test_resume_redoes_only_unmarked_regions(reference, tmp_path, capsys):
     kept = {p.name: p.stat().st_mtime_ns for p in (tmp_path / "store" / DONE).iterdir()}
     with pytest.raises(FileNotFoundError, match="1 of 6 regions not done"):
         open_ensemble(url)
-    run_store(study, url, scheduler="synchronous", progress=True)
+    run_ensemble(study, output_dir=url, scheduler="synchronous", progress=True)
     assert "5 of 6 regions already done" in capsys.readouterr().err
     assert {p.name: p.stat().st_mtime_ns for p in (tmp_path / "store" / DONE).iterdir() if p.name in kept} == kept
     same(ref, open_ensemble(url).load())
@@ -87,7 +86,7 @@ def test_resume_redoes_only_unmarked_regions(reference, tmp_path, capsys):
 def test_bad_url_is_one_line_oserror(reference):
     study, _ = reference
     with pytest.raises(OSError, match="not a store URL fsspec can open") as err:
-        run_store(study, "nosuchproto://x/y", scheduler="synchronous", progress=False)
+        run_ensemble(study, output_dir="nosuchproto://x/y", scheduler="synchronous", progress=False)
     assert "\n" not in str(err.value)
 
 
@@ -100,7 +99,7 @@ def test_a_failed_manifest_write_leaves_the_old_manifest(tmp_path, monkeypatch, 
     url = url.format(tmp=tmp_path)
     old, new = ({"study": {"study": {"name": name}}, "chunk_size": 10, "realizations": n,
                  "chunks": [f"r{k:07d}-{k + 9:07d}.nc" for k in range(0, n, 10)]} for name, n in (("old", 10), ("new", 20)))
-    write_store_manifest(url, old)
+    ZarrStore(url).write_manifest(old)
     fs, root = fsspec.core.url_to_fs(url)
     put = type(fs).pipe_file
 
@@ -110,12 +109,12 @@ def test_a_failed_manifest_write_leaves_the_old_manifest(tmp_path, monkeypatch, 
 
     monkeypatch.setattr(type(fs), "pipe_file", half_then_full)
     with pytest.raises(OSError, match="No space left"):
-        write_store_manifest(url, new)
+        ZarrStore(url).write_manifest(new)
     monkeypatch.undo()
-    assert read_store_manifest(url) == old
+    assert ZarrStore(url).read_manifest() == old
     assert not fs.exists(f"{root}/{MANIFEST}.part")
-    write_store_manifest(url, new)
-    assert read_store_manifest(url) == new and not fs.exists(f"{root}/{MANIFEST}.part")
+    ZarrStore(url).write_manifest(new)
+    assert ZarrStore(url).read_manifest() == new and not fs.exists(f"{root}/{MANIFEST}.part")
 
 
 def test_a_probe_left_by_a_killed_process_is_removed_by_the_next(monkeypatch):
@@ -154,7 +153,7 @@ def test_a_probe_left_by_a_killed_process_is_removed_by_the_next(monkeypatch):
 def test_s3_store_equals_folder(reference, s3):
     study, ref = reference
     url = "s3://runs/tiny"
-    run_store(study, url, scheduler="synchronous", progress=False)
+    run_ensemble(study, output_dir=url, scheduler="synchronous", progress=False)
     assert s3.exists(f"runs/tiny/{DATA}/zarr.json") and not s3.exists(f"runs/tiny/{LOCK}")
     same(ref, open_ensemble(url).load())
 
@@ -163,7 +162,7 @@ def test_s3_second_writer_refused(reference, s3):
     study, _ = reference
     s3.pipe_file(f"runs/busy/{LOCK}", b'{"pid": 1, "host": "elsewhere", "started": "now"}')
     with pytest.raises(OSError, match="another run holds run.lock") as err:
-        run_store(study, "s3://runs/busy", scheduler="synchronous", progress=False)
+        run_ensemble(study, output_dir="s3://runs/busy", scheduler="synchronous", progress=False)
     assert err.value.errno == errno.EBUSY and "\n" not in str(err.value)
     assert not s3.exists(f"runs/busy/{DATA}")  # nothing written past the lock
 
@@ -171,12 +170,12 @@ def test_s3_second_writer_refused(reference, s3):
 def test_s3_missing_bucket(reference, s3):
     study, _ = reference
     with pytest.raises(OSError, match="bucket 'nosuchbucket' does not exist") as err:
-        run_store(study, "s3://nosuchbucket/x", scheduler="synchronous", progress=False)
+        run_ensemble(study, output_dir="s3://nosuchbucket/x", scheduler="synchronous", progress=False)
     assert "\n" not in str(err.value)
 
 
 def test_s3_no_credentials(reference, no_s3_credentials):
     study, _ = reference
     with pytest.raises(OSError, match="Unable to locate credentials.*credentials in the environment") as err:
-        run_store(study, "s3://runs/nocreds", scheduler="synchronous", progress=False)
+        run_ensemble(study, output_dir="s3://runs/nocreds", scheduler="synchronous", progress=False)
     assert err.value.errno == errno.EIO and "\n" not in str(err.value)

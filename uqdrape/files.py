@@ -152,16 +152,12 @@ def inside(name: str) -> bool:
     return os.path.normpath(name).split(os.sep, 1)[0] != os.pardir
 
 
-def is_url(target) -> bool:
-    """Whether ``target`` names a location by fsspec URL (``s3://bucket/prefix``,
-    ``file:///abs/path``, ``memory://name``) rather than a local path."""
-    return isinstance(target, str) and "://" in target
-
-
 def location(target) -> Path | str:
-    """An output location as written: a URL stays a string (a Path would fold its '//'),
-    anything else is a Path."""
-    return target if is_url(target) else Path(target)
+    """An output location as written: an fsspec URL (``s3://bucket/prefix``,
+    ``file:///abs/path``, ``memory://name``) stays a string (a Path would fold its '//'),
+    anything else is a Path. The one place a URL is told from a path: the run's storage
+    is chosen by it (``uqdrape.ensemble.storage.at``)."""
+    return target if isinstance(target, str) and "://" in target else Path(target)
 
 
 def fmt(value) -> str:

@@ -15,7 +15,7 @@ import numpy as np
 import xarray as xr
 
 from ..drape import max_shear_lines
-from ..ensemble import Progress, compute_tasks, drape_inputs, read_dataset, sampled_inputs, write_dataset
+from ..ensemble import Progress, at, compute_tasks, drape_inputs, sampled_inputs
 from ..stats import realization_qois
 from ..study import identity
 from .estimators import RARE, per_realization, rare_interval, statistics
@@ -68,7 +68,7 @@ class Evaluator:
     """Drapes batches of designs on the design or the validation sample, each design once:
     records are cached in ``folder`` (None: in memory only) under a key of the study, the
     sample and the design vector, in the run folder or store URL ``folder``'s
-    ``evaluations/`` (``uqdrape.ensemble.location``). ``drape`` is the task that drapes one chunk
+    ``evaluations/`` (``uqdrape.ensemble.at``). ``drape`` is the task that drapes one chunk
     (:func:`drape_design`; a test passes a synthetic one through the same pipeline). With a
     ``[design] rare`` constraint, ``rare`` estimates it for one design (its :func:`variant` of
     the sample's study -> {probability, cov, drapes, method, ...}:
@@ -78,7 +78,7 @@ class Evaluator:
                  drape=drape_design, pool=None, rare=None):
         self.prob, self.scheduler, self.workers, self.progress = prob, scheduler, workers, progress
         self.pool = pool
-        self.folder = folder
+        self.folder = None if folder is None else at(folder)
         self.drape = drape
         if prob.spec.rare is not None and rare is None:
             raise ValueError("a [design] rare constraint needs its estimator (rare=)")
@@ -130,7 +130,7 @@ class Evaluator:
                 self.order.append((sample, key, x))
             if key in self.records or key in todo:
                 continue
-            record = None if self.folder is None else read_dataset(self.folder, f"{EVALUATIONS}/{key}.nc")
+            record = None if self.folder is None else self.folder.read_dataset(f"{EVALUATIONS}/{key}.nc")
             if record is not None:
                 self.records[key] = record
                 self.kept += 1
@@ -172,5 +172,5 @@ class Evaluator:
                           f" (CoV {estimate['cov']:.2f}, {estimate['drapes']:,} drapes, {estimate['method']})",
                           file=sys.stderr)
             if self.folder is not None:
-                write_dataset(self.folder, f"{EVALUATIONS}/{key}.nc", record)
+                self.folder.write_dataset(f"{EVALUATIONS}/{key}.nc", record)
             self.records[key] = record

@@ -12,6 +12,8 @@ force each drape was run with in ``applied_blankholder_force``.
 from __future__ import annotations
 
 import errno
+import functools
+import json
 import shutil
 from pathlib import Path
 
@@ -19,11 +21,38 @@ import numpy as np
 import xarray as xr
 
 from .. import files
+from .. import geometry as _geometry
 from ..drape import drape
 from ..material import load_material
 from ..material.scatter import card_scatter, scattered
-from ..schema import SOLVER_INPUTS
+from ..schema import SOLVER_INPUTS, at_level
 from ..study.spec import CARD
+from .inputs import inputs_from_design, sampled_inputs
+
+
+@functools.lru_cache(maxsize=2)
+def _mould(kind: str, params: str, stamp):
+    """A mould built once per process (``stamp``: the version of the file it reads), so a
+    mesh tool is read and packed once, not for every chunk."""
+    return _geometry.build(kind, **json.loads(params))
+
+
+def study_mould(study):
+    """The study's mould from the process's cache (``_mould``), keyed by its parameters and,
+    for a mould read from a file, the file's modification time and size."""
+    g = study.geometry
+    path = g.params.get("path")
+    stat = Path(path).stat() if path is not None else None
+    return _mould(g.kind, json.dumps(g.params, sort_keys=True), stat and (stat.st_mtime_ns, stat.st_size))
+
+
+def drape_chunk(study, realizations, force: float, design_rows=None) -> xr.Dataset:
+    """The task every run drapes: realisations ``realizations`` of the study's sample, or
+    the design rows ``design_rows`` (one per realisation), at force level ``force`` (N),
+    in the ensemble layout (``uqdrape.schema.at_level``)."""
+    r = np.asarray(realizations)
+    inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows)
+    return at_level(drape_inputs(study, r, inputs, force=force), force)
 
 
 def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None, material=None) -> xr.Dataset:
@@ -32,7 +61,8 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
     study's fixed ones. ``force`` (N) must be one of the study's blank-holder force
     levels (None: the only level of a study without a sweep). Returns the solver's drape
     Dataset (the force per realisation). ``surface`` / ``material`` may be passed to reuse
-    them (default: built from the study)."""
+    them (default: the study's mould from the process's cache, :func:`study_mould`, and
+    its material loaded)."""
     r = np.asarray(realizations, dtype=np.int64)
     levels = study.force_levels
     if (force is None and study.is_sweep) or (force is not None and float(force) not in levels):
@@ -46,7 +76,7 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
     R = len(r)
     value = {name: np.broadcast_to(inputs.get(name, fixed), (R,)) for name, fixed in settings.items()}
     ds = drape(
-        study.geometry.build_mould() if surface is None else surface,
+        study_mould(study) if surface is None else surface,
         fabric.spacing_mm, solver.rings,
         orientation=value["orientation"], pre_shear=value["pre_shear"], skew=value["skew"],
         crossover=np.stack([value["crossover_x"], value["crossover_y"]], axis=-1),

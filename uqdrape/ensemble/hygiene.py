@@ -155,34 +155,50 @@ def _alive(pid: int) -> bool:
 
 
 @contextlib.contextmanager
-def run_lock(out: Path):
-    """Hold ``out/run.lock`` for the duration of a run; raise RunLocked if a live run holds it."""
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / LOCK
-    mine = out / f".{LOCK}.{os.getpid()}.{threading.get_ident()}"
-    mine.write_text(json.dumps(lock_record()), encoding="utf-8")
-    try:
-        while True:
-            try:
-                os.link(mine, path)  # atomic, and the lock has its content from its first moment
-                break
-            except FileExistsError:
-                pass
-            try:
-                owner = lock_owner(path.read_bytes())
-            except OSError:
-                owner = None
-            if owner is None:
-                raise RunLocked(errno.EBUSY, f"{LOCK} is not a lock uqdrape wrote; delete it if no run is writing "
-                                "to this folder", str(out)) from None
-            if not stale(owner):
-                raise RunLocked(errno.EBUSY, f"another run (pid {owner['pid']} on {owner['host']}, started "
-                                f"{owner['started']}) is writing to this folder; wait for it, or use another "
-                                f"--out (delete {LOCK} only if that run is certainly gone)", str(out)) from None
-            path.unlink(missing_ok=True)  # stale: its run on this host is gone
-    finally:
-        mine.unlink(missing_ok=True)
+def hold_lock(where, kind: str, create, read, remove):
+    """Hold the lock of the run at ``where`` (a ``kind``: "folder", "store") for the block:
+    ``create(record)`` makes the lock whole with the bytes given, or raises
+    FileExistsError if one exists; ``read()`` its bytes; ``remove()`` deletes it. An
+    existing lock of a run gone from this host is taken over (once); a live run's, one
+    from another host, or one uqdrape did not write raise RunLocked naming ``where``."""
+    taken = False
+    while True:
+        try:
+            create(json.dumps(lock_record()).encode())
+            break
+        except FileExistsError:
+            pass
+        try:
+            owner = lock_owner(read())
+        except OSError:
+            owner = None
+        if owner is None:
+            raise RunLocked(errno.EBUSY, f"{LOCK} is not a lock uqdrape wrote; delete it if no run is writing "
+                            f"to this {kind}", str(where)) from None
+        if taken or not stale(owner):
+            raise RunLocked(errno.EBUSY, f"another run holds {LOCK} of this {kind} (pid {owner['pid']} on "
+                            f"{owner['host']}, started {owner['started']}); wait for it, or use another --out "
+                            f"(delete {LOCK} only if that run is certainly gone)", str(where)) from None
+        remove()  # stale: its run on this host is gone
+        taken = True
     try:
         yield
     finally:
-        path.unlink(missing_ok=True)
+        remove()
+
+
+def run_lock(out: Path):
+    """Hold ``out/run.lock`` for the duration of a run (:func:`hold_lock`), created whole:
+    written beside, then hard-linked into place, so it never exists empty."""
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / LOCK
+
+    def create(record: bytes):
+        mine = out / f".{LOCK}.{os.getpid()}.{threading.get_ident()}"
+        mine.write_bytes(record)
+        try:
+            os.link(mine, path)  # atomic, and the lock has its content from its first moment
+        finally:
+            mine.unlink(missing_ok=True)
+
+    return hold_lock(out, "folder", create, path.read_bytes, lambda: path.unlink(missing_ok=True))

@@ -1,77 +1,222 @@
-"""Where a run lives, for everything that reads one: a run folder (a plain path: netCDF
-chunk files, ``uqdrape.ensemble.store``) or one zarr store (an fsspec URL:
-``uqdrape.ensemble.zarrstore``).
+"""Where a run lives: the one storage interface of uqdrape's ensembles.
 
-``open_ensemble`` and ``read_manifest`` take either. The files made beside a run's
-ensemble go through here: a run's own netCDF files (sensitivity indices, a design's
-``design.nc``) by :func:`read_dataset` / :func:`write_dataset`, the folders of files made
-from it (a report, exports) by :func:`made_from`. In a run folder they are files in it;
-in a store, objects under its URL, each put whole (``zarrstore.publish``).
+A run's *location* is chosen once, from a path or a URL, by ``uqdrape.ensemble.storage.at``:
+a run folder of netCDF chunk files (a plain path: ``store.Folder``) or one zarr store on
+any fsspec URL (``zarrstore.ZarrStore``). Each offers what the run loop
+(``uqdrape.ensemble.run``) and every reader need: plan what an earlier run keeps,
+prepare a run under its lock, write one chunk, check the chunks, read and write the
+manifest, read and write the files beside the ensemble (rare and design records,
+sensitivity indices, reports, exports: each whole), name the twin's location inside it,
+and open the ensemble lazily. This module holds what both share: the chunk plan and the
+checks of a resumed run.
 """
 
 from __future__ import annotations
 
 import contextlib
-import tempfile
+import errno
+import json
+import re
+from dataclasses import dataclass
 from pathlib import Path
 
 import xarray as xr
 
+from ..files import write_text_atomic
+from ..stochastic.sampling import extension_problem
+from ..study import Study, identity
 from .chunk import write_atomic
-from ..files import is_url
-from .zarrstore import fetch, publish
+
+#: The manifest and the lock of a run, in a folder or a store alike.
+MANIFEST = "run.json"
+LOCK = "run.lock"
+
+#: A chunk file's name: ``r<first>-<last>.nc``, prefixed ``f<level>-`` in a sweep (and never a path).
+CHUNK_NAME = re.compile(r"^(f\d{3}-)?r\d{7}-\d{7}\.nc$")
+#: Largest run manifest read (bytes): a million chunk names take about 30 MB.
+MAX_MANIFEST_BYTES = 64 * 2**20
 
 
-def run_name(run) -> str:
-    """The last part of a run folder's path or a store's URL (``s3://b/runs/x`` -> ``x``)."""
-    return str(run).rstrip("/").rsplit("/", 1)[-1] if is_url(run) else Path(run).name
+def corrupt_manifest(where, why: str) -> OSError:
+    """The one-line error for a manifest at ``where`` (path or URL) that is not one uqdrape wrote."""
+    return OSError(errno.EIO, f"not a uqdrape run manifest ({why}); run the study again with --no-resume, "
+                              "or delete the folder", str(where))
 
 
-def read_dataset(run, name: str) -> xr.Dataset | None:
-    """The run's own netCDF file ``name`` (e.g. ``sensitivity.nc``), read into memory;
-    None if the run has none. OSError / ValueError as xarray's for an unreadable file."""
-    if not is_url(run):
-        path = Path(run) / name
-        return xr.load_dataset(path, engine="netcdf4") if path.is_file() else None
-    with tempfile.TemporaryDirectory(prefix="uqdrape-") as tmp:
-        local = Path(tmp) / name
-        return xr.load_dataset(local, engine="netcdf4") if fetch(run, name, local) else None
+def parse_manifest(text: bytes, where) -> dict:
+    """The manifest in ``text`` (read from ``where``), checked as :func:`read_manifest` says."""
+    try:
+        manifest = json.loads(text.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError) as err:
+        raise corrupt_manifest(where, f"not JSON text: {type(err).__name__}") from None
+    if not isinstance(manifest, dict):
+        raise corrupt_manifest(where, "not a JSON object")
+    study, chunks, size = manifest.get("study"), manifest.get("chunks"), manifest.get("chunk_size")
+    if not (isinstance(study, dict) and all(isinstance(v, dict) for v in study.values())
+            and isinstance(study.get("study"), dict)):
+        raise corrupt_manifest(where, '"study" must be the study record, a table of sections')
+    if not (isinstance(chunks, list) and all(isinstance(c, str) and CHUNK_NAME.match(c) for c in chunks)):
+        raise corrupt_manifest(where, '"chunks" must be a list of chunk file names such as r0000000-0000063.nc')
+    if isinstance(size, bool) or not isinstance(size, int) or size < 1:
+        raise corrupt_manifest(where, '"chunk_size" must be a positive integer')
+    wall = manifest.get("wall_time_s", 0.0)
+    if isinstance(wall, bool) or not isinstance(wall, (int, float)) or not 0 <= wall < 1e9:
+        raise corrupt_manifest(where, '"wall_time_s" must be a number of seconds')
+    return manifest
 
 
-def write_dataset(run, name: str, ds: xr.Dataset, encoding: dict | None = None) -> Path | str:
-    """Write ``ds`` as the run's own netCDF file ``name``, whole (a run folder: written
-    beside, then renamed; a store: uploaded, then moved); return its path or URL."""
-    if not is_url(run):
-        return write_atomic(ds, Path(run) / name, encoding)
-    with tempfile.TemporaryDirectory(prefix="uqdrape-") as tmp:
-        publish(write_atomic(ds, Path(tmp) / name, encoding), run, name)
-    return f"{str(run).rstrip('/')}/{name}"
+@dataclass(frozen=True)
+class Chunk:
+    """Realisations start..stop-1 at blank-holder force ``force`` (N); ``name`` its file's."""
+
+    start: int
+    stop: int
+    force: float
+    name: str
 
 
-@contextlib.contextmanager
-def made_from(run, sub: str):
-    """A local folder for the files made from ``run`` into its subfolder ``sub`` (its
-    report, its exports): ``run/sub`` of a run folder. For a store, a temporary folder
-    whose files are put under ``URL/sub/`` when the block ends without error, in the
-    order they were written (a report's index.html last), each whole; a failed block
-    puts nothing. ``where(path)`` of the yielded folder names a file's final place."""
-    if not is_url(run):
-        yield Made(Path(run) / sub, None)
-        return
-    with tempfile.TemporaryDirectory(prefix="uqdrape-") as tmp:
-        made = Made(Path(tmp) / sub, f"{str(run).rstrip('/')}/{sub}")
-        yield made
-        for path in sorted((p for p in made.folder.rglob("*") if p.is_file()), key=lambda p: p.stat().st_mtime_ns):
-            publish(path, run, f"{sub}/{path.relative_to(made.folder).as_posix()}")
+_RANGE = re.compile(r"r(\d{7})-(\d{7})\.nc$")
+
+
+def plan_chunks(study: Study, chunk_size: int, realizations: int | None = None, kept=()) -> list[Chunk]:
+    """The chunks of a study: consecutive ranges of its realisations (default
+    ``study.realizations``; a sensitivity design's row count) at each force level, named
+    ``r<first>-<last>.nc``, prefixed ``f<level>-`` in a sweep. ``kept``: the chunk names of
+    an earlier run of the same study, whose ranges stay as they are (an extension); the
+    realisations after them are cut into ``chunk_size`` pieces."""
+    n = study.realizations if realizations is None else realizations
+    ranges = sorted({tuple(int(v) for v in _RANGE.search(name).groups()) for name in kept})
+    ranges = [(a, b + 1) for a, b in ranges]
+    start = ranges[-1][1] if ranges else 0
+    ranges += [(a, min(a + chunk_size, n)) for a in range(start, n, chunk_size)]
+    levels = study.force_levels
+    chunks = []
+    for k, force in enumerate(levels):
+        prefix = f"f{k:03d}-" if len(levels) > 1 else ""
+        chunks += [Chunk(a, b, force, f"{prefix}r{a:07d}-{b - 1:07d}.nc") for a, b in ranges]
+    return chunks
+
+
+def held(chunk_names) -> int:
+    """The realisations an earlier plan's chunk names cover."""
+    return max((int(_RANGE.search(name).group(2)) + 1 for name in chunk_names), default=0)
+
+
+def check_growth(where, study: Study, old_chunk_size: int, held: int, chunk_size: int, n: int) -> None:
+    """Raise ValueError (naming ``where``, a folder or a store) unless a run of ``held``
+    realisations in chunks of ``old_chunk_size`` can be resumed as ``n`` in chunks of
+    ``chunk_size``: the same chunk size, no fewer realisations, more only under a plan
+    that extends."""
+    if old_chunk_size != chunk_size:
+        raise ValueError(
+            f"{where} was run with --chunk-size {old_chunk_size}; resume with --chunk-size {old_chunk_size} "
+            "or run again with --no-resume")
+    if n < held:
+        raise ValueError(f"{where} holds {held} realisations, more than the {n} asked for: set "
+                         f"realizations >= {held} in [study], or run again with --no-resume")
+    why = extension_problem(study.sampling, held, n) if n > held else None
+    if why:
+        raise ValueError(f"{where} holds {held} realisations and cannot be extended to {n}: {why}; "
+                         "run again with --no-resume")
+
+
+def check_same_study(where, old: dict, provenance: dict) -> None:
+    """Raise ValueError naming the changed keys unless the run manifest ``old`` in ``where``
+    is of the study ``provenance`` describes (by ``identity``)."""
+    before, now = identity(old["study"]), identity(provenance)
+    if before != now:
+        changed = sorted(f"{section}.{key}" for section in set(before) | set(now)
+                         for key in set(before.get(section, {})) | set(now.get(section, {}))
+                         if before.get(section, {}).get(key) != now.get(section, {}).get(key))
+        raise ValueError(
+            f"{where} holds a run of a different study definition (changed: {', '.join(changed)}); "
+            "run again with --no-resume to replace it, or set another [output] directory")
+
+
+class Location:
+    """A run's place (``target``: a Path, or a store's URL). The backends define the
+    abstract operations; the side-file readers and writers here are built on
+    :meth:`reading` and :meth:`writing`."""
+
+    #: what the run's pieces are called in messages ("chunks" of a folder, "regions" of a store)
+    parts = "chunks"
+
+    def __init__(self, target):
+        self.target = target
+
+    def __str__(self) -> str:
+        return str(self.target)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({str(self.target)!r})"
+
+    def __fspath__(self) -> str:
+        return str(self.target)
+
+    @property
+    def name(self) -> str:
+        """The last part of the folder's path or the store's URL (``s3://b/runs/x`` -> ``x``)."""
+        return str(self.target).rstrip("/").rsplit("/", 1)[-1]
+
+    def child(self, sub: str) -> Location:
+        """The location ``sub`` inside this one (a fixed twin's)."""
+        return type(self)(self.path_of(sub))
+
+    def sibling(self, suffix: str) -> Location:
+        """The location beside this one, its name with ``suffix`` appended (another method's run)."""
+        return type(self)(str(self.target).rstrip("/") + suffix)
+
+    def path_of(self, name: str) -> Path | str:
+        """Where the file or folder ``name`` of the run lives: a path, or a URL in a store."""
+        raise NotImplementedError
+
+    def reading(self, name: str):
+        """Context manager: a local path holding the run's file ``name``, or None if it has none."""
+        raise NotImplementedError
+
+    def writing(self, name: str):
+        """Context manager: a local path to write the run's file or folder ``name`` at; in
+        place when the block ends without error, each file whole (a folder's files in the
+        order they were written, so a report's index.html is last)."""
+        raise NotImplementedError
+
+    def read_dataset(self, name: str) -> xr.Dataset | None:
+        """The run's own netCDF file ``name`` (e.g. ``sensitivity.nc``), loaded; None if the
+        run has none. OSError / ValueError as xarray's for an unreadable file."""
+        with self.reading(name) as path:
+            return None if path is None else xr.load_dataset(path, engine="netcdf4")
+
+    def write_dataset(self, name: str, ds: xr.Dataset, encoding: dict | None = None) -> Path | str:
+        """Write ``ds`` as the run's netCDF file ``name``, whole; return its path or URL."""
+        with self.writing(name) as path:
+            write_atomic(ds, path, encoding)
+        return self.path_of(name)
+
+    def read_text(self, name: str) -> str | None:
+        """The run's UTF-8 text file ``name`` (e.g. ``rare.json``), or None if it has none."""
+        with self.reading(name) as path:
+            return None if path is None else Path(path).read_text(encoding="utf-8")
+
+    def write_text(self, name: str, text: str) -> Path | str:
+        """Write ``text`` as the run's file ``name``, whole; return its path or URL."""
+        with self.writing(name) as path:
+            write_text_atomic(path, text)
+        return self.path_of(name)
+
+    @contextlib.contextmanager
+    def made_from(self, sub: str):
+        """A local folder for the files made from the run into its ``sub`` (a report,
+        exports), put in place as :meth:`writing` says; yields a :class:`Made`."""
+        with self.writing(sub) as local:
+            yield Made(self, sub, Path(local))
 
 
 class Made:
-    """The local ``folder`` of :func:`made_from` and, for a store, the URL it goes to."""
+    """The local ``folder`` of :meth:`Location.made_from`; :meth:`where` names a file's final place."""
 
-    def __init__(self, folder: Path, url: str | None):
-        self.folder, self.url = folder, url
+    def __init__(self, where: Location, sub: str, folder: Path):
+        self.location, self.sub, self.folder = where, sub, folder
 
     def where(self, path) -> Path | str:
-        """The final place of ``path`` written in the folder: itself, or its URL in the store."""
-        path = Path(path)
-        return path if self.url is None else f"{self.url}/{path.relative_to(self.folder).as_posix()}"
+        place, inner = self.location.path_of(self.sub), Path(path).relative_to(self.folder).as_posix()
+        return f"{place}/{inner}" if isinstance(place, str) else place / inner

@@ -8,9 +8,13 @@ so memory stays bounded by a chunk per worker. Realisation r's inputs depend onl
 study (see ``inputs``), so results are identical for any chunk size, worker count and
 scheduler.
 
-Resume: the run folder's manifest records the study (and, once the run is done, its wall
-time in s, summed over resumed calls); a rerun of the same study skips
-chunks whose final file exists (a ``.part`` file is an unfinished chunk and is redone).
+The run is written to a location (``uqdrape.ensemble.location``: a run folder of netCDF
+chunk files, or a zarr store on an fsspec URL), chosen once from the output path or URL
+(``storage.at``); this one loop plans, locks, prepares and drapes it on either.
+
+Resume: the run's manifest records the study (and, once the run is done, its wall time in
+s, summed over resumed calls); a rerun of the same study skips chunks already written
+(a folder's finished files, a store's regions marked done).
 
 Extension: ``realizations`` is not part of the resume identity. A finished (or
 interrupted) run resumed with more realisations keeps every chunk of its plan as it is,
@@ -28,33 +32,23 @@ the same chunks; what the outputs mean is not this package's business.
 from __future__ import annotations
 
 import contextlib
-import functools
+import errno
 import json
-import re
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import dask
-import errno
-import numpy as np
-import xarray as xr
 from dask.callbacks import Callback
 
 from .. import __version__
-from .. import geometry as _geometry
-from ..conventions import cf_encode
-from ..files import is_url, read_text
-from ..schema import FORCE, REALIZATION, at_level
-from ..study import Study, identity
+from ..files import read_text
+from ..study import Study
 from ..stochastic.inputs import positive_int
-from ..stochastic.sampling import extension_problem
-from .chunk import drape_inputs, write_atomic
-from .inputs import inputs_from_design, sampled_inputs
-from .hygiene import local_pool, orphaned, run_lock
+from .chunk import drape_chunk
+from .hygiene import local_pool
 from .progress import Progress
-from .store import CHUNKS, read_manifest, write_manifest
+from .storage import at
 
 #: dask schedulers in this process: a pool of local processes (default) or no
 #: parallelism at all (for debugging). Anything with "://" is a dask.distributed address.
@@ -63,140 +57,11 @@ LOCAL_SCHEDULERS = ("processes", "synchronous")
 SCHEDULER_TIMEOUT = 10
 
 
-@dataclass(frozen=True)
-class Chunk:
-    """Realisations start..stop-1 at blank-holder force ``force`` (N); ``name`` its file's."""
-
-    start: int
-    stop: int
-    force: float
-    name: str
-
-
-_RANGE = re.compile(r"r(\d{7})-(\d{7})\.nc$")
-
-
-def plan_chunks(study: Study, chunk_size: int, realizations: int | None = None, kept=()) -> list[Chunk]:
-    """The chunks of a study: consecutive ranges of its realisations (default
-    ``study.realizations``; a sensitivity design's row count) at each force level, named
-    ``r<first>-<last>.nc``, prefixed ``f<level>-`` in a sweep. ``kept``: the chunk names of
-    an earlier run of the same study, whose ranges stay as they are (an extension); the
-    realisations after them are cut into ``chunk_size`` pieces."""
-    n = study.realizations if realizations is None else realizations
-    ranges = sorted({tuple(int(v) for v in _RANGE.search(name).groups()) for name in kept})
-    ranges = [(a, b + 1) for a, b in ranges]
-    start = ranges[-1][1] if ranges else 0
-    ranges += [(a, min(a + chunk_size, n)) for a in range(start, n, chunk_size)]
-    levels = study.force_levels
-    chunks = []
-    for k, force in enumerate(levels):
-        prefix = f"f{k:03d}-" if len(levels) > 1 else ""
-        chunks += [Chunk(a, b, force, f"{prefix}r{a:07d}-{b - 1:07d}.nc") for a, b in ranges]
-    return chunks
-
-
-def _kept_chunks(out: Path, provenance: dict, study: Study, chunk_size: int, n: int, resume: bool) -> list[str]:
-    """The chunk names of an earlier run in ``out`` of the same study (by ``identity``)
-    that this one keeps: all of them, or none without one (or with resume False). Raises
-    ValueError for another chunk size, fewer realisations than the run holds, or more
-    under a plan that does not extend."""
-    old = read_manifest(out) if resume else None
-    if old is None or identity(old["study"]) != identity(provenance):
-        return []  # nothing to keep; another study's folder is refused by _prepare
-    held = max((int(_RANGE.search(name).group(2)) + 1 for name in old["chunks"]), default=0)
-    check_growth(out, study, old["chunk_size"], held, chunk_size, n)
-    return old["chunks"]
-
-
-def check_growth(where, study: Study, old_chunk_size: int, held: int, chunk_size: int, n: int) -> None:
-    """Raise ValueError (naming ``where``, a folder or a store) unless a run of ``held``
-    realisations in chunks of ``old_chunk_size`` can be resumed as ``n`` in chunks of
-    ``chunk_size``: the same chunk size, no fewer realisations, more only under a plan
-    that extends."""
-    if old_chunk_size != chunk_size:
-        raise ValueError(
-            f"{where} was run with --chunk-size {old_chunk_size}; resume with --chunk-size {old_chunk_size} "
-            "or run again with --no-resume")
-    if n < held:
-        raise ValueError(f"{where} holds {held} realisations, more than the {n} asked for: set "
-                         f"realizations >= {held} in [study], or run again with --no-resume")
-    why = extension_problem(study.sampling, held, n) if n > held else None
-    if why:
-        raise ValueError(f"{where} holds {held} realisations and cannot be extended to {n}: {why}; "
-                         "run again with --no-resume")
-
-
-def _run_chunk(study: Study, chunk: Chunk, folder: str, attrs: dict, design_rows=None) -> str:
+def _run_chunk(study: Study, where, chunk, level: int, attrs: dict, design_rows=None) -> str:
     """Dask task: drape one chunk (its Monte Carlo realisations, or the given rows of a
-    sensitivity design), write its file, return the file's path."""
-    ds = at_level(_drape(study, np.arange(chunk.start, chunk.stop), chunk.force, design_rows), chunk.force)
-    ds.attrs.update(attrs)
-    ds, encoding = cf_encode(ds, title=f"uqdrape ensemble chunk: study {study.name}, realisations "
-                                       f"{chunk.start}-{chunk.stop - 1} at {chunk.force:g} N",
-                             history=f"uqdrape run {Path(study.path).name}", float32=study.float32)
-    return str(write_atomic(ds, Path(folder) / chunk.name, encoding, keep=lambda: not orphaned()))
-
-
-def chunk_intact(path: Path, chunk: Chunk) -> bool:
-    """Whether ``path`` is the finished chunk ``chunk``: a netCDF file that opens, holds the
-    node shear and exactly the chunk's realisations at its force level. Reads only the
-    file's metadata and two coordinates."""
-    try:
-        with xr.open_dataset(path, engine="netcdf4", decode_cf=False) as ds:
-            return ("shear" in ds.variables and FORCE in ds.variables and REALIZATION in ds.variables
-                    and ds[FORCE].values.tolist() == [chunk.force]
-                    and ds[REALIZATION].values.tolist() == list(range(chunk.start, chunk.stop)))
-    except (OSError, ValueError, KeyError, RuntimeError, AttributeError):  # netCDF4's for an unreadable attribute
-        return False
-
-
-@functools.lru_cache(maxsize=2)
-def _mould(kind: str, params: str, stamp):
-    """A mould built once per process (``stamp``: the version of the file it reads), so a
-    mesh tool is read and packed once, not for every chunk."""
-    return _geometry.build(kind, **json.loads(params))
-
-
-def _study_mould(study: Study):
-    """The study's mould from the process's cache (``_mould``), keyed by its parameters and,
-    for a mould read from a file, the file's modification time and size."""
-    g = study.geometry
-    path = g.params.get("path")
-    stat = Path(path).stat() if path is not None else None
-    return _mould(g.kind, json.dumps(g.params, sort_keys=True), stat and (stat.st_mtime_ns, stat.st_size))
-
-
-def _drape(study: Study, r, force: float, design_rows):
-    """Drape realisations ``r`` of the study's sample, or the design rows ``design_rows`` (one per r)."""
-    inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows)
-    return drape_inputs(study, r, inputs, force=force, surface=_study_mould(study))
-
-
-def _prepare(out: Path, manifest: dict, resume: bool) -> None:
-    """Check a previous run in ``out`` can be resumed, or clear it; then record this run.
-    Called under the folder's run lock, so a ``.part`` file here is a killed run's."""
-    folder = out / CHUNKS
-    old = read_manifest(out) if resume else None
-    for path in folder.glob("*.nc.part"):
-        path.unlink()
-    if not resume:
-        for path in folder.glob("*.nc"):
-            path.unlink()
-    elif old is None:
-        if any(folder.glob("*.nc")):
-            raise ValueError(f"{folder} holds chunk files but {out} has no run manifest; "
-                             "they cannot be checked against this study: run again with --no-resume")
-    else:
-        before, now = identity(old["study"]), identity(manifest["study"])
-        if before != now:
-            changed = sorted(f"{section}.{key}" for section in set(before) | set(now)
-                             for key in set(before.get(section, {})) | set(now.get(section, {}))
-                             if before.get(section, {}).get(key) != now.get(section, {}).get(key))
-            raise ValueError(
-                f"{out} holds a run of a different study definition (changed: {', '.join(changed)}); "
-                "run again with --no-resume to replace it, or set another [output] directory")
-    folder.mkdir(parents=True, exist_ok=True)
-    write_manifest(out, manifest)
+    sensitivity design) and write it to the run's location ``where``; return its name."""
+    ds = drape_chunk(study, range(chunk.start, chunk.stop), chunk.force, design_rows)
+    return where.write_chunk(study, ds, chunk, level, attrs)
 
 
 def reach_scheduler(scheduler: str | None) -> None:
@@ -254,7 +119,8 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
                  verbose: bool = False, preflight=None) -> Path | str:
     """Drape a study's realisations into chunk files; return the output folder (open it
     with ``open_ensemble``). An fsspec URL as ``output_dir`` (or the study's) writes one
-    zarr store there instead (``uqdrape.ensemble.zarrstore``) and returns the URL.
+    zarr store there instead (``uqdrape.ensemble.zarrstore``) and returns the URL; a
+    location (``storage.at``) is taken as it is.
 
     design_rows  None: the study's own sample (``sampled_inputs``); else a design matrix
                  of standard variables (``inputs_from_design``), row k draped as realisation k
@@ -265,8 +131,8 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
                  process; "tcp://host:port" (any "://" address): that dask.distributed cluster
     workers      local processes (default: one per CPU); not allowed with a cluster address
     chunk_size   realisations per chunk (one batched drape call); default: the study's
-    resume       skip chunks already written by an earlier run of the same study; False
-                 deletes the folder's chunk files first
+    resume       skip chunks already written by an earlier run of the same study, extending
+                 it to more realisations; False deletes its chunks first
     progress     show progress on stderr: realisations done, rate and ETA (a bar on a
                  terminal, a plain line every 30 s elsewhere); ``verbose`` adds a line per chunk
     preflight    ``preflight(drapes, first, force)``, called before the output folder is
@@ -288,64 +154,41 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
         workers = positive_int("workers", workers)
         if scheduler is not None and scheduler not in LOCAL_SCHEDULERS:
             raise ValueError(f"workers={workers} sets local processes; the cluster at {scheduler} has its own workers")
-    from .zarrstore import run_store
-
-    output_dir = study.output_dir if output_dir is None else output_dir
-    if is_url(output_dir):  # one zarr store by fsspec URL (issue 28)
-        return run_store(study, output_dir, design_rows=design_rows, provenance=provenance, attrs=attrs,
-                         scheduler=scheduler, workers=workers, chunk_size=chunk_size, resume=resume,
-                         progress=progress, preflight=preflight)
-    out = Path(output_dir).absolute()
+    where = at(study.output_dir if output_dir is None else output_dir).absolute()
     provenance = study.to_dict() if provenance is None else provenance
     n = study.realizations if design_rows is None else len(design_rows)
-    chunks = plan_chunks(study, chunk_size, n, _kept_chunks(out, provenance, study, chunk_size, n, resume))
-    manifest = {"study": provenance, "chunk_size": chunk_size, "chunks": [c.name for c in chunks],
-                "uqdrape_version": __version__}
+    chunks, done = where.plan(study, provenance, chunk_size, n, resume)
     reach_scheduler(scheduler)
-    if preflight is not None:
-        done = {p.name for p in (out / CHUNKS).glob("*.nc")} if resume else set()
-        todo = [c for c in chunks if c.name not in done]
-        if todo:
-            preflight(sum(c.stop - c.start for c in todo), todo[0].start, todo[0].force)
-    with run_lock(out):
-        earlier = (read_manifest(out) or {}).get("wall_time_s", 0.0) if resume else 0.0
-        _prepare(out, manifest, resume)
-        folder = out / CHUNKS
-        damaged = [c for c in chunks if (folder / c.name).is_file() and not chunk_intact(folder / c.name, c)]
-        for c in damaged:  # a truncated, swapped or foreign file: drape it again
-            (folder / c.name).unlink()
-        if damaged and progress:
-            print(f"{study.name}: {len(damaged)} chunk file(s) damaged or not this run's, draped again: "
-                  + ", ".join(c.name for c in damaged[:5]) + (", ..." if len(damaged) > 5 else ""), file=sys.stderr)
-        todo = [c for c in chunks if not (folder / c.name).is_file()]
-        try:
-            _drape_chunks(study, chunks, todo, folder, provenance, attrs, design_rows, scheduler, workers,
-                          progress, verbose)
-        finally:  # an interrupted or failed run's workers are gone: their unfinished files too
-            for part in folder.glob("*.nc.part"):
-                part.unlink(missing_ok=True)
-        # for the report's provenance: the time of the finished calls that made this run (an
-        # interrupted call records nothing)
-        write_manifest(out, {**manifest, "wall_time_s": round(earlier + time.perf_counter() - start, 1),
-                             "last_call": {"chunks": len(chunks), "drawn": len(todo), "damaged": len(damaged)}})
-    return out
-
-
-def _drape_chunks(study, chunks, todo, folder, provenance, attrs, design_rows, scheduler, workers, progress,
-                  verbose) -> None:
-    """Drape the chunks ``todo`` of ``chunks`` into ``folder``, with a progress count."""
-    if progress and len(todo) < len(chunks):
-        print(f"{study.name}: {len(chunks) - len(todo)} of {len(chunks)} chunks already done in {folder}",
-              file=sys.stderr)
+    todo = [c for c in chunks if c.name not in done]
+    if preflight is not None and todo:
+        preflight(sum(c.stop - c.start for c in todo), todo[0].start, todo[0].force)
     attrs = {"study_name": study.name, "study_seed": study.seed, "study_realizations": study.realizations,
              "sampling_plan": study.sampling.plan, "study_toml": read_text(study.path, "study file"),
              "study_json": json.dumps(provenance), **(attrs or {})}
-    run = dask.delayed(_run_chunk, pure=False)
-    sizes = [c.stop - c.start for c in chunks]
-    bar = Progress(sum(sizes), sum(sizes) - sum(c.stop - c.start for c in todo), enabled=progress, verbose=verbose,
-                   desc=study.name)
-    try:
-        compute_tasks([run(study, c, str(folder), attrs, None if design_rows is None else design_rows[c.start:c.stop])
-                  for c in todo], [c.stop - c.start for c in todo], scheduler, workers, bar)
-    finally:
-        bar.close()
+    manifest = {"study": provenance, "chunk_size": chunk_size, "chunks": [c.name for c in chunks],
+                "uqdrape_version": __version__}
+    with where.lock():
+        manifest, earlier, todo, damaged = where.prepare(study, chunks, manifest, resume, attrs, design_rows)
+        if damaged and progress:
+            print(f"{study.name}: {len(damaged)} chunk file(s) damaged or not this run's, draped again: "
+                  + ", ".join(c.name for c in damaged[:5]) + (", ..." if len(damaged) > 5 else ""), file=sys.stderr)
+        if progress and len(todo) < len(chunks):
+            print(f"{study.name}: {len(chunks) - len(todo)} of {len(chunks)} {where.parts} already done in {where}",
+                  file=sys.stderr)
+        levels = list(study.force_levels)
+        run = dask.delayed(_run_chunk, pure=False)
+        sizes = [c.stop - c.start for c in todo]
+        total = sum(c.stop - c.start for c in chunks)
+        bar = Progress(total, total - sum(sizes), enabled=progress, verbose=verbose, desc=study.name)
+        try:
+            compute_tasks([run(study, where, c, levels.index(c.force), attrs,
+                               None if design_rows is None else design_rows[c.start:c.stop]) for c in todo],
+                          sizes, scheduler, workers, bar)
+        finally:  # an interrupted or failed run's workers are gone: their unfinished files too
+            bar.close()
+            where.finish()
+        # for the report's provenance: the time of the finished calls that made this run (an
+        # interrupted call records nothing)
+        where.write_manifest({**manifest, "wall_time_s": round(earlier + time.perf_counter() - start, 1),
+                              "last_call": {"chunks": len(chunks), "drawn": len(todo), "damaged": len(damaged)}})
+    return where.target

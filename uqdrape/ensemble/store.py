@@ -1,147 +1,208 @@
-"""The on-disk ensemble: a run folder with a manifest and one netCDF file per chunk.
+"""A run folder: a manifest and one netCDF file per chunk (a plain path's location).
 
 Layout of ``<output_dir>``::
 
     run.json          manifest: the study (``Study.to_dict()``), chunk size, chunk file names
+    run.lock          one run at a time (``hygiene.hold_lock``)
     chunks/*.nc       one finished chunk each (written whole, then renamed into place)
     chunks/*.nc.part  a chunk being written, or left by a killed run: never read
+    rare.json, sensitivity.nc, design.nc, evaluations/, fixed/, report/, export/
+                      the files beside the ensemble, each written whole
 
-:func:`open_ensemble` opens the chunks lazily as one Dataset. There is no consolidated
+:meth:`Folder.open` opens the chunks lazily as one Dataset. There is no consolidated
 single file: the chunk files already are the store (each a plain netCDF file), and
 ``open_ensemble(d).to_netcdf(path)`` makes one when a single file is wanted.
 """
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import json
-import re
 from pathlib import Path
 
 import xarray as xr
 
-from ..conventions import cf_decode
-from ..files import is_url, write_text_atomic
-from ..schema import FORCE
+from ..conventions import cf_decode, cf_encode
+from ..files import write_text_atomic
+from ..schema import FORCE, REALIZATION
+from .chunk import write_atomic
+from .hygiene import orphaned, run_lock
+from .location import (MANIFEST, MAX_MANIFEST_BYTES, Location, check_growth, check_same_study, corrupt_manifest,
+                       held, parse_manifest, plan_chunks)
 
-MANIFEST = "run.json"
 CHUNKS = "chunks"
 
 
-#: A chunk file's name: ``r<first>-<last>.nc``, prefixed ``f<level>-`` in a sweep (and never a path).
-CHUNK_NAME = re.compile(r"^(f\d{3}-)?r\d{7}-\d{7}\.nc$")
-#: Largest run manifest read (bytes): a million chunk names take about 30 MB.
-MAX_MANIFEST_BYTES = 64 * 2**20
+class Folder(Location):
+    """A run folder at the path ``target``."""
+
+    def __init__(self, target):
+        super().__init__(Path(target))
+
+    def absolute(self) -> Folder:
+        """This folder by its absolute path (a run's workers may start elsewhere)."""
+        return Folder(self.target.absolute())
+
+    @property
+    def name(self) -> str:
+        return self.target.name
+
+    def sibling(self, suffix: str) -> Folder:
+        return Folder(self.target.with_name(self.target.name + suffix))
+
+    def path_of(self, name: str) -> Path:
+        return self.target / name
+
+    @contextlib.contextmanager
+    def reading(self, name: str):
+        path = self.target / name
+        yield path if path.is_file() else None
+
+    @contextlib.contextmanager
+    def writing(self, name: str):
+        yield self.target / name
+
+    def local_folder(self) -> Path:
+        """The local folder whose disk the run fills."""
+        return self.target
+
+    def probe(self) -> None:
+        """Nothing to ask beforehand: the preflight checks the folder (``local_folder``)."""
+
+    def lock(self):
+        """Hold ``run.lock`` for the run (``hygiene.run_lock``); RunLocked if a live run holds it."""
+        return run_lock(self.target)
+
+    def read_manifest(self) -> dict | None:
+        """The run manifest, or None if there is none. A manifest that is not one uqdrape
+        wrote (hand-edited, truncated, another program's) raises OSError naming the file
+        and what is wrong: its chunk names are paths uqdrape will open, so they must be
+        plain chunk file names inside ``chunks/``."""
+        path = self.target / MANIFEST
+        if not path.is_file():
+            return None
+        if path.stat().st_size > MAX_MANIFEST_BYTES:
+            raise corrupt_manifest(path, f"larger than {MAX_MANIFEST_BYTES // 2**20} MB")
+        return parse_manifest(path.read_bytes(), path)
+
+    def write_manifest(self, manifest: dict) -> None:
+        """Write the manifest whole (a temporary file, then renamed)."""
+        write_text_atomic(self.target / MANIFEST, json.dumps(manifest, indent=1))
+
+    # -- the run loop's operations (``uqdrape.ensemble.run``)
+
+    def plan(self, study, provenance: dict, chunk_size: int, n: int, resume: bool):
+        """(chunks, names of those already written) of a run of ``n`` realisations here:
+        an earlier run of the same study keeps its chunks as they are (an extension adds
+        chunks after them). ValueError for another study's run, or as ``check_growth``."""
+        old = self.read_manifest() if resume else None
+        kept = []
+        if old is not None:
+            check_same_study(self.target, old, provenance)
+            check_growth(self.target, study, old["chunk_size"], held(old["chunks"]), chunk_size, n)
+            kept = old["chunks"]
+        done = {p.name for p in (self.target / CHUNKS).glob("*.nc")} if resume else set()
+        return plan_chunks(study, chunk_size, n, kept), done
+
+    def prepare(self, study, chunks, manifest: dict, resume: bool, attrs: dict, design_rows):
+        """Under the run's lock: check an earlier run can be resumed, or clear it; record
+        this run; drop damaged chunk files. Returns (manifest, earlier wall time in s,
+        chunks to drape, damaged chunks). A ``.part`` file here is a killed run's."""
+        folder = self.target / CHUNKS
+        old = self.read_manifest() if resume else None
+        for path in folder.glob("*.nc.part"):
+            path.unlink()
+        if not resume:
+            for path in folder.glob("*.nc"):
+                path.unlink()
+        elif old is None:
+            if any(folder.glob("*.nc")):
+                raise ValueError(f"{folder} holds chunk files but {self.target} has no run manifest; "
+                                 "they cannot be checked against this study: run again with --no-resume")
+        else:
+            check_same_study(self.target, old, manifest["study"])
+        folder.mkdir(parents=True, exist_ok=True)
+        self.write_manifest(manifest)
+        damaged = [c for c in chunks if (folder / c.name).is_file() and not chunk_intact(folder / c.name, c)]
+        for c in damaged:  # a truncated, swapped or foreign file: drape it again
+            (folder / c.name).unlink()
+        todo = [c for c in chunks if not (folder / c.name).is_file()]
+        return manifest, (old or {}).get("wall_time_s", 0.0), todo, damaged
+
+    def write_chunk(self, study, ds: xr.Dataset, chunk, level: int, attrs: dict) -> str:
+        """In the worker: write the draped chunk ``ds`` as its file (not after the run has
+        died: ``hygiene.orphaned``); return its name."""
+        ds.attrs.update(attrs)
+        ds, encoding = cf_encode(ds, title=f"uqdrape ensemble chunk: study {study.name}, realisations "
+                                           f"{chunk.start}-{chunk.stop - 1} at {chunk.force:g} N",
+                                 history=f"uqdrape run {Path(study.path).name}", float32=study.float32)
+        write_atomic(ds, self.target / CHUNKS / chunk.name, encoding, keep=lambda: not orphaned())
+        return chunk.name
+
+    def finish(self) -> None:
+        """After the run's tasks, done or failed: their workers are gone, so are unfinished files."""
+        for part in (self.target / CHUNKS).glob("*.nc.part"):
+            part.unlink(missing_ok=True)
+
+    def open(self) -> xr.Dataset:
+        """All chunks of a finished run as one lazy (dask-backed) Dataset.
+
+        Dims (blankholder_force, realization, i, j, ...), the force dimension of length 1
+        without a sweep (``uqdrape.schema``); one dask chunk per chunk file. Raises
+        FileNotFoundError if the folder holds no run or some chunks are missing (naming
+        them: resume the run to compute them), ValueError for a run written before the force
+        was always a dimension."""
+        manifest = self.read_manifest()
+        if manifest is None:
+            raise FileNotFoundError(
+                f"{self.target} holds no uqdrape run (no {MANIFEST}); run the study first (uqdrape run STUDY)")
+        paths = [self.target / CHUNKS / name for name in manifest["chunks"]]  # in plan order
+        missing = [p.name for p in paths if not p.is_file()]
+        if missing:
+            shown = ", ".join(missing[:5]) + (", ..." if len(missing) > 5 else "")
+            raise FileNotFoundError(
+                f"{self.target} is an incomplete run: {len(missing)} of {len(paths)} chunk files missing "
+                f"in {CHUNKS}/ ({shown}); resume it (uqdrape run STUDY) to compute them")
+        try:
+            files = xr.open_mfdataset(
+                paths, engine="netcdf4", combine="by_coords", data_vars="minimal", coords="minimal",
+                compat="override", join="exact", combine_attrs="override",
+            )
+        except (OSError, RuntimeError, AttributeError, ValueError) as err:  # a damaged chunk: netCDF4's errors (an
+            # unreadable attribute: AttributeError), an undecodable text attribute, coordinates that no longer combine
+            for path in paths:  # which one: a truncated or overwritten chunk
+                try:
+                    xr.open_dataset(path, engine="netcdf4").close()
+                except (OSError, RuntimeError, AttributeError, ValueError):
+                    raise OSError(errno.EIO, f"a corrupt chunk file ({err}); delete it and run the study again "
+                                  "to resume", str(path)) from None
+            raise OSError(errno.EIO, f"the chunk files do not combine into one ensemble ({err}); run the study "
+                          "again with --no-resume", str(self.target / CHUNKS)) from None
+        if FORCE not in files.dims:
+            files.close()
+            raise ValueError(f"{self.target} was written by an older uqdrape (no {FORCE!r} dimension); "
+                             "run its study again with --no-resume")
+        ds = cf_decode(files)
+        ds.set_close(files.close)  # closing the result closes the chunk files
+        if len(paths) > 1:  # an extended run: the study as its last call ran it (the plan's last chunk)
+            with xr.open_dataset(paths[-1], engine="netcdf4", decode_cf=False) as last:
+                ds.attrs.update({k: v for k, v in last.attrs.items() if k.startswith("study_")})
+        # the run's own description, not its first chunk's ("realisations 0-15 at 126 N")
+        levels = ", ".join(f"{f:g}" for f in ds[FORCE].values)
+        ds.attrs["title"] = (f"uqdrape ensemble: study {ds.attrs.get('study_name', self.target.name)}, "
+                             f"{ds.sizes.get('realization', 0)} realisations at {levels} N")
+        return ds
 
 
-def read_manifest(output_dir) -> dict | None:
-    """The run manifest of ``output_dir`` (a run folder, or a store's URL:
-    ``uqdrape.ensemble.zarrstore``), or None if there is none. A manifest that is not one
-    uqdrape wrote (hand-edited, truncated, another program's) raises OSError naming the
-    file and what is wrong: its chunk names are paths uqdrape will open, so they must be
-    plain chunk file names inside ``chunks/``."""
-    from .zarrstore import read_store_manifest
-
-    if is_url(output_dir):
-        return read_store_manifest(output_dir)
-    path = Path(output_dir) / MANIFEST
-    if not path.is_file():
-        return None
-    if path.stat().st_size > MAX_MANIFEST_BYTES:
-        raise corrupt_manifest(path, f"larger than {MAX_MANIFEST_BYTES // 2**20} MB")
-    return parse_manifest(path.read_bytes(), path)
-
-
-def corrupt_manifest(where, why: str) -> OSError:
-    """The one-line error for a manifest at ``where`` (path or URL) that is not one uqdrape wrote."""
-    return OSError(errno.EIO, f"not a uqdrape run manifest ({why}); run the study again with --no-resume, "
-                              "or delete the folder", str(where))
-
-
-def parse_manifest(text: bytes, where) -> dict:
-    """The manifest in ``text`` (read from ``where``), checked as :func:`read_manifest` says."""
+def chunk_intact(path: Path, chunk) -> bool:
+    """Whether ``path`` is the finished chunk ``chunk``: a netCDF file that opens, holds the
+    node shear and exactly the chunk's realisations at its force level. Reads only the
+    file's metadata and two coordinates."""
     try:
-        manifest = json.loads(text.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError, RecursionError) as err:
-        raise corrupt_manifest(where, f"not JSON text: {type(err).__name__}") from None
-    if not isinstance(manifest, dict):
-        raise corrupt_manifest(where, "not a JSON object")
-    study, chunks, size = manifest.get("study"), manifest.get("chunks"), manifest.get("chunk_size")
-    if not (isinstance(study, dict) and all(isinstance(v, dict) for v in study.values())
-            and isinstance(study.get("study"), dict)):
-        raise corrupt_manifest(where, '"study" must be the study record, a table of sections')
-    if not (isinstance(chunks, list) and all(isinstance(c, str) and CHUNK_NAME.match(c) for c in chunks)):
-        raise corrupt_manifest(where, '"chunks" must be a list of chunk file names such as r0000000-0000063.nc')
-    if isinstance(size, bool) or not isinstance(size, int) or size < 1:
-        raise corrupt_manifest(where, '"chunk_size" must be a positive integer')
-    wall = manifest.get("wall_time_s", 0.0)
-    if isinstance(wall, bool) or not isinstance(wall, (int, float)) or not 0 <= wall < 1e9:
-        raise corrupt_manifest(where, '"wall_time_s" must be a number of seconds')
-    return manifest
-
-
-def write_manifest(output_dir, manifest: dict) -> None:
-    """Write the manifest atomically (uqdrape.files: temporary file + rename; a store's as
-    one object put)."""
-    from .zarrstore import write_store_manifest
-
-    if is_url(output_dir):
-        write_store_manifest(output_dir, manifest)
-    else:
-        write_text_atomic(Path(output_dir) / MANIFEST, json.dumps(manifest, indent=1))
-
-
-def open_ensemble(output_dir) -> xr.Dataset:
-    """All chunks of a finished run as one lazy (dask-backed) Dataset.
-
-    Dims (blankholder_force, realization, i, j, ...), the force dimension of length 1
-    without a sweep (``uqdrape.schema``); one dask chunk per chunk file. Raises
-    FileNotFoundError if ``output_dir`` holds no run or some chunks are missing (naming
-    them: resume the run to compute them), ValueError for a run written before the force
-    was always a dimension.
-    """
-    from .zarrstore import open_store
-
-    if is_url(output_dir):  # a zarr store by fsspec URL (uqdrape.ensemble.zarrstore)
-        return open_store(output_dir)
-    output_dir = Path(output_dir)
-    manifest = read_manifest(output_dir)
-    if manifest is None:
-        raise FileNotFoundError(
-            f"{output_dir} holds no uqdrape run (no {MANIFEST}); run the study first (uqdrape run STUDY)")
-    paths = [output_dir / CHUNKS / name for name in manifest["chunks"]]  # in plan order
-    missing = [p.name for p in paths if not p.is_file()]
-    if missing:
-        shown = ", ".join(missing[:5]) + (", ..." if len(missing) > 5 else "")
-        raise FileNotFoundError(
-            f"{output_dir} is an incomplete run: {len(missing)} of {len(paths)} chunk files missing "
-            f"in {CHUNKS}/ ({shown}); resume it (uqdrape run STUDY) to compute them")
-    try:
-        files = xr.open_mfdataset(
-            paths, engine="netcdf4", combine="by_coords", data_vars="minimal", coords="minimal",
-            compat="override", join="exact", combine_attrs="override",
-        )
-    except (OSError, RuntimeError, AttributeError, ValueError) as err:  # a damaged chunk: netCDF4's errors (an
-        # unreadable attribute: AttributeError), an undecodable text attribute, coordinates that no longer combine
-        for path in paths:  # which one: a truncated or overwritten chunk
-            try:
-                xr.open_dataset(path, engine="netcdf4").close()
-            except (OSError, RuntimeError, AttributeError, ValueError):
-                raise OSError(errno.EIO, f"a corrupt chunk file ({err}); delete it and run the study again "
-                              "to resume", str(path)) from None
-        raise OSError(errno.EIO, f"the chunk files do not combine into one ensemble ({err}); run the study "
-                      "again with --no-resume", str(output_dir / CHUNKS)) from None
-    if FORCE not in files.dims:
-        files.close()
-        raise ValueError(f"{output_dir} was written by an older uqdrape (no {FORCE!r} dimension); "
-                         "run its study again with --no-resume")
-    ds = cf_decode(files)
-    ds.set_close(files.close)  # closing the result closes the chunk files
-    if len(paths) > 1:  # an extended run: the study as its last call ran it (the plan's last chunk)
-        with xr.open_dataset(paths[-1], engine="netcdf4", decode_cf=False) as last:
-            ds.attrs.update({k: v for k, v in last.attrs.items() if k.startswith("study_")})
-    # the run's own description, not its first chunk's ("realisations 0-15 at 126 N")
-    levels = ", ".join(f"{f:g}" for f in ds[FORCE].values)
-    ds.attrs["title"] = (f"uqdrape ensemble: study {ds.attrs.get('study_name', output_dir.name)}, "
-                         f"{ds.sizes.get('realization', 0)} realisations at {levels} N")
-    return ds
+        with xr.open_dataset(path, engine="netcdf4", decode_cf=False) as ds:
+            return ("shear" in ds.variables and FORCE in ds.variables and REALIZATION in ds.variables
+                    and ds[FORCE].values.tolist() == [chunk.force]
+                    and ds[REALIZATION].values.tolist() == list(range(chunk.start, chunk.stop)))
+    except (OSError, ValueError, KeyError, RuntimeError, AttributeError):  # netCDF4's for an unreadable attribute
+        return False

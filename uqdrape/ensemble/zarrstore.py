@@ -4,18 +4,17 @@ Selected by a URL (anything with ``://``: ``file:///abs/path``, ``memory://name`
 ``s3://bucket/prefix``), as ``--out`` or ``[output] directory``. Decided: a plain path
 stays a run folder of netCDF chunks (``uqdrape.ensemble.store``), the default, and old
 run folders are read, not refused: every reader takes either
-(``uqdrape.ensemble.location``). Layout under the URL::
+(``uqdrape.ensemble.location``: the interface both offer). Layout under the URL::
 
     run.json        the manifest: study record, chunk size, chunk names, realisations;
                     written as run.json.part, then moved over the old one
-    run.lock        one writer at a time: created with exclusive create ("xb": on S3 a
-                    conditional put, If-None-Match: *), removed when the run ends; a
-                    lock whose process is gone from this host is taken over
+    run.lock        one writer at a time (``hygiene.hold_lock``): created with exclusive
+                    create ("xb": on S3 a conditional put, If-None-Match: *)
     data/           the zarr store (zarr format 3), the ensemble in the layout of
                     ``open_ensemble``: (blankholder_force, realization, ...), zarr
                     chunks of (1, chunk_size, full node grid)
     done/<chunk>    a region's "done" marker, written after its data
-    sensitivity.nc, sensitivity_maps.nc, report/, export/
+    rare.json, sensitivity.nc, design.nc, evaluations/, fixed/, report/, export/
                     as in a run folder, each file put whole (:func:`publish`)
 
 The template (every variable's shape, dtype and attributes, no data) is written once
@@ -39,29 +38,20 @@ from __future__ import annotations
 import contextlib
 import errno
 import json
-import sys
-import time
+import tempfile
 from pathlib import Path
 
-import dask
 import dask.array
 import numpy as np
 import xarray as xr
 
-from .. import __version__
 from ..conventions import cf_decode, cf_encode
-from ..files import read_text
-from ..schema import FORCE, REALIZATION, at_level
-from ..study import Study, identity
-from ..stochastic.inputs import positive_int
-from .chunk import drape_inputs
-from .hygiene import lock_owner, lock_record, stale
-from .inputs import inputs_from_design, sampled_inputs
-from .progress import Progress
-from .store import MAX_MANIFEST_BYTES, corrupt_manifest, parse_manifest
+from ..schema import FORCE, REALIZATION
+from .chunk import drape_chunk
+from .hygiene import hold_lock
+from .location import (LOCK, MANIFEST, MAX_MANIFEST_BYTES, Location, check_growth, check_same_study, corrupt_manifest,
+                       parse_manifest, plan_chunks)
 
-MANIFEST = "run.json"
-LOCK = "run.lock"
 #: the object ``check_store`` puts and removes to learn that a store takes writes
 PROBE = ".uqdrape-probe"
 DATA = "data"
@@ -70,6 +60,174 @@ DONE = "done"
 ZARR_FORMAT = 3
 #: encoding keys of ``cf_encode`` that mean the same in zarr (netCDF's zlib/complevel do not).
 _KEPT = ("dtype", "_FillValue", "units", "calendar")
+
+
+class ZarrStore(Location):
+    """One zarr store at the fsspec URL ``target``."""
+
+    parts = "regions"
+
+    def absolute(self) -> ZarrStore:
+        return self
+
+    def path_of(self, name: str) -> str:
+        return f"{self.target.rstrip('/')}/{name}"
+
+    @contextlib.contextmanager
+    def reading(self, name: str):
+        with tempfile.TemporaryDirectory(prefix="uqdrape-") as tmp:
+            local = Path(tmp) / name
+            yield local if fetch(self.target, name, local) else None
+
+    @contextlib.contextmanager
+    def writing(self, name: str):
+        with tempfile.TemporaryDirectory(prefix="uqdrape-") as tmp:
+            local = Path(tmp) / name
+            yield local
+            if local.is_file():
+                publish(local, self.target, name)
+            for path in sorted((p for p in local.rglob("*") if p.is_file()), key=lambda p: p.stat().st_mtime_ns):
+                publish(path, self.target, f"{name}/{path.relative_to(local).as_posix()}")
+
+    def local_folder(self) -> Path | None:
+        """The local folder of a file:// store (its disk the run fills), else None."""
+        return Path(self.target.removeprefix("file://")) if self.target.startswith("file://") else None
+
+    def probe(self) -> None:
+        """OSError unless a run can write here (:func:`check_store`)."""
+        check_store(self.target)
+
+    def lock(self):
+        """Hold ``run.lock`` of the store (``hygiene.hold_lock``, with exclusive create)."""
+        fs, root = _fs(self.target)
+        _check_reachable(fs, root, self.target)
+        path = f"{root}/{LOCK}"
+        fs.makedirs(root, exist_ok=True)  # a no-op on object stores
+
+        def create(record: bytes):
+            with fs.open(path, "xb") as f:
+                f.write(record)
+
+        return hold_lock(self.target, "store", create, lambda: fs.cat_file(path), lambda: fs.rm(path))
+
+    def read_manifest(self) -> dict | None:
+        """The manifest, or None if there is none (checked as ``Folder.read_manifest``
+        checks a folder's, and its ``realizations`` a count); OSError (one line) for a
+        missing bucket or an unreachable store (``_check_reachable``)."""
+        fs, root = _fs(self.target)
+        _check_reachable(fs, root, self.target)
+        where = self.path_of(MANIFEST)
+        try:  # its size first: a read of the limit's length would allocate the limit (64 MB) every time
+            if fs.size(f"{root}/{MANIFEST}") > MAX_MANIFEST_BYTES:
+                raise corrupt_manifest(where, f"larger than {MAX_MANIFEST_BYTES // 2**20} MB")
+            text = fs.cat_file(f"{root}/{MANIFEST}")
+        except FileNotFoundError:
+            return None
+        manifest = parse_manifest(text, where)
+        held = manifest.get("realizations")
+        if isinstance(held, bool) or not isinstance(held, int) or held < 1:
+            raise corrupt_manifest(where, '"realizations" must be a positive integer')
+        return manifest
+
+    def write_manifest(self, manifest: dict) -> None:
+        """Write the manifest whole: put as ``run.json.part``, then moved over the old one
+        (a rename on a local disk; on an object store a put is whole anyway), so a failed
+        or killed write leaves the old manifest (the part is removed on a failure that
+        returns)."""
+        fs, root = _fs(self.target)
+        part = f"{root}/{MANIFEST}.part"
+        try:
+            fs.pipe_file(part, json.dumps(manifest, indent=1).encode())
+        except BaseException:
+            with contextlib.suppress(OSError):
+                fs.rm(part)
+            raise
+        fs.mv(part, f"{root}/{MANIFEST}")
+
+    def done(self) -> set[str]:
+        """The chunk names whose region is marked done."""
+        fs, root = _fs(self.target)
+        try:
+            return {p.rstrip("/").rsplit("/", 1)[-1] for p in fs.ls(f"{root}/{DONE}", detail=False)}
+        except FileNotFoundError:
+            return set()
+
+    # -- the run loop's operations (``uqdrape.ensemble.run``)
+
+    def plan(self, study, provenance: dict, chunk_size: int, n: int, resume: bool):
+        """(chunks, names of the regions done) of a run of ``n`` realisations here: always
+        the whole-chunk plan (module docstring), keeping the regions done of an earlier run
+        of the same study. ValueError for another study's run, or as ``check_growth``;
+        OSError (one line naming the URL) unless the store takes writes."""
+        check_store(self.target)
+        chunks = plan_chunks(study, chunk_size, n)
+        return chunks, self._kept(study, provenance, chunk_size, n, chunks, resume)[1]
+
+    def _kept(self, study, provenance, chunk_size, n, chunks, resume) -> tuple[dict | None, set[str]]:
+        """(manifest, done region names) of an earlier run here that this one keeps."""
+        old = self.read_manifest() if resume else None
+        if old is None:
+            return None, set()
+        check_same_study(self.target, old, provenance)
+        check_growth(self.target, study, old["chunk_size"], old["realizations"], chunk_size, n)
+        return old, self.done() & {c.name for c in chunks}
+
+    def prepare(self, study, chunks, manifest: dict, resume: bool, attrs: dict, design_rows):
+        """Under the run's lock: write the template afresh (no run to keep), or grow the
+        kept run's arrays to this one's realisations; record this run. Returns (manifest,
+        earlier wall time in s, chunks to drape, damaged chunks: none, a marker is written
+        after its region)."""
+        n = manifest["realizations"] = max(c.stop for c in chunks)
+        manifest["zarr_format"] = ZARR_FORMAT
+        fs, root = _fs(self.target)
+        old, done = self._kept(study, manifest["study"], manifest["chunk_size"], n, chunks, resume)  # as it is now
+        title = (f"uqdrape ensemble: study {study.name}, {n} realisations at "
+                 + ", ".join(f"{f:g}" for f in study.force_levels) + " N")
+        with _writing(self.target, "the store's template"):
+            if old is None:
+                if fs.exists(f"{root}/{DONE}"):
+                    fs.rm(f"{root}/{DONE}", recursive=True)
+                _write_template(study, self.target, chunks, n, manifest["chunk_size"], attrs, title, design_rows)
+                self.write_manifest(manifest)
+            else:
+                for name in self.done() - done:  # regions of the earlier plan that this one cuts anew
+                    fs.rm(f"{root}/{DONE}/{name}")
+                # the manifest first: a store killed while it grows reads as incomplete, not as the smaller run
+                self.write_manifest({**manifest, "wall_time_s": old.get("wall_time_s", 0.0)})
+                _resize(self.target, n, {**attrs, "title": title})
+        return manifest, (old or {}).get("wall_time_s", 0.0), [c for c in chunks if c.name not in done], []
+
+    def write_chunk(self, study, ds: xr.Dataset, chunk, level: int, attrs: dict) -> str:
+        """In the worker: write the draped chunk ``ds`` into its region of the store, then
+        the region's marker; return its name. A failed write is one-line OSError naming
+        the store (a full or read-only bucket). The run's attributes are the template's."""
+        ds = _encoded(ds, study, title="")
+        region = {FORCE: slice(level, level + 1), REALIZATION: slice(chunk.start, chunk.stop)}
+        ds = ds.drop_vars([v for v, var in ds.variables.items() if not set(region) & set(var.dims)])
+        ds.attrs = {}
+        with _writing(self.target, f"region {chunk.name}"):
+            ds.to_zarr(f"{self.target}/{DATA}", region=region, mode="r+", zarr_format=ZARR_FORMAT,
+                       consolidated=False, storage_options=_options(self.target))
+            fs, root = _fs(self.target)
+            fs.pipe_file(f"{root}/{DONE}/{chunk.name}", b"done\n")  # after the data: a marker means the region is whole
+        return chunk.name
+
+    def finish(self) -> None:
+        """Nothing to clear: a region without its marker is drawn again by the next run."""
+
+    def open(self) -> xr.Dataset:
+        """The ensemble as a lazy (dask) Dataset, one dask chunk per region;
+        FileNotFoundError naming the regions not yet done."""
+        manifest = self.read_manifest()
+        if manifest is None:
+            raise FileNotFoundError(f"{self.target} holds no uqdrape run (no {MANIFEST}); run the study first")
+        missing = [c for c in manifest["chunks"] if c not in self.done()]
+        if missing:
+            raise FileNotFoundError(f"{self.target} is an incomplete run: {len(missing)} of {len(manifest['chunks'])} "
+                                    f"regions not done ({', '.join(missing[:5])}); resume it to compute them")
+        raw = xr.open_zarr(f"{self.target}/{DATA}", consolidated=False, zarr_format=ZARR_FORMAT,
+                           storage_options=_options(self.target))
+        return cf_decode(raw)
 
 
 def _fs(url: str):
@@ -126,88 +284,7 @@ def check_store(url: str) -> None:
             fs.rm(f"{root}/{PROBE}")
 
 
-def read_store_manifest(url: str) -> dict | None:
-    """The manifest of the store at ``url``, or None if there is none (checked as
-    ``store.read_manifest`` checks a folder's, and its ``realizations`` a count); OSError
-    (one line) for a missing bucket or an unreachable store (``_check_reachable``)."""
-    fs, root = _fs(url)
-    _check_reachable(fs, root, url)
-    where = f"{url}/{MANIFEST}"
-    try:  # its size first: a read of the limit's length would allocate the limit (64 MB) every time
-        if fs.size(f"{root}/{MANIFEST}") > MAX_MANIFEST_BYTES:
-            raise corrupt_manifest(where, f"larger than {MAX_MANIFEST_BYTES // 2**20} MB")
-        text = fs.cat_file(f"{root}/{MANIFEST}")
-    except FileNotFoundError:
-        return None
-    manifest = parse_manifest(text, where)
-    held = manifest.get("realizations")
-    if isinstance(held, bool) or not isinstance(held, int) or held < 1:
-        raise corrupt_manifest(where, '"realizations" must be a positive integer')
-    return manifest
-
-
-def write_store_manifest(url: str, manifest: dict) -> None:
-    """Write the manifest of the store at ``url`` whole: put as ``run.json.part``, then
-    moved over the old one (a rename on a local disk; on an object store a put is whole
-    anyway), so a failed or killed write leaves the old manifest (the part is removed
-    on a failure that returns)."""
-    fs, root = _fs(url)
-    part = f"{root}/{MANIFEST}.part"
-    try:
-        fs.pipe_file(part, json.dumps(manifest, indent=1).encode())
-    except BaseException:
-        with contextlib.suppress(OSError):
-            fs.rm(part)
-        raise
-    fs.mv(part, f"{root}/{MANIFEST}")
-
-
-class _StoreLock:
-    """``run.lock`` of a store, created with exclusive create: ``FileExistsError`` is
-    another writer. A lock whose run was on this host and is gone (a SIGKILLed client) is
-    taken over, as a run folder's (``hygiene.run_lock``); one from another host is
-    never guessed about: the message says to delete it by hand."""
-
-    def __init__(self, fs, root: str, url: str):
-        self.fs, self.path, self.url = fs, f"{root}/{LOCK}", url
-
-    def __enter__(self):
-        self.fs.makedirs(self.path.rsplit("/", 1)[0], exist_ok=True)  # a no-op on object stores
-        taken = False
-        while True:
-            try:
-                with self.fs.open(self.path, "xb") as f:
-                    f.write(json.dumps(lock_record()).encode())
-                return self
-            except FileExistsError:
-                owner = self._owner()
-            if owner is None or taken or not stale(owner):
-                held = ("it is not a lock uqdrape wrote" if owner is None else
-                        f"pid {owner['pid']} on {owner['host']}, started {owner['started']}")
-                raise OSError(errno.EBUSY, f"another run holds {LOCK} of this store ({held}); wait for it, or "
-                              f"delete {self.url}/{LOCK} if that run is certainly gone", self.url)
-            self.fs.rm(self.path)  # its run on this host is gone
-            taken = True
-
-    def _owner(self) -> dict | None:
-        try:
-            return lock_owner(self.fs.cat_file(self.path))
-        except OSError:
-            return None
-
-    def __exit__(self, *exc):
-        self.fs.rm(self.path)
-
-
-def store_lock(url: str) -> _StoreLock:
-    """The run lock of the store at ``url`` (a context manager; OSError EBUSY if another
-    run holds it), for runs that write there other than ``run_store`` (a design)."""
-    fs, root = _fs(url)
-    _check_reachable(fs, root, url)
-    return _StoreLock(fs, root, url)
-
-
-def _encoded(ds: xr.Dataset, study: Study, title: str) -> xr.Dataset:
+def _encoded(ds: xr.Dataset, study, title: str) -> xr.Dataset:
     """``ds`` with its CF attributes and the zarr-valid part of ``cf_encode``'s encoding."""
     ds, encoding = cf_encode(ds, title=title, history=f"uqdrape run {study.path.name}", float32=study.float32)
     for name, var in ds.variables.items():
@@ -215,30 +292,6 @@ def _encoded(ds: xr.Dataset, study: Study, title: str) -> xr.Dataset:
         kept.update({k: v for k, v in encoding.get(name, {}).items() if k in _KEPT})
         var.encoding = kept
     return ds
-
-
-def _drape(study: Study, r, force: float, design_rows) -> xr.Dataset:
-    """Drape realisations ``r`` of the study's sample, or the design rows ``design_rows``."""
-    inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows)
-    return drape_inputs(study, r, inputs, force=force)
-
-
-def _region_task(study: Study, url: str, name: str, start: int, stop: int, level: int, force: float,
-                 design_rows) -> str:
-    """Dask task: drape realisations start..stop-1 at force level ``level`` (N ``force``),
-    write them into their region of the store from this worker, then the region's marker.
-    A failed write is one-line OSError naming the store (a full or read-only bucket)."""
-    ds = at_level(_drape(study, np.arange(start, stop), force, design_rows), force)
-    ds = _encoded(ds, study, title="")
-    region = {FORCE: slice(level, level + 1), REALIZATION: slice(start, stop)}
-    ds = ds.drop_vars([v for v, var in ds.variables.items() if not set(region) & set(var.dims)])
-    ds.attrs = {}
-    with _writing(url, f"region {name}"):
-        ds.to_zarr(f"{url}/{DATA}", region=region, mode="r+", zarr_format=ZARR_FORMAT, consolidated=False,
-                   storage_options=_options(url))
-        fs, root = _fs(url)
-        fs.pipe_file(f"{root}/{DONE}/{name}", b"done\n")  # after the data: a marker means the region is whole
-    return name
 
 
 @contextlib.contextmanager
@@ -250,15 +303,6 @@ def _writing(url: str, what: str):
     except OSError as err:
         cause = " ".join(str(err.strerror or err).split())
         raise OSError(err.errno or errno.EIO, f"cannot write {what} ({type(err).__name__}: {cause})", url) from None
-
-
-def done_regions(url: str) -> set[str]:
-    """The chunk names whose region of the store at ``url`` is marked done."""
-    fs, root = _fs(url)
-    try:
-        return {p.rstrip("/").rsplit("/", 1)[-1] for p in fs.ls(f"{root}/{DONE}", detail=False)}
-    except FileNotFoundError:
-        return set()
 
 
 def fetch(url: str, name: str, local) -> bool:
@@ -283,86 +327,6 @@ def publish(local, url: str, name: str) -> None:
     fs.mv(f"{root}/{name}.part", f"{root}/{name}")
 
 
-def _kept_regions(url: str, study: Study, provenance: dict, chunk_size: int, n: int, chunks,
-                  resume: bool) -> tuple[dict | None, set[str]]:
-    """(manifest, done region names) of an earlier run at ``url`` of the same study that
-    this one keeps: (None, empty) without one or with resume False. Raises ValueError for
-    another study, or as ``run.check_growth``."""
-    old = read_store_manifest(url) if resume else None
-    if old is None:
-        return None, set()
-    if identity(old["study"]) != identity(provenance):
-        raise ValueError(f"{url} holds a run of a different study definition; run again with --no-resume to "
-                         "replace it, or set another --out")
-    from .run import check_growth
-
-    check_growth(url, study, old["chunk_size"], old["realizations"], chunk_size, n)
-    return old, done_regions(url) & {c.name for c in chunks}
-
-
-def run_store(study: Study, url: str, *, design_rows=None, provenance: dict | None = None, attrs: dict | None = None,
-              scheduler: str | None = None, workers: int | None = None, chunk_size: int | None = None,
-              resume: bool = True, progress: bool = True, preflight=None) -> str:
-    """Drape a study's realisations into one zarr store at ``url``; return ``url``.
-
-    Arguments as for ``run_ensemble``. ``resume`` keeps the regions marked done of an
-    earlier run of the same study and chunk size, extending it to more realisations (see
-    the module docstring), and drapes only the others; False writes the template afresh.
-    Raises OSError (one line naming the URL) for a URL fsspec cannot open, a missing
-    bucket, refused or missing credentials, another writer, a failed write."""
-    from .run import compute_tasks, plan_chunks, reach_scheduler
-
-    start = time.perf_counter()
-    chunk_size = positive_int("chunk_size", study.chunk_size if chunk_size is None else chunk_size)
-    provenance = study.to_dict() if provenance is None else provenance
-    n = study.realizations if design_rows is None else len(design_rows)
-    chunks = plan_chunks(study, chunk_size, n)
-    check_store(url)
-    fs, root = _fs(url)
-    _, done = _kept_regions(url, study, provenance, chunk_size, n, chunks, resume)
-    reach_scheduler(scheduler)
-    todo = [c for c in chunks if c.name not in done]
-    if preflight is not None and todo:
-        preflight(sum(c.stop - c.start for c in todo), todo[0].start, todo[0].force)
-    attrs_all = _run_attrs(study, provenance, attrs)
-    title = (f"uqdrape ensemble: study {study.name}, {n} realisations at "
-             + ", ".join(f"{f:g}" for f in study.force_levels) + " N")
-    with _StoreLock(fs, root, url):
-        old, done = _kept_regions(url, study, provenance, chunk_size, n, chunks, resume)  # as it is now
-        manifest = {"study": provenance, "chunk_size": chunk_size, "chunks": [c.name for c in chunks],
-                    "realizations": n, "zarr_format": ZARR_FORMAT, "uqdrape_version": __version__}
-        with _writing(url, "the store's template"):
-            if old is None:
-                if fs.exists(f"{root}/{DONE}"):
-                    fs.rm(f"{root}/{DONE}", recursive=True)
-                _write_template(study, url, chunks, n, chunk_size, attrs_all, title, design_rows)
-                write_store_manifest(url, manifest)
-            else:
-                for name in done_regions(url) - done:  # regions of the earlier plan that this one cuts anew
-                    fs.rm(f"{root}/{DONE}/{name}")
-                # the manifest first: a store killed while it grows reads as incomplete, not as the smaller run
-                write_store_manifest(url, {**manifest, "wall_time_s": old.get("wall_time_s", 0.0)})
-                _resize(url, n, {**attrs_all, "title": title})
-        todo = [c for c in chunks if c.name not in done]
-        if progress and done:
-            print(f"{study.name}: {len(chunks) - len(todo)} of {len(chunks)} regions already done in {url}",
-                  file=sys.stderr)
-        levels = list(study.force_levels)
-        run = dask.delayed(_region_task, pure=False)
-        bar = Progress(n * len(levels), n * len(levels) - sum(c.stop - c.start for c in todo), enabled=progress,
-                       desc=study.name)
-        try:
-            compute_tasks([run(study, url, c.name, c.start, c.stop, levels.index(c.force), c.force,
-                               None if design_rows is None else design_rows[c.start:c.stop]) for c in todo],
-                          [c.stop - c.start for c in todo], scheduler, workers, bar)
-        finally:
-            bar.close()
-        earlier = old.get("wall_time_s", 0.0) if old else 0.0
-        write_store_manifest(url, {**manifest, "wall_time_s": round(earlier + time.perf_counter() - start, 1),
-                                   "last_call": {"chunks": len(chunks), "drawn": len(todo), "damaged": 0}})
-    return url
-
-
 def _resize(url: str, n: int, attrs: dict) -> None:
     """Grow (or, after a killed extension run again, set) every array of the store along
     ``realization`` to ``n``, write the realisation coordinate and the run's attributes.
@@ -383,20 +347,12 @@ def _resize(url: str, n: int, attrs: dict) -> None:
     group.attrs.update(attrs)
 
 
-def _run_attrs(study: Study, provenance: dict, attrs: dict | None) -> dict:
-    """The global attributes of a run (as ``run._drape_chunks`` gives every chunk)."""
-    return {"study_name": study.name, "study_seed": study.seed, "study_realizations": study.realizations,
-            "sampling_plan": study.sampling.plan, "study_toml": read_text(study.path, "study file"),
-            "study_json": json.dumps(provenance), **(attrs or {})}
-
-
 def _write_template(study, url, chunks, n, chunk_size, attrs, title, design_rows) -> None:
     """Write the store's metadata and index coordinates once (``compute=False``): every
     variable of a chunk, widened to all force levels and ``n`` realisations, no data.
     The structure is that of one realisation draped here."""
     first = chunks[0]
-    one = at_level(_drape(study, np.arange(first.start, first.start + 1), first.force,
-                          None if design_rows is None else design_rows[:1]), first.force)
+    one = drape_chunk(study, [first.start], first.force, None if design_rows is None else design_rows[:1])
     levels = np.asarray(study.force_levels, dtype=float)
     one.attrs.update(attrs)
     ds = _encoded(one, study, title=title)
@@ -416,18 +372,3 @@ def _write_template(study, url, chunks, n, chunk_size, attrs, title, design_rows
                           coords={k: v for k, v in variables.items() if k in ds.coords}, attrs=ds.attrs)
     template.to_zarr(f"{url}/{DATA}", mode="w", compute=False, zarr_format=ZARR_FORMAT, consolidated=False,
                      storage_options=_options(url))
-
-
-def open_store(url: str) -> xr.Dataset:
-    """The ensemble in the store at ``url`` as a lazy (dask) Dataset, one dask chunk per
-    region; FileNotFoundError naming the regions not yet done."""
-    manifest = read_store_manifest(url)
-    if manifest is None:
-        raise FileNotFoundError(f"{url} holds no uqdrape run (no {MANIFEST}); run the study first")
-    missing = [c for c in manifest["chunks"] if c not in done_regions(url)]
-    if missing:
-        raise FileNotFoundError(f"{url} is an incomplete run: {len(missing)} of {len(manifest['chunks'])} regions "
-                                f"not done ({', '.join(missing[:5])}); resume it to compute them")
-    raw = xr.open_zarr(f"{url}/{DATA}", consolidated=False, zarr_format=ZARR_FORMAT,
-                       storage_options=_options(url))
-    return cf_decode(raw)

@@ -53,13 +53,12 @@ def open_result(path) -> tuple[xr.Dataset, bool]:
 
     Raises FileNotFoundError for a missing path and ValueError for a file that is not a
     drape result, naming the path."""
-    from ..ensemble import is_url, open_ensemble
+    from ..ensemble import at
+    from ..files import location
 
-    if is_url(path):  # a zarr store (uqdrape.ensemble.zarrstore)
-        return open_ensemble(path), True
+    if not isinstance(location(path), Path) or Path(path).is_dir():  # a store's URL, a run folder
+        return at(path).open(), True
     path = Path(path)
-    if path.is_dir():
-        return open_ensemble(path), True
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such file or run folder")
     try:

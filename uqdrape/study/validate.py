@@ -101,7 +101,7 @@ from .. import geometry as _geometry
 from .. import material as _material
 from .. import stochastic as _stochastic
 from ..experimental import read_experimental
-from ..files import REQUIRED, Document, FileFormatError, Table, fmt, inside, is_int, is_number, is_url, location
+from ..files import REQUIRED, Document, FileFormatError, Table, fmt, inside, is_int, is_number, location
 from ..stochastic.sampling import EXTENDABLE_PLANS, RQMC, STUDY_PLANS, rqmc_points
 from ..schema import (BLANKHOLDER_MODELS, MAX_RINGS, MAX_TOLERANCE_DEG, MODES, QOI_ATTRS, SENSITIVITY_QOIS,
                       SOLVER_INPUTS, SPACING_RANGE_MM)
@@ -703,7 +703,7 @@ def _output(src: _Source, doc: dict, name: str) -> tuple[Path | str, bool]:
     t = Table(src, "output", doc.get("output", {}), ("directory", "float32"))
     directory = t.string("directory", f"results/{name}", hint="directory must be a non-empty path without NUL",
                          valid=lambda d: bool(d) and "\0" not in d)
-    if not is_url(directory) and not Path(directory).is_absolute() and not inside(directory):
+    if isinstance(location(directory), Path) and not Path(directory).is_absolute() and not inside(directory):
         t.invalid("directory", "a relative directory is taken from the current folder and must stay in it "
                                "('..' climbing out is refused); write the absolute path")
     float32 = t.raw("float32", False, "float32 must be true or false")

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..conventions import cf_encode
 from ..drape import drape
-from ..ensemble import Progress, made_from, run_name, write_netcdf
+from ..ensemble import Progress, at, write_netcdf
 from ..export import cut_files, fe_files, flat_files, levels, netcdf_file, open_result, vtk_files
 from ..files import write_all, write_text_atomic
 from ..errors import ParameterError
@@ -170,12 +170,12 @@ def export_result(result, to, *, out=None, mesh=None, tolerance=None, reference=
     if "fe" in to and not mesh:
         raise ValueError("--to fe needs --mesh FILE (a surface mesh meshio reads: .inp, .msh, .vtu, .stl, ...)")
     ds, is_ensemble = open_result(result)
-    name = run_name(result) if is_ensemble else Path(result).stem
+    name = at(result).name if is_ensemble else Path(result).stem
     options = dict(mesh=mesh, tolerance=tolerance, reference=reference, flavours=flavours, trim=trim,
                    ply=ply or name, history=f"uqdrape export {result} --to {' '.join(to)}")
     if out or not is_ensemble:
         return _export(ds, is_ensemble, to, Path(out) if out else Path(result).with_suffix(""), **options)
-    with made_from(result, "export") as made:
+    with at(result).made_from("export") as made:
         written, notes = _export(ds, is_ensemble, to, made.folder / name, **options)
     return [made.where(path) for path in written], notes
 

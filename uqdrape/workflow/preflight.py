@@ -22,8 +22,8 @@ import numpy as np
 
 from ..drape import placement_failures
 from ..ensemble import drape_inputs, inputs_from_design, sampled_inputs
-from ..ensemble.zarrstore import check_store
-from ..files import is_url, location  # noqa: F401 (location: for the CLI's --out)
+from ..ensemble import at
+from ..files import location  # noqa: F401 (location: for the CLI's --out)
 from ..study import load_study, study_error
 
 #: Bytes a node costs in a chunk file (x, y, z, shear, locked, status and the cells' values)
@@ -58,7 +58,7 @@ def check_resources(study, output_dir, drapes_to_write: int, chunk_size: int | N
     cannot be written, or whose ``drapes_to_write`` drapes would not fit on that folder's
     disk (estimates, stated in the message). The chunk is the largest the study's
     :func:`budget` of realisations makes. ``output_dir`` a store's URL: the store must
-    take a write (``zarrstore.check_store``: OSError otherwise); an object store's space is
+    take a write (``ZarrStore.probe``: OSError otherwise); an object store's space is
     not known here, a file:// store's folder is checked as a folder."""
     nodes = (2 * study.solver.rings + 1) ** 2
     memory = memory_bytes()
@@ -74,11 +74,11 @@ def check_resources(study, output_dir, drapes_to_write: int, chunk_size: int | N
         raise study_error(study.path, "study.chunk_size", chunk_size,
                           f"a chunk of {batch} drapes of {nodes:,} nodes needs about {need / 2**30:.3g} GiB, more "
                           f"than half of this machine's {memory / 2**30:.3g} GiB; use a smaller chunk_size")
-    if is_url(output_dir):
-        check_store(output_dir)
-        if not output_dir.startswith("file://"):
-            return
-        output_dir = Path(output_dir.removeprefix("file://"))
+    where = at(output_dir)
+    where.probe()
+    output_dir = where.local_folder()
+    if output_dir is None:
+        return
     existing = nearest_existing(output_dir)
     if not existing.is_dir():
         raise study_error(study.path, "output.directory", str(output_dir), f"{existing} is a file, not a folder")

@@ -22,13 +22,11 @@ import hashlib
 import json
 import math
 import sys
-from pathlib import Path
 
 import numpy as np
 from scipy.special import ndtr
 
-from ..ensemble import design_variables, drape_inputs, inputs_from_design
-from ..files import write_text_atomic
+from ..ensemble import at, design_variables, drape_inputs, inputs_from_design
 from ..material import load_material
 from ..reliability import importance_sampling
 from ..report import rare_rows
@@ -118,12 +116,13 @@ def rare_key(study) -> str:
 
 
 def read_rare(study, output_dir) -> dict | None:
-    """The rare-event record in ``output_dir`` (``RARE_FILE``) if it is of ``study``'s
+    """The rare-event record in ``output_dir`` (``RARE_FILE``; a run folder or a
+    store's URL) if it is of ``study``'s
     ``[study] rare`` (:func:`rare_key`), else None."""
-    path = Path(output_dir) / RARE_FILE
-    if study.rare is None or not path.is_file():
+    text = None if study.rare is None else at(output_dir).read_text(RARE_FILE)
+    if text is None:
         return None
-    record = json.loads(path.read_text(encoding="utf-8"))
+    record = json.loads(text)
     return record if record.get("key") == rare_key(study) else None
 
 
@@ -146,5 +145,5 @@ def rare_probabilities(study, output_dir, *, resume: bool = True, progress: bool
     if progress:
         for quantity, value, how in rare_rows(record):
             print(f"{study.name}: {quantity} = {value} ({how})", file=sys.stderr)
-    write_text_atomic(Path(output_dir) / RARE_FILE, json.dumps(record, indent=2) + "\n")
+    at(output_dir).write_text(RARE_FILE, json.dumps(record, indent=2) + "\n")
     return record

@@ -31,8 +31,8 @@ from pathlib import Path
 import xarray as xr
 
 from ..design import DESIGN_FILE, EVALUATIONS, Evaluator, drape_design, optimise, problem, result_dataset
-from ..ensemble import (Progress, design_variables, is_url, local_pool, made_from, open_ensemble, read_dataset,
-                        read_manifest, reach_scheduler, run_ensemble, run_lock, run_name, store_lock, write_dataset)
+from ..ensemble import (Progress, at, design_variables, local_pool, open_ensemble, read_manifest, reach_scheduler,
+                        run_ensemble)
 from ..report import write_design_report, write_report
 from ..sensitivity import map_indices, qoi_indices, study_design
 from ..stats import SENSITIVITY_QOIS, realization_qois
@@ -76,7 +76,7 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
     out = study.output_dir
     provenance = study.to_dict()
     if method != study.sensitivity.method:
-        out = f"{out}-{method}" if is_url(out) else out.with_name(f"{out.name}-{method}")
+        out = at(out).sibling(f"-{method}").target
         provenance["sensitivity"]["method"] = method
         provenance["sensitivity"].pop("base_samples", None)
     attrs = {}
@@ -148,7 +148,7 @@ def analysed(output_dir) -> bool:
     keys = []
     for name in (INDICES_FILE, MAPS_FILE):
         try:
-            ds = read_dataset(output_dir, name)
+            ds = at(output_dir).read_dataset(name)
         except (OSError, ValueError):
             return False
         keys.append(None if ds is None else ds.attrs.get("run_key"))
@@ -163,11 +163,11 @@ def write_sensitivity(output_dir, design, *, qoi=None, seed: int,
     ``run_key`` naming the run they are of: see :func:`analysed`). ``qoi``: names (default
     ``SENSITIVITY_QOIS``); ``progress``: count the analysed nodes on stderr. Returns the
     two paths (URLs in a store)."""
-    out = output_dir
-    with open_ensemble(out) as ds:
+    out = at(output_dir)
+    with out.open() as ds:
         qois = realization_qois(ds, SENSITIVITY_QOIS if qoi is None else qoi)
         shear = ds["shear"].load()
-        study_name = ds.attrs.get("study_name", run_name(out))
+        study_name = ds.attrs.get("study_name", out.name)
     indices = qoi_indices(design, qois, seed=seed)
     nodes = shear.isel({dim: 0 for dim in shear.dims if dim not in ("i", "j")}).size
     bar = Progress(nodes * shear.sizes.get("blankholder_force", 1), enabled=progress, desc="index maps", unit="node")
@@ -179,14 +179,14 @@ def write_sensitivity(output_dir, design, *, qoi=None, seed: int,
         result.attrs.update(study_name=study_name, run_key=_run_key(out))
     if "k_max" in qois.attrs:
         indices.attrs["line_k_max"] = qois.attrs["k_max"]
-    return write_dataset(out, INDICES_FILE, indices), write_dataset(out, MAPS_FILE, maps)
+    return out.write_dataset(INDICES_FILE, indices), out.write_dataset(MAPS_FILE, maps)
 
 
 def open_sensitivity(output_dir) -> tuple[xr.Dataset, xr.Dataset] | None:
     """(QoI indices, node-shear index maps) of a sensitivity run in ``output_dir`` (a run
     folder or store URL), loaded; None if the run holds no sensitivity results."""
-    indices = read_dataset(output_dir, INDICES_FILE)
-    return None if indices is None else (indices, read_dataset(output_dir, MAPS_FILE))
+    indices = at(output_dir).read_dataset(INDICES_FILE)
+    return None if indices is None else (indices, at(output_dir).read_dataset(MAPS_FILE))
 
 
 def run_design(study, *, output_dir=None, scheduler: str | None = None, workers: int | None = None,
@@ -202,17 +202,14 @@ def run_design(study, *, output_dir=None, scheduler: str | None = None, workers:
     if study.design is None:
         raise ValueError(f"study {study.name!r} ({study.path}) has no [design] section; run it with `uqdrape run`")
     prob = problem(study)
-    out = study.output_dir if output_dir is None else output_dir
-    out = out if is_url(out) else Path(out)
-    if not is_url(out):  # a store's space is the object store's business
-        check_resources(study, out, 0)  # a design's records are per-drape numbers and node sums, not nets
+    out = at(study.output_dir if output_dir is None else output_dir)
+    check_resources(study, out, 0)  # a design's records are per-drape numbers and node sums, not nets
     check_placement(study, quiet=not progress)
     reach_scheduler(scheduler)
     local = scheduler in (None, "processes")
     # one pool for the whole run: a design is many small batches, and starting worker
     # processes for each would cost more than draping it; one run at a time in the folder
-    lock = store_lock(out) if is_url(out) else run_lock(out)
-    with lock, local_pool(workers) if local else contextlib.nullcontext() as pool:
+    with out.lock(), local_pool(workers) if local else contextlib.nullcontext() as pool:
         evaluate = Evaluator(prob, out, scheduler=scheduler, workers=workers, progress=progress, drape=drape,
                              pool=pool, rare=rare)
         result = optimise(prob, evaluate)
@@ -220,10 +217,10 @@ def run_design(study, *, output_dir=None, scheduler: str | None = None, workers:
         # this run's own time: a resumed run replays earlier designs from their records
         ds.attrs["wall_time_s"] = round(time.perf_counter() - start, 1)
         ds.attrs["designs_kept"], ds.attrs["designs_draped"] = evaluate.kept, evaluate.draped
-        write_dataset(out, DESIGN_FILE, ds)
+        out.write_dataset(DESIGN_FILE, ds)
     if progress:
         print(f"{study.name}: {ds.attrs['summary']}", file=sys.stderr)
-    return out
+    return out.target
 
 
 def run_report(output_dir, out_dir=None, formats=()) -> Path | str:
@@ -235,12 +232,12 @@ def run_report(output_dir, out_dir=None, formats=()) -> Path | str:
     URL), its figures also in the vector ``formats`` (svg, pdf) beside the PNGs; returns
     the index.html path (a URL in a store)."""
     if out_dir is None:
-        with made_from(output_dir, "report") as made:
+        with at(output_dir).made_from("report") as made:
             index = run_report(output_dir, made.folder, formats)
         return made.where(index)
-    design = read_dataset(output_dir, DESIGN_FILE)
+    design = at(output_dir).read_dataset(DESIGN_FILE)
     ds = open_ensemble(output_dir) if design is None else design
-    study = from_dict(json.loads(ds.attrs["study_json"]), Path(run_name(output_dir)))
+    study = from_dict(json.loads(ds.attrs["study_json"]), Path(at(output_dir).name))
     report = Path(out_dir)
     if design is not None:
         return write_design_report(ds, report, surface=study.geometry.build_mould(), formats=formats)
@@ -264,7 +261,7 @@ def run_report(output_dir, out_dir=None, formats=()) -> Path | str:
 def design_outcome(out) -> str:
     """What ``uqdrape design`` did to ``out`` (a folder or store URL): designs draped, or how
     many a resume kept."""
-    attrs = read_dataset(out, DESIGN_FILE).attrs
+    attrs = at(out).read_dataset(DESIGN_FILE).attrs
     kept, draped = int(attrs.get("designs_kept", 0)), int(attrs.get("designs_draped", 0))
     if not kept:
         return f"designs written to {out}: {draped} designs draped"

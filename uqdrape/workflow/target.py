@@ -25,8 +25,7 @@ import sys
 import numpy as np
 from scipy import stats as _stats
 
-from ..ensemble import open_ensemble, read_manifest
-from ..ensemble.store import write_manifest
+from ..ensemble import at, open_ensemble, read_manifest
 from ..schema import FORCE
 from ..stats import realization_qois, wilson_interval
 
@@ -111,7 +110,7 @@ def run_to_target(study, run_round, *, chunk_size: int, resume: bool = True, pro
         n = next_realizations(n, half, target.half_width, step, budget)
     stop = STOPS[0] if half <= target.half_width else STOPS[1]
     manifest = read_manifest(out)
-    write_manifest(out, {**manifest, "target": {**dataclasses.asdict(target), "max_realizations": study.max_realizations,
+    at(out).write_manifest({**manifest, "target": {**dataclasses.asdict(target), "max_realizations": study.max_realizations,
                                                 "stopped_by": stop, "realizations": n, "half_width_reached": half,
                                                 "forces": list(levels), "rounds": rounds}})
     return out

@@ -24,11 +24,10 @@ twin of the same realisations it says the widening was not measured and how to m
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 
-from ..ensemble import is_url, open_ensemble, read_manifest
+from ..ensemble import at, open_ensemble, read_manifest
 from ..ensemble.inputs import realization_length_mm, realization_sd_deg
 from ..schema import FORCE, REALIZATION, by_force
 from ..stats import node_statistics
@@ -52,7 +51,7 @@ SHARE = "share of the variance from the small measurement"
 
 def twin_location(out):
     """Where the fixed twin of the run in ``out`` (a folder or a store's URL) is draped."""
-    return f"{str(out).rstrip('/')}/{TWIN}" if is_url(out) else Path(out) / TWIN
+    return at(out).child(TWIN).target
 
 
 def fixed_twin(study, realizations: int, out):
