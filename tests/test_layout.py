@@ -12,14 +12,14 @@ import uqdrape
 PACKAGE = Path(uqdrape.__file__).parent
 
 
-def _module_name(path: Path) -> str:
-    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+def _module_name(path: Path, root: Path = PACKAGE) -> str:
+    parts = path.relative_to(root.parent).with_suffix("").parts
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
-def _imports(path: Path):
+def _imports(path: Path, root: Path = PACKAGE):
     """(imported module, names) of every import statement in ``path``, relative ones resolved."""
-    name = _module_name(path)
+    name = _module_name(path, root)
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
         if isinstance(node, ast.Import):
@@ -152,3 +152,36 @@ def test_the_study_spec_is_at_the_bottom():
                 below.add(target)
                 todo.append(target)
     assert not below & {"drape", "stats", "sensitivity", "report", "ensemble", "design", "workflow", "export"}, below
+
+
+def _module_graph(root: Path = PACKAGE) -> dict[str, set[str]]:
+    """The import graph between the modules under the package folder ``root``, every
+    import counted (those inside functions too): ``from p import name`` is an edge to the
+    module ``p.name`` where that is a module, else to ``p`` itself (its ``__init__``)."""
+    paths = {_module_name(path, root): path for path in root.rglob("*.py")}
+    graph: dict[str, set[str]] = {}
+    for name, path in paths.items():
+        for target, names in _imports(path, root):
+            for module in [f"{target}.{n}" if f"{target}.{n}" in paths else target for n in names] or [target]:
+                if module in paths and module != name:
+                    graph.setdefault(name, set()).add(module)
+    return graph
+
+
+def test_no_import_cycle_between_the_modules_of_uqdrape():
+    graph = _module_graph()
+    assert {"uqdrape.ensemble.run", "uqdrape.ensemble.storage", "uqdrape.workflow.run"} <= set(graph)
+    assert _cycle(graph) is None, " -> ".join(_cycle(graph))
+
+
+def test_the_module_cycle_check_finds_a_cycle_hidden_in_a_function(tmp_path):
+    """A planted circle a -> b -> a, b's import inside a function (as Python lets it
+    pass at import time), is found; without it there is none."""
+    package = tmp_path / "planted"
+    package.mkdir()
+    (package / "__init__.py").write_text("")
+    (package / "a.py").write_text("from .b import g\n\n\ndef f():\n    return g()\n")
+    (package / "b.py").write_text("def g():\n    return 1\n")
+    assert _cycle(_module_graph(package)) is None
+    (package / "b.py").write_text("def g():\n    from . import a\n\n    return a\n")
+    assert _cycle(_module_graph(package)) == ["planted.a", "planted.b", "planted.a"]
