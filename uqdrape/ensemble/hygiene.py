@@ -12,13 +12,14 @@
   process that removes the pool's semaphores) would warn of "leaked semaphore objects"
   after a SIGKILL; it reads PYTHONWARNINGS when it starts, which the CLI sets to ignore
   (``uqdrape.cli``), and removes them either way.
-* :func:`run_lock`: one run per output folder. The lock file records pid, host and start
-  time, and is created whole (written beside, then hard-linked into place: there is no
-  moment at which it exists empty); a lock whose process is gone on this host is stale
-  and taken over, a live one refuses the second run naming the first, and a lock from
-  another host, or one that is not a lock uqdrape wrote, is refused, not guessed about.
-  Taken before anything in the folder is touched, so ``--no-resume`` never deletes what
-  another live run is writing.
+* :func:`hold_lock`: one run per output location (a folder's :func:`run_lock`, a store's
+  ``ZarrStore.lock``). The lock records pid, host and start time, and is created whole
+  (a folder's written beside, then hard-linked into place: there is no moment at which it
+  exists empty; a store's by exclusive create); a lock whose process is gone on this host
+  is stale and taken over, a live one refuses the second run naming the first, and a lock
+  from another host, or one that is not a lock uqdrape wrote, is refused, not guessed
+  about. Taken before anything in the location is touched, so ``--no-resume`` never
+  deletes what another live run is writing.
 """
 
 from __future__ import annotations

@@ -150,9 +150,6 @@ class Location:
     def __repr__(self) -> str:
         return f"{type(self).__name__}({str(self.target)!r})"
 
-    def __fspath__(self) -> str:
-        return str(self.target)
-
     @property
     def name(self) -> str:
         """The last part of the folder's path or the store's URL (``s3://b/runs/x`` -> ``x``)."""

@@ -15,7 +15,7 @@ run folders are read, not refused: every reader takes either
                     chunks of (1, chunk_size, full node grid)
     done/<chunk>    a region's "done" marker, written after its data
     rare.json, sensitivity.nc, design.nc, evaluations/, fixed/, report/, export/
-                    as in a run folder, each file put whole (:func:`publish`)
+                    as in a run folder, each file put whole (``ZarrStore._put``)
 
 The template (every variable's shape, dtype and attributes, no data) is written once
 with ``compute=False``; each dask task drapes its chunk and writes its region of
@@ -75,19 +75,43 @@ class ZarrStore(Location):
 
     @contextlib.contextmanager
     def reading(self, name: str):
+        """A local copy of the store's file ``name``, in a temporary folder."""
+        fs, root = _fs(self.target)
+        _check_reachable(fs, root, self.target)
         with tempfile.TemporaryDirectory(prefix="uqdrape-") as tmp:
             local = Path(tmp) / name
-            yield local if fetch(self.target, name, local) else None
+            local.parent.mkdir(parents=True, exist_ok=True)  # else a missing folder here reads as no such file
+            try:
+                fs.get_file(f"{root}/{name}", str(local))
+            except FileNotFoundError:
+                local = None
+            yield local
 
     @contextlib.contextmanager
     def writing(self, name: str):
+        """A temporary local path whose file, or whose folder's files, are put in the store."""
         with tempfile.TemporaryDirectory(prefix="uqdrape-") as tmp:
             local = Path(tmp) / name
             yield local
             if local.is_file():
-                publish(local, self.target, name)
+                self._put(name, local)
             for path in sorted((p for p in local.rglob("*") if p.is_file()), key=lambda p: p.stat().st_mtime_ns):
-                publish(path, self.target, f"{name}/{path.relative_to(local).as_posix()}")
+                self._put(f"{name}/{path.relative_to(local).as_posix()}", path)
+
+    def _put(self, name: str, data) -> None:
+        """Put ``data`` (bytes, or a local file's path) as the store's object ``name``, whole:
+        uploaded as ``name.part``, then moved (a rename on a local disk, a server-side copy
+        on S3), so a reader never sees it half-written and a failed or killed upload leaves
+        the old object; a failure that returns removes the part."""
+        fs, root = _fs(self.target)
+        part = f"{root}/{name}.part"
+        try:
+            fs.pipe_file(part, data) if isinstance(data, bytes) else fs.put_file(str(data), part)
+        except BaseException:
+            with contextlib.suppress(OSError):
+                fs.rm(part)
+            raise
+        fs.mv(part, f"{root}/{name}")
 
     def local_folder(self) -> Path | None:
         """The local folder of a file:// store (its disk the run fills), else None."""
@@ -130,19 +154,8 @@ class ZarrStore(Location):
         return manifest
 
     def write_manifest(self, manifest: dict) -> None:
-        """Write the manifest whole: put as ``run.json.part``, then moved over the old one
-        (a rename on a local disk; on an object store a put is whole anyway), so a failed
-        or killed write leaves the old manifest (the part is removed on a failure that
-        returns)."""
-        fs, root = _fs(self.target)
-        part = f"{root}/{MANIFEST}.part"
-        try:
-            fs.pipe_file(part, json.dumps(manifest, indent=1).encode())
-        except BaseException:
-            with contextlib.suppress(OSError):
-                fs.rm(part)
-            raise
-        fs.mv(part, f"{root}/{MANIFEST}")
+        """Write the manifest whole (:meth:`_put`)."""
+        self._put(MANIFEST, json.dumps(manifest, indent=1).encode())
 
     def done(self) -> set[str]:
         """The chunk names whose region is marked done."""
@@ -303,28 +316,6 @@ def _writing(url: str, what: str):
     except OSError as err:
         cause = " ".join(str(err.strerror or err).split())
         raise OSError(err.errno or errno.EIO, f"cannot write {what} ({type(err).__name__}: {cause})", url) from None
-
-
-def fetch(url: str, name: str, local) -> bool:
-    """Copy the file ``name`` under the store at ``url`` to the local path ``local``;
-    False if the store has no such file."""
-    fs, root = _fs(url)
-    _check_reachable(fs, root, url)
-    Path(local).parent.mkdir(parents=True, exist_ok=True)  # else a missing folder here reads as no such file
-    try:
-        fs.get_file(f"{root}/{name}", str(local))
-    except FileNotFoundError:
-        return False
-    return True
-
-
-def publish(local, url: str, name: str) -> None:
-    """Put the local file ``local`` under the store at ``url`` as ``name``, whole: it is
-    uploaded as ``name.part`` and then moved (a rename on a local disk, a server-side
-    copy on S3), so a reader never sees it half-written."""
-    fs, root = _fs(url)
-    fs.put_file(str(local), f"{root}/{name}.part")
-    fs.mv(f"{root}/{name}.part", f"{root}/{name}")
 
 
 def _resize(url: str, n: int, attrs: dict) -> None:

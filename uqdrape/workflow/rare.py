@@ -26,7 +26,7 @@ import sys
 import numpy as np
 from scipy.special import ndtr
 
-from ..ensemble import at, design_variables, drape_inputs, inputs_from_design
+from ..ensemble import at, design_variables, drape_inputs, inputs_from_design, study_mould
 from ..material import load_material
 from ..reliability import importance_sampling
 from ..report import rare_rows
@@ -50,7 +50,7 @@ def drape_limit_state(study, qoi: str, threshold: float, force: float | None = N
     in the nominal drape (U = 0), the same nodes in every batch."""
     names = design_variables(study)
     factors = len(study.uncertainty.factors)
-    surface, material = study.geometry.build_mould(), load_material(study.fabric.material)
+    surface, material = study_mould(study), load_material(study.fabric.material)
 
     def values(U, k_max=None):
         X = np.array(U, dtype=float, ndmin=2)
