@@ -142,6 +142,13 @@ def jit(function):
         numba.config.CACHE_DIR = saved
 
 
+def inline(function):
+    """``function`` compiled into the code of each compiled caller (numba's
+    ``inline="always"``), with uqdrape's settings: for a small helper in a hot loop that
+    LLVM's inliner would leave as a call (the node solver's circle point and gap)."""
+    return njit(inline="always", **_OPTIONS)(function)
+
+
 def on_threads(threads, R, call):
     """Call ``call(rows)`` for ``threads`` contiguous slices ``rows`` of range(R), each on
     its own thread (one slice, on this thread, for threads <= 1). Every realisation is

@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from .._jit import jit
+from .._jit import inline, jit
 from ..geometry.compiled import gap_on, surface_normal
 from .status import Status
 
@@ -49,7 +49,7 @@ OK, NO_INTERSECTION, OFF_MOULD, DEPENDENT, FOLDED = (int(s) for s in (
 NAN3 = (math.nan, math.nan, math.nan)
 
 
-@jit
+@inline
 def _gap(kind, par, memo, c, u, v, rho, t):
     """Circle point q at angle t (mm), the mould function phi(q) (mm), its t-derivative, the
     gradient of phi at q (3-tuple) and whether q is on the mould (``compiled.gap_on``). For a

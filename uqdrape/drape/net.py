@@ -120,7 +120,7 @@ def build_geodesic(prob: NetProblem, threads=1):
     P, status = prob.start()
     first_dir = np.ascontiguousarray(prob.first_directions())
     on_threads(threads, prob.R, lambda r: ring.geodesic_block(
-        prob.surface.kernel, prob.tol, prob.n, P[r], status[r], prob.seg_i[r], prob.seg_j[r], first_dir[r]))
+        prob.surface.kernel, new_memo(prob.surface.kernel[0]), prob.tol, prob.n, P[r], status[r], prob.seg_i[r], prob.seg_j[r], first_dir[r]))
     return P, status
 
 
@@ -212,7 +212,7 @@ class EnergyRings:
         def place(rows):
             for r in prob.same_material(rows):  # a compiled call takes one card
                 ring.drape_ring(
-                    prob.surface.kernel, prob.tol, prob.n, k, P[r], status[r], prob.blank[r], prob.seg_i[r],
+                    prob.surface.kernel, new_memo(prob.surface.kernel[0]), prob.tol, prob.n, k, P[r], status[r], prob.blank[r], prob.seg_i[r],
                     prob.seg_j[r], prob.cell_s1[r], prob.cell_s2[r], prob.gamma0[r], prob.crossover[r],
                     prob.blankholder.force[r], prob.blankholder.friction[r], self.first_dir[r], self.bend,
                     prob.kernel(r.start), prob.blankholder.kernel, self.tol, self.max_iterations, self.max_turn,

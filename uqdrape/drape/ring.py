@@ -19,7 +19,8 @@ blank (3, 2) the flat blank, whose node (i, j) lies at blank[0] + i blank[1] + j
 (the crossover and the fibre steps s e1, s e2); seg_i (2n, 2n+1), seg_j (2n+1, 2n) segment lengths;
 s1, s2 (2n, 2n) cell segment lengths and g0 (2n, 2n) zero-energy angles (rad);
 centre (2,) the crossover. ``surf`` is the mould's ``(kind, params)`` and ``memo`` its query
-memo (``compiled.new_memo``, one per call: a mesh's answers to nearby points), ``mat`` the
+memo (``compiled.new_memo``, one per thread: a mesh's answers to nearby points, None
+for a closed form), ``mat`` the
 material's and ``bh`` the blank-holder's compiled form. Energies in J.
 """
 
@@ -30,7 +31,6 @@ import math
 import numpy as np
 
 from .._jit import jit
-from ..geometry.compiled import new_memo
 from ..material.model import cell_energy
 from .energy import segment_energy
 from .kernels import OK, arm_node, fill, shear
@@ -98,10 +98,9 @@ def _geodesic_net(surf, memo, tol, n, P, status, seg_i, seg_j, first_dir):
 
 
 @jit
-def geodesic_block(surf, tol, n, P, status, seg_i, seg_j, first_dir):
+def geodesic_block(surf, memo, tol, n, P, status, seg_i, seg_j, first_dir):
     """Geodesic nets of a block, one after the other: P (R, N, N, 3), status (R, N, N),
     seg_i, seg_j, first_dir (R, 4, 3) as ``_geodesic_net`` per realisation."""
-    memo = new_memo(surf[0])
     for r in range(P.shape[0]):
         _geodesic_net(surf, memo, tol, n, P[r], status[r], seg_i[r], seg_j[r], first_dir[r])
 
@@ -346,7 +345,7 @@ def minimise(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, 
 
 
 @jit
-def drape_ring(surf, tol, n, k, P, status, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat,
+def drape_ring(surf, memo, tol, n, k, P, status, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat,
                bh, tolerance, max_iterations, max_turn, turns, iterations, converged):
     """Ring k of every realisation r of a block, each from its own ring k - 1 and to its own
     iteration count (a straggler holds no other): P (R, N, N, 3) and status (R, N, N), with
@@ -359,7 +358,6 @@ def drape_ring(surf, tol, n, k, P, status, blank, seg_i, seg_j, s1, s2, g0, cent
     best_ring = (np.empty((1, 4, 2, n, 3)), np.empty((1, 4, 2, n), np.int8), np.empty((1, 4, 3)),
                  np.empty((1, 4), np.int8))
     S_best, St_best, X_best, Xs_best = best_ring
-    memo = new_memo(surf[0])
     for r in range(P.shape[0]):
         args = (P[r], blank[r], seg_i[r], seg_j[r], s1[r], s2[r], g0[r], centre[r], force[r], mu[r])
         if k > 1:

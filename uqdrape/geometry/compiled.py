@@ -17,7 +17,9 @@ MESH         a triangle mesh with its bounding-volume hierarchy (``meshquery``)
 
 Every kind is also an implicit surface for the node solver (``gap_on``, ``surface_normal``): a height field through its closed form, a mesh through its signed distance.
 These take a query memo (``new_memo``): a mesh's table of proven nearby answers
-(``meshquery.closest``), empty for the closed forms, which need none.
+(``meshquery.closest``), None for the closed forms, which need none. numba compiles a
+kernel once per argument type and drops the branch a None rules out, so a height field's
+node solver carries no mesh code.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ import math
 
 import numpy as np
 
-from .._jit import jit
+from .._jit import inline, jit
 from . import meshquery
 
 PLATE, HEMISPHERE, CYLINDER, CONE, NOSE_CONE, DOUBLE_DOME, SADDLE, MESH = range(8)
@@ -66,6 +68,17 @@ def _cap(p, x, y, xc):
 @jit
 def height_gradient(kind, p, x, y):
     """(h, dh/dx, dh/dy) of mould ``kind`` at plan point (x, y) (mm); NaN in, NaN out."""
+    if kind == MESH:
+        if not (math.isfinite(x) and math.isfinite(y)):
+            return math.nan, math.nan, math.nan
+        return meshquery.top(p, x, y)
+    return _closed_form(kind, p, x, y)
+
+
+@inline
+def _closed_form(kind, p, x, y):
+    """``height_gradient`` of a height field given in closed form (every kind but MESH),
+    kept apart so the node solver's loops over them hold no mesh code."""
     if not (math.isfinite(x) and math.isfinite(y)):
         return math.nan, math.nan, math.nan
     if kind == PLATE:
@@ -102,9 +115,8 @@ def height_gradient(kind, p, x, y):
         if f > 0:
             return f, w * g1x + (1 - w) * g2x, w * g1y + (1 - w) * g2y
         return 0.0, 0.0, 0.0
-    if kind == SADDLE:
-        return (x * x - y * y) / (2 * p[1]), x / p[1], -y / p[1]
-    return meshquery.top(p, x, y)  # MESH
+    # SADDLE
+    return (x * x - y * y) / (2 * p[1]), x / p[1], -y / p[1]
 
 
 @jit
@@ -112,17 +124,22 @@ def inside(kind, p, x, y):
     """True where plan point (x, y) (mm) lies in the mould's domain (a mesh: under its top)."""
     if kind == MESH:
         return math.isfinite(meshquery.top(p, x, y)[0])
+    return _in_domain(kind, p, x, y)
+
+
+@inline
+def _in_domain(kind, p, x, y):
+    """``inside`` for a closed-form kind: the plan domain's rectangle."""
     if kind == CYLINDER:
         a, c = (x, y) if p[2] == 0.0 else (y, x)
         return abs(a) <= 0.5 * p[1] and abs(c) <= p[3] * p[0]
     return abs(x) <= p[0] and abs(y) <= p[0]
 
 
-@jit
 def new_memo(kind):
     """A query memo for ``gap_on`` and ``surface_normal`` on a mould of ``kind``: a mesh's
-    (``meshquery.new_memo``), else empty. One per thread: it is written by every query."""
-    return meshquery.new_memo() if kind == MESH else np.empty(0)
+    (``meshquery.new_memo``), else None. One per thread: it is written by every query."""
+    return meshquery.new_memo() if kind == MESH else None
 
 
 @jit
@@ -134,11 +151,11 @@ def gap_on(kind, p, x, y, z, memo):
     phi = z - h(x, y), gradient (-hx, -hy, 1), on its plan domain; a mesh its signed
     distance, on it within its tolerance, not on the tangent plane continuing it past an
     open edge (``meshquery.signed_distance``, one closest-point query for all of it)."""
-    if kind == MESH:
-        phi, g, on = meshquery.signed_distance(p, x, y, z, memo)
-        return phi, g[0], g[1], g[2], on
-    h, hx, hy = height_gradient(kind, p, x, y)
-    return z - h, -hx, -hy, 1.0, inside(kind, p, x, y)
+    if memo is None:  # a height field in closed form
+        h, hx, hy = _closed_form(kind, p, x, y)
+        return z - h, -hx, -hy, 1.0, _in_domain(kind, p, x, y)
+    phi, g, on = meshquery.signed_distance(p, x, y, z, memo)
+    return phi, g[0], g[1], g[2], on
 
 
 @jit
@@ -153,11 +170,11 @@ def surface_normal(kind, p, x, y, z, memo):
     """Unit outward normal (3-tuple) of the mould at the surface point (x, y, z) (mm): the
     tangent plane a node's arm step uses: the normalised gradient of a height field, a mesh's
     interpolated vertex normal (continuous, so an arm steps as over the smooth part)."""
-    if kind == MESH:
-        return meshquery.normal(p, x, y, z, memo)
-    _, gx, gy, gz = gap(kind, p, x, y, z, memo)
-    s = math.sqrt(gx * gx + gy * gy + gz * gz)
-    return (gx / s, gy / s, gz / s)
+    if memo is None:  # a height field
+        _, gx, gy, gz = gap(kind, p, x, y, z, memo)
+        s = math.sqrt(gx * gx + gy * gy + gz * gz)
+        return (gx / s, gy / s, gz / s)
+    return meshquery.normal(p, x, y, z, memo)
 
 
 @jit
@@ -183,8 +200,7 @@ def evaluate(kernel, x, y):
 
 
 @jit
-def _gap_many(kind, p, x, y, z, out):
-    memo = new_memo(kind)
+def _gap_many(kind, p, memo, x, y, z, out):
     for m in range(x.size):
         out[m, 0], out[m, 1], out[m, 2], out[m, 3] = gap(kind, p, x[m], y[m], z[m], memo)
 
@@ -194,13 +210,12 @@ def evaluate_gap(kernel, x, y, z):
     x, y, z = np.broadcast_arrays(np.asarray(x, float), np.asarray(y, float), np.asarray(z, float))
     shape = x.shape
     out = np.empty((x.size, 4))
-    _gap_many(kernel[0], kernel[1], *(np.ascontiguousarray(a).ravel() for a in (x, y, z)), out)
+    _gap_many(kernel[0], kernel[1], new_memo(kernel[0]), *(np.ascontiguousarray(a).ravel() for a in (x, y, z)), out)
     return tuple(out[:, c].reshape(shape) for c in range(4))
 
 
 @jit
-def _normal_many(kind, p, x, y, z, out):
-    memo = new_memo(kind)
+def _normal_many(kind, p, memo, x, y, z, out):
     for m in range(x.size):
         out[m, 0], out[m, 1], out[m, 2] = surface_normal(kind, p, x[m], y[m], z[m], memo)
 
@@ -210,7 +225,7 @@ def evaluate_normal(kernel, points):
     points = np.asarray(points, float)
     flat = np.ascontiguousarray(points.reshape(-1, 3))
     out = np.empty(flat.shape)
-    _normal_many(kernel[0], kernel[1], flat[:, 0].copy(), flat[:, 1].copy(), flat[:, 2].copy(), out)
+    _normal_many(kernel[0], kernel[1], new_memo(kernel[0]), flat[:, 0].copy(), flat[:, 1].copy(), flat[:, 2].copy(), out)
     return out.reshape(points.shape)
 
 
