@@ -333,11 +333,11 @@ def _bad_case(tmp_path, case):
     elif case == "not a number":
         text[7] = "12.5,abc"
         (tmp_path / csv_name).write_text("\n".join(text), encoding="utf-8")
-        expect = "bad.csv: line 8, column displacement_mm: 'abc' is not a number"
+        expect = "bad.csv: line 8, column displacement_mm: expected a number"
     elif case == "not finite":
         text[9] = "nan,1.0"
         (tmp_path / csv_name).write_text("\n".join(text), encoding="utf-8")
-        expect = "bad.csv: line 10, column force_n: 'nan' is not a finite number"
+        expect = "bad.csv: line 10, column force_n: expected a finite number, not inf or nan"
     elif case == "row length":
         text[5] += ",3.0"
         (tmp_path / csv_name).write_text("\n".join(text), encoding="utf-8")
