@@ -87,6 +87,10 @@ def calibrate_fibre_angles(points_csv, out, plot=None, *, family: str = "auto", 
 
 #: Design points per calibrated parameter when ``design`` is not given.
 DESIGN_PER_PARAMETER = 10
+#: Most design points (each an ensemble; the emulator's GPs factor an n x n matrix per
+#: measured point) and drapes per design point of a calibration.
+MAX_DESIGN = 1000
+MAX_REALIZATIONS = 10000
 
 
 @dataclass(frozen=True)
@@ -242,14 +246,15 @@ def calibrate_parts(study_path, parts, params, *, design: int | None = None, rea
     if study.is_sweep:
         raise ValueError(f"{study.path}: a calibration from drapes needs one blank-holder force level "
                          f"(the study sweeps {list(study.force_levels)} N)")
-    if not measurement_sd >= 0:
-        raise ValueError(f"--measurement-sd must be >= 0 (deg), got {measurement_sd!r}")
+    if not 0 <= measurement_sd <= 90:
+        raise ValueError(f"--measurement-sd must be from 0 to 90 (deg), got {measurement_sd!r}")
     distance, sign, index = _union(parts)
     n = DESIGN_PER_PARAMETER * len(params) if design is None else design
     r = study.realizations if realizations is None else realizations
-    for flag, value, least in (("--design", n, len(params) + 2), ("--realizations", r, 3)):
-        if not (isinstance(value, int) and value >= least):
-            raise ValueError(f"{flag} must be an integer >= {least}, got {value!r}")
+    for flag, value, least, most in (("--design", n, len(params) + 2, MAX_DESIGN),
+                                     ("--realizations", r, 3, MAX_REALIZATIONS)):
+        if not (isinstance(value, int) and least <= value <= most):
+            raise ValueError(f"{flag} must be an integer from {least} to {most}, got {value!r}")
     lower, upper = np.array([p.lower for p in params]), np.array([p.upper for p in params])
     keys = [p.key for p in params]
     for corner in itertools.product(*zip(lower, upper)):  # a box the study refuses, before any drape
