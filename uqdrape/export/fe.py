@@ -142,6 +142,7 @@ def locate(points: np.ndarray, tri_xy: np.ndarray):
     a, b, c = (tri_xy[cand, m] for m in range(3))
     v0, v1, v2 = b - a, c - a, points[:, None, :] - a
     det = v0[..., 0] * v1[..., 1] - v0[..., 1] * v1[..., 0]
+    det[det == 0.0] = np.nan  # a triangle seen edge-on in plan (a vertical face) holds no point: nan weights
     l1 = (v2[..., 0] * v1[..., 1] - v2[..., 1] * v1[..., 0]) / det
     l2 = (v0[..., 0] * v2[..., 1] - v0[..., 1] * v2[..., 0]) / det
     lam = np.stack([1 - l1 - l2, l1, l2], axis=-1)
