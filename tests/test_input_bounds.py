@@ -125,3 +125,19 @@ def test_mesh_units_of_the_wrong_type_are_one_line(tmp_path, capsys, units):
     study.write_text(study.read_text().replace('path = "dome.stl"', f'path = "dome.stl"\nunits = {units}'))
     assert main(["validate", str(study)]) == 2
     assert_one_line_error(capsys.readouterr().err, file=study, key="geometry.units", valid=["mm", "in"])
+
+
+@pytest.mark.parametrize("argv, flag", [
+    (["drape", "--rings", "2", "--out", "http://127.0.0.1:9/x"], "--out"),
+    (["materials", "generic_woven", "--plot", "http://127.0.0.1:9/x.png"], "--plot"),
+    (["materials", "derive", "fge106hd", "--out", "s3://bucket/card.toml"], "--out"),
+    (["calibrate", "POINTS", "--out", "http://127.0.0.1:9/block.toml"], "--out"),
+    (["calibrate", "POINTS", "--out", "block.toml", "--report", "https://127.0.0.1:9/r"], "--report"),
+])
+def test_a_url_where_a_command_writes_local_files_is_refused_not_folded_into_a_folder(tmp_path, capsys, monkeypatch,
+                                                                                        argv, flag):
+    monkeypatch.chdir(tmp_path)
+    points = str(_points_csv(tmp_path / "p.csv", 30))
+    assert main([points if a == "POINTS" else a for a in argv]) == 2
+    assert_one_line_error(capsys.readouterr().err, valid=[flag, "://", "give a path"])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.csv"]  # no http: or s3: folder

@@ -105,6 +105,15 @@ def check_input_file(path, what: str, max_bytes: int, *, error: type[ValueError]
     return info.st_size
 
 
+def local_path(target, flag: str) -> Path:
+    """``target`` as a path on this machine; a URL raises ValueError naming ``flag``
+    (pathlib would fold ``http://host/x`` into the local folder ``http:/host``)."""
+    if is_url(target):
+        raise ValueError(f"{flag} {target}: this command writes files on this machine; give a path (a store URL "
+                         "is written by run and design, and read by report and export)")
+    return Path(target)
+
+
 def _error(error: type[ValueError], message: str, path) -> ValueError:
     """``error`` with ``message`` (and ``path``, where it is a FileFormatError)."""
     return error(message, path) if issubclass(error, FileFormatError) else error(message)
