@@ -150,7 +150,8 @@ def test_cf_checker_finds_no_errors_or_warnings(written, tmp_path):
         import cfchecker  # noqa: F401
         import cfunits  # noqa: F401  (needs the UDUNITS-2 C library)
     except (ImportError, FileNotFoundError, OSError) as err:
-        _missing(f"the CF checker cannot be imported ({type(err).__name__})")
+        _missing(f"the CF checker cannot be imported ({type(err).__name__}: {str(err).splitlines()[0]}); install "
+                 "the UDUNITS-2 library (Debian: apt install libudunits2-0) and pip install 'uqdrape[test]'")
     # the checker's script sits next to the interpreter running the tests, venv or not
     cfchecks = Path(sys.executable).parent / "cfchecks"
     if not cfchecks.is_file():

@@ -427,3 +427,17 @@ def test_cli_unwritable_output_is_an_io_error(drape_file, tmp_path, capsys):
     assert main(["export", str(drape_file), "--to", "vtk", "--out", str(blocker / "net")]) == 3
     assert_one_line_error(capsys.readouterr().err, file=blocker)
     assert not list(tmp_path.glob("**/*.part*"))
+
+
+def test_locate_skips_triangles_seen_edge_on_without_a_warning():
+    import warnings
+
+    from uqdrape.export.fe import locate
+
+    tri = np.array([[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]],     # a plan triangle
+                    [[0.0, 0.0], [1.0, 1.0], [2.0, 2.0]]])    # a vertical face: a segment in plan
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a divide-by-zero RuntimeWarning fails the test
+        index, weights = locate(np.array([[0.2, 0.2], [0.5, 0.5], [5.0, 5.0]]), tri)
+    assert index.tolist() == [0, 0, -1]
+    np.testing.assert_allclose(weights[0], [0.6, 0.2, 0.2], rtol=1e-15)

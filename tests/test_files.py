@@ -72,7 +72,7 @@ def test_missing_file_and_folder_say_why(tmp_path):
     assert "cannot read the architecture file: No such file or directory" in one_line_naming(err, tmp_path / "nope.toml")
     with pytest.raises(FileFormatError) as err:
         read_toml(tmp_path, "architecture file")
-    assert "Is a directory" in one_line_naming(err, tmp_path)
+    assert "is a folder, not a regular file" in one_line_naming(err, tmp_path)
 
 
 def test_oversize_file_is_refused_before_parsing(tmp_path):

@@ -182,7 +182,7 @@ def test_csv_round_trip(tmp_path):
     "filename, text, message",
     [
         ("a.csv", "angle_deg,ns_negative\n0,0\n10,5\n", "first line that is not a # comment must be the header angle_deg,ns_positive"),
-        ("b.csv", "angle_deg,ns_positive\n0,0\n10,abc\n", "data row 3, column ns_positive: 'abc' is not a number"),
+        ("b.csv", "angle_deg,ns_positive\n0,0\n10,abc\n", "data row 3, column ns_positive: expected a number"),
         ("c.csv", "angle_deg,ns_positive\n0,0\n20,5\n10,8\n", "angles must be strictly increasing, got 20 then 10"),
         ("d.csv", "angle_deg,ns_positive,ns_negative\n0,0,0\n10,5,-3\n",
          "N_s must be >= 0 (give the magnitude for the negative branch), got -3"),

@@ -230,11 +230,11 @@ def test_read_experimental_values_and_force_filter(exp_csv):
 
 @pytest.mark.parametrize("text, match", [
     ("distance_mm,shear_deg\n1,2\n", r"missing column\(s\) \['quadrant_sign'\]"),
-    ("distance_mm,shear_deg,quadrant_sign\n1,abc,1\n", r"row 2: column 'shear_deg': 'abc' is not a number"),
+    ("distance_mm,shear_deg,quadrant_sign\n1,abc,1\n", r"row 2: column 'shear_deg': expected a number"),
     ("distance_mm,shear_deg,quadrant_sign\n1,2,1\n3,4,2\n", r"row 3: quadrant_sign = '2'; valid: \+1"),
     ("distance_mm,shear_deg,quadrant_sign\n-1,2,1\n", r"distance_mm = '-1' must be >= 0"),
     ("distance_mm,shear_deg,quadrant_sign\n", "no data rows"),
-    ("distance_mm,shear_deg,quadrant_sign\n1,nan,1\n", "not a finite number"),
+    ("distance_mm,shear_deg,quadrant_sign\n1,nan,1\n", "expected a finite number"),
 ])
 def test_malformed_experimental_csv(tmp_path, text, match):
     path = tmp_path / "bad.csv"

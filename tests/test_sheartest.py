@@ -333,11 +333,11 @@ def _bad_case(tmp_path, case):
     elif case == "not a number":
         text[7] = "12.5,abc"
         (tmp_path / csv_name).write_text("\n".join(text), encoding="utf-8")
-        expect = "bad.csv: line 8, column displacement_mm: 'abc' is not a number"
+        expect = "bad.csv: line 8, column displacement_mm: expected a number"
     elif case == "not finite":
         text[9] = "nan,1.0"
         (tmp_path / csv_name).write_text("\n".join(text), encoding="utf-8")
-        expect = "bad.csv: line 10, column force_n: 'nan' is not a finite number"
+        expect = "bad.csv: line 10, column force_n: expected a finite number, not inf or nan"
     elif case == "row length":
         text[5] += ",3.0"
         (tmp_path / csv_name).write_text("\n".join(text), encoding="utf-8")
@@ -379,4 +379,41 @@ def test_a_bad_file_gives_one_line_naming_file_and_place(tmp_path, case, capsys)
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and expect in lines[0]
     assert "nologin" not in lines[0] and "secret" not in lines[0]
+    assert not (tmp_path / "c.toml").exists()
+
+
+# ---------------------------------------------------------------- junk refused, not averaged in
+
+
+@pytest.mark.parametrize("case, expect", [
+    ("all zero", "the force does not rise with shear"),
+    ("all negative", "the force does not rise with shear"),
+    ("decreasing", "the force does not rise with shear"),
+    ("angle as force", "[columns] force and angle both name column 'angle_deg'"),
+    ("force as angle", "a shear angle of 90 deg or more"),
+    ("knots 1e9", "knots must be an integer with 1 <= knots < 101"),
+    ("step 1e-9", "step_deg must be a number >= 0.01"),
+])
+def test_a_specimen_that_is_no_shear_test_is_refused_not_averaged_into_the_card(tmp_path, capsys, case, expect):
+    rng = np.random.default_rng(1)
+    rig = PictureFrame(145.0, 45.0)
+    write_specimen(tmp_path / "good.csv", rig, rng, measured=True)
+    bad = write_specimen(tmp_path / "bad.csv", rig, rng, measured=True)
+    lines = bad.read_text(encoding="utf-8").splitlines()
+    rows = np.array([[float(v) for v in line.split(",")] for line in lines[2:]])
+    force = {"all zero": 0.0 * rows[:, 0], "all negative": -rows[:, 0] - 1.0,
+             "decreasing": rows[::-1, 0]}.get(case, rows[:, 0])
+    swapped = case == "force as angle"
+    body = "\n".join(f"{a:.6f},{d:.6f},{f:.6f}" if swapped else f"{f:.6f},{d:.6f},{a:.6f}"
+                     for f, d, a in zip(force, rows[:, 1], rows[:, 2]))
+    bad.write_text(f"{lines[0]}\n{lines[1]}\n{body}\n", encoding="utf-8")
+    fit = {"knots 1e9": "knots = 1000000000", "step 1e-9": "step_deg = 1e-9"}.get(case, "")
+    extra = ['[columns]', 'force = "angle_deg"'] if case == "angle as force" else []
+    path = write_rig(tmp_path / "rig.toml", "picture_frame", [("good.csv", "positive"), ("bad.csv", "positive")],
+                     fit=fit, side_mm=145.0)
+    if extra:
+        path.write_text(path.read_text().replace("[[specimen]]", "\n".join(extra) + "\n[[specimen]]", 1))
+    assert main(["materials", "fit", str(path), "--out", str(tmp_path / "c.toml")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and expect in err[0], err
     assert not (tmp_path / "c.toml").exists()

@@ -101,8 +101,9 @@ def _engine_study(args):
     """The study of ``run`` or ``design``, its output folder replaced by ``--out`` if given."""
     import dataclasses
 
-    from .workflow import load_study, location
+    from .workflow import check_workers, load_study, location
 
+    check_workers(args.workers)
     study = load_study(args.study)
     return dataclasses.replace(study, output_dir=location(args.out)) if args.out else study
 
@@ -182,7 +183,7 @@ def cmd_export(args) -> int:
 
 
 def cmd_calibrate(args) -> int:
-    from .workflow import calibrate_drapes, calibrate_fibre_angles
+    from .workflow import calibrate_drapes, calibrate_fibre_angles, check_workers
 
     command = "uqdrape " + shlex.join(args.argv)
     if (args.points is None) == (args.drapes is None):
@@ -196,6 +197,7 @@ def cmd_calibrate(args) -> int:
                              "(which always samples its posterior and writes its figures with --report)")
         if args.study is None:
             raise ValueError("--drapes needs --study STUDY.toml, the study whose parameters are calibrated")
+        check_workers(args.workers)
         print(calibrate_drapes(args.drapes, args.study, args.parameter or [], args.out, report=args.report,
                                design=args.design, realizations=args.realizations,
                                measurement_sd=args.measurement_sd, level=args.level, scheduler=args.scheduler,

@@ -70,6 +70,8 @@ def read_experimental(path) -> ExperimentalPoints:
             why = (f"quadrant_sign = {text!r}; valid: +1 (i*j > 0 quadrants) or -1"
                    if name == "quadrant_sign" and value not in (1.0, -1.0)
                    else f"distance_mm = {text!r} must be >= 0 (mm)" if name == "distance_mm" and value < 0
+                   else f"shear_deg = {text!r}; valid: a shear angle within +-90 deg"
+                   if name == "shear_deg" and abs(value) > 90.0
                    else None)
             if why is not None:
                 raise ValueError(f"{label} row {line}: {why}")

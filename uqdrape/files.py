@@ -27,6 +27,7 @@ import json
 import math
 import numbers
 import os
+import stat
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
@@ -68,6 +69,7 @@ def read_text(path, what: str, *, error: type[FileFormatError] = FileFormatError
     def fail(text):
         raise error(f"{path}: {text}", path)
 
+    check_input_file(path, what, MAX_TOML_BYTES, error=error)
     try:
         with open(path, "rb") as fh:
             data = fh.read(MAX_TOML_BYTES + 1)
@@ -81,6 +83,40 @@ def read_text(path, what: str, *, error: type[FileFormatError] = FileFormatError
         fail(f"not UTF-8 text: byte 0x{data[err.start]:02x} at offset {err.start} ({err.reason}); "
              f"save the {what} as UTF-8")
     return text
+
+
+def check_input_file(path, what: str, max_bytes: int, *, error: type[ValueError] = FileFormatError) -> int:
+    """The size in bytes of the input file ``path``, checked before it is opened: a
+    regular file (a FIFO, device or folder would block or never end) of at most
+    ``max_bytes``. Anything else raises ``error`` naming the file, ``what`` it should be
+    and the limit; a missing file is left to the reader's own message."""
+    path = Path(path)
+    try:
+        info = path.stat()
+    except OSError:
+        return 0  # the open that follows names the cause
+    if not stat.S_ISREG(info.st_mode):
+        kind = "a folder" if stat.S_ISDIR(info.st_mode) else "a pipe" if stat.S_ISFIFO(info.st_mode) else \
+            "a device or socket"
+        raise _error(error, f"{path}: the {what} is {kind}, not a regular file", path)
+    if info.st_size > max_bytes:
+        raise _error(error, f"{path}: the {what} is larger than {max_bytes / 2**20:g} MB, the most read; is it "
+                            "the right file?", path)
+    return info.st_size
+
+
+def local_path(target, flag: str) -> Path:
+    """``target`` as a path on this machine; a URL raises ValueError naming ``flag``
+    (pathlib would fold ``http://host/x`` into the local folder ``http:/host``)."""
+    if is_url(target):
+        raise ValueError(f"{flag} {target}: this command writes files on this machine; give a path (a store URL "
+                         "is written by run and design, and read by report and export)")
+    return Path(target)
+
+
+def _error(error: type[ValueError], message: str, path) -> ValueError:
+    """``error`` with ``message`` (and ``path``, where it is a FileFormatError)."""
+    return error(message, path) if issubclass(error, FileFormatError) else error(message)
 
 
 #: Most characters of a bad CSV cell quoted in a message.
@@ -105,14 +141,14 @@ def csv_rows(text: str, label: str, *, error: type[FileFormatError] = FileFormat
 
 
 def csv_number(cell: str) -> float:
-    """The finite number in the CSV cell ``cell``; ValueError saying what it is instead
-    (the cell quoted, QUOTED_CELL characters at most)."""
+    """The finite number in the CSV cell ``cell``; ValueError saying what was expected,
+    without the cell (the file may not be the user's: the caller names line and column)."""
     try:
         value = float(cell)
     except ValueError:
-        raise ValueError(f"{cell[:QUOTED_CELL]!r} is not a number") from None
+        raise ValueError("expected a number") from None
     if not math.isfinite(value):
-        raise ValueError(f"{cell[:QUOTED_CELL]!r} is not a finite number")
+        raise ValueError("expected a finite number, not inf or nan")
     return value
 
 

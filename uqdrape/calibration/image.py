@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..files import check_input_file
 from .points import AnglePoints, PointsError
 
 
@@ -43,8 +44,9 @@ def orientation_field(image, window_px: float = 4.0, derivative_px: float = 0.0)
     image = np.asarray(image, dtype=float)
     if image.ndim != 2 or min(image.shape) < 3:
         raise ValueError(f"the image must be 2-D grey levels of at least 3 x 3 pixels, got shape {image.shape}")
-    if not window_px > 0:
-        raise ValueError(f"window_px must be > 0, got {window_px!r}")
+    if not 0 < window_px <= min(image.shape) / 4:  # the samples keep 2 windows off each border
+        raise ValueError(f"window_px must be > 0 and at most a quarter of the image's smaller side, "
+                         f"{min(image.shape) / 4:g} px here, got {window_px!r}")
     if derivative_px > 0:
         import scipy.ndimage
 
@@ -63,15 +65,26 @@ def orientation_field(image, window_px: float = 4.0, derivative_px: float = 0.0)
 
 #: Image file suffixes ``uqdrape calibrate`` reads as an image (anything else: a points CSV).
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
+#: Most pixels of an image read: the structure tensor holds about ten float arrays of the
+#: image's size (16 Mpx: about 1.3 GB); a 4096 x 4096 picture resolves any tow pattern.
+MAX_IMAGE_PIXELS = 4096 * 4096
+#: Largest image file read, bytes.
+MAX_IMAGE_BYTES = 256 * 2**20
 
 
 def read_image(path) -> np.ndarray:
-    """The grey levels (0-1) of the image file ``path``; an unreadable one raises
-    PointsError naming it."""
+    """The grey levels (0-1) of the image file ``path``; an unreadable one, or one of more
+    than MAX_IMAGE_PIXELS (checked before its pixels are decoded), raises PointsError
+    naming it."""
     from PIL import Image, UnidentifiedImageError
 
+    check_input_file(path, "image", MAX_IMAGE_BYTES, error=PointsError)
     try:
         with Image.open(path) as im:
+            if im.width * im.height > MAX_IMAGE_PIXELS:
+                raise PointsError(f"{path}: the image is {im.width} x {im.height} px, more than the "
+                                  f"{MAX_IMAGE_PIXELS / 2**20:g} Mpx read (4096 x 4096); scale it down or crop it",
+                                  str(path))
             return np.asarray(im.convert("L"), dtype=float) / 255.0
     except (UnidentifiedImageError, OSError, Image.DecompressionBombError) as err:
         raise PointsError(f"{path}: not a readable image ({type(err).__name__}); valid: "

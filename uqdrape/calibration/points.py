@@ -29,6 +29,22 @@ from ..files import QUOTED_CELL, FileFormatError, csv_number, csv_rows, read_tex
 REQUIRED_COLUMNS = ("x_mm", "y_mm", "angle_deg", "fibre_set")
 SD_COLUMN = "sd_deg"
 FIBRE_SETS = (1, 2)
+#: Most points fitted: the likelihood of scattered points factors their n x n covariance,
+#: O(n^3) a step over hundreds of steps and a dozen n x n arrays (2,500 points: 50 MB
+#: each, minutes of fitting).
+MAX_POINTS = 2500
+#: Largest |x_mm|, |y_mm| (mm: a 100 m sample) and measurement sd (deg: a fibre's whole
+#: deviation may be 45 deg) accepted.
+MAX_COORDINATE_MM = 1e5
+MAX_SD_DEG = 45.0
+
+
+def check_point_count(n: int, source: str, hint: str) -> None:
+    """Refuse more than MAX_POINTS points before any n x n array is made; ``hint`` says
+    how to have fewer."""
+    if n > MAX_POINTS:
+        raise PointsError(f"{source}: {n} points would need {n * n * 8 * 12 / 2**30:.1f} GB and O(n^3) steps to fit; "
+                          f"at most {MAX_POINTS} are fitted: {hint}", source)
 
 
 class PointsError(FileFormatError):
@@ -77,6 +93,7 @@ def read_points(path) -> AnglePoints:
         if name not in header:
             fail(f"row {top}: column {name!r} is missing; valid: {valid}", name)
     values = {name: [] for name in header}
+    check_point_count(len(rows), str(path), "thin them (every k-th row) or average them into cells")
     for line, row in rows:
         if len(row) != len(header):
             fail(f"row {line}: {len(row)} values for {len(header)} columns")
@@ -98,6 +115,8 @@ def _value(name: str, text: str, fail) -> float:
         fail(f"column {name!r}: {err}")
     if name == "fibre_set" and value not in FIBRE_SETS:
         fail(f"column 'fibre_set' = {text[:QUOTED_CELL]!r}; valid: 1 or 2")
-    if name == SD_COLUMN and value < 0:
-        fail(f"column {SD_COLUMN!r} = {text[:QUOTED_CELL]!r}; valid: a measurement sd >= 0 (deg)")
+    if name == SD_COLUMN and not 0 <= value <= MAX_SD_DEG:
+        fail(f"column {SD_COLUMN!r} = {text[:QUOTED_CELL]!r}; valid: a measurement sd from 0 to {MAX_SD_DEG:g} deg")
+    if name in ("x_mm", "y_mm") and not abs(value) <= MAX_COORDINATE_MM:
+        fail(f"column {name!r} = {text[:QUOTED_CELL]!r}; valid: within +-{MAX_COORDINATE_MM:g} mm")
     return value

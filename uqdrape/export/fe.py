@@ -16,8 +16,6 @@ of each yarn angle over its drapes, each drape mapped as the nominal net is.
 
 from __future__ import annotations
 
-import contextlib
-import io
 from functools import partial
 from pathlib import Path
 
@@ -29,7 +27,8 @@ from ..drape.net import net_quads
 from .cards import FLAVOURS, WRITERS, Cards
 from .directions import dot, fibre_directions, fibre_frame
 from .elements import ANGLE_QUANTILES, axial_quantiles, corner_nodes, element_frames, with_defaults, yarn_angles
-from ..files import write_all
+from ..files import check_input_file, write_all
+from ..geometry.mesh import MAX_MESH_BYTES, UnreadableMesh, read_meshio
 from .result import Level, surface_of
 
 SURFACE_CELLS = {"triangle": 3, "triangle6": 3, "triangle7": 3, "quad": 4, "quad8": 4, "quad9": 4}
@@ -46,13 +45,11 @@ def read_surface_mesh(path) -> tuple[meshio.Mesh, list]:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such mesh file")
-    said = io.StringIO()
-    try:  # meshio prints what each reader said and exits when none could read the file
-        with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said):
-            mesh = meshio.read(path)
-    except (Exception, SystemExit) as err:  # its readers raise anything from ReadError to IndexError
-        cause = " ".join(said.getvalue().split()) or f"{type(err).__name__}: {err}"
-        raise ValueError(f"{path}: cannot read it as a mesh ({cause[:300]})") from None
+    check_input_file(path, "mesh file", MAX_MESH_BYTES, error=ValueError)
+    try:
+        mesh = read_meshio(path)
+    except UnreadableMesh as err:
+        raise ValueError(f"{path}: cannot read it as a mesh ({err})") from None
     volume = sorted({b.type for b in mesh.cells if b.type.startswith(VOLUME_CELLS)})
     if volume:
         raise ValueError(f"{path}: a volume mesh ({', '.join(volume)} cells); fibre directions map onto "
@@ -72,14 +69,18 @@ def element_labels(path, mesh: meshio.Mesh, blocks) -> np.ndarray:
     if path.suffix.lower() != ".inp":
         return np.arange(1, sum(len(b.data) for b in blocks) + 1)
     numbers, current = [], None
-    for line in path.read_text(errors="replace").splitlines():
+    for lineno, line in enumerate(path.read_text(errors="replace").splitlines(), 1):
         if line.startswith("*"):
             keyword = line.partition(",")[0].strip().lstrip("*").upper()
             current = [] if keyword == "ELEMENT" else None
             if current is not None:
                 numbers.append(current)
         elif current is not None and line.strip():
-            current += [int(k) for k in line.split(",") if k.strip()]
+            try:
+                current += [int(k) for k in line.split(",") if k.strip()]
+            except ValueError:
+                raise ValueError(f"{path}: line {lineno}: expected an *ELEMENT data line, integers "
+                                 "label,node,node,...") from None
     if len(numbers) != len(mesh.cells):
         raise ValueError(f"{path}: {len(numbers)} *ELEMENT blocks but meshio read {len(mesh.cells)} cell blocks; "
                          "cannot tell the element labels")
@@ -141,6 +142,7 @@ def locate(points: np.ndarray, tri_xy: np.ndarray):
     a, b, c = (tri_xy[cand, m] for m in range(3))
     v0, v1, v2 = b - a, c - a, points[:, None, :] - a
     det = v0[..., 0] * v1[..., 1] - v0[..., 1] * v1[..., 0]
+    det[det == 0.0] = np.nan  # a triangle seen edge-on in plan (a vertical face) holds no point: nan weights
     l1 = (v2[..., 0] * v1[..., 1] - v2[..., 1] * v1[..., 0]) / det
     l2 = (v0[..., 0] * v2[..., 1] - v0[..., 1] * v2[..., 0]) / det
     lam = np.stack([1 - l1 - l2, l1, l2], axis=-1)

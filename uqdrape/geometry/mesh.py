@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
+from ..files import FileFormatError, check_input_file
 from . import compiled
 from . import meshquery as mq
 from .analytic import MAX_LENGTH_MM
@@ -55,6 +56,8 @@ GRID_CELL, GRID_MARGIN = 1.0, 0.2
 #: far larger than the median edge, e.g. a CAD export's flat sides beside fine fillets) gets
 #: no grid, and every query searches the hierarchy.
 GRID_BUDGET = 32
+#: Largest mesh file read, bytes (a binary STL of about 1.3 million triangles).
+MAX_MESH_BYTES = 64 * 2**20
 #: Formats read by trimesh; others go to meshio.
 _TRIMESH_FORMATS = {".stl", ".obj", ".ply", ".off", ".glb", ".gltf"}
 
@@ -65,6 +68,10 @@ class MeshError(ParameterError):
 
     def __init__(self, message: str):
         super().__init__("path", message)
+
+
+class UnreadableMesh(ValueError):
+    """A file meshio cannot read; the message says why without quoting the file."""
 
 
 def _binary_stl(path: Path):
@@ -82,9 +89,13 @@ def _binary_stl(path: Path):
 def _read(path: Path):
     """Vertices (nv, 3) and triangles (nf, 3) of a mesh file, duplicate vertices merged."""
     name = str(path)
-    if not path.is_file():
+    if not path.exists():
         raise MeshError(f"path: mesh file {name!r} does not exist")
-    if path.stat().st_size == 0:
+    try:
+        size = check_input_file(path, "mesh file", MAX_MESH_BYTES)
+    except FileFormatError as err:  # a pipe, a folder, too large
+        raise MeshError(f"path: {err}") from None
+    if size == 0:
         raise MeshError(f"path: mesh file {name!r} is empty")
     suffix = path.suffix.lower()
     try:
@@ -100,18 +111,16 @@ def _read(path: Path):
                 mesh = trimesh.util.concatenate(list(mesh.dump()))
             vertices, faces = np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int64)
         else:
-            import meshio
-
-            m = meshio.read(path)
+            m = read_meshio(path)
             vertices = np.asarray(m.points, float)[:, :3] if m.points.ndim == 2 else np.zeros((0, 3))
             tris = [c.data for c in m.cells if c.type == "triangle"]
             tris += [q[:, idx] for q in (c.data for c in m.cells if c.type == "quad") for idx in ([0, 1, 2], [0, 2, 3])]
             faces = np.concatenate(tris).astype(np.int64) if tris else np.zeros((0, 3), np.int64)
     except MeshError:
         raise
-    except Exception as err:  # the readers raise assorted types on unreadable files
-        why = str(err).splitlines()[0] if str(err) else type(err).__name__
-        raise MeshError(f"path: cannot read {name!r} as a triangle mesh: {why}") from None
+    except Exception as err:  # the readers raise assorted types on unreadable files, their words may quote it
+        why = str(err) if isinstance(err, UnreadableMesh) else type(err).__name__
+        raise MeshError(f"path: cannot read {name!r} as a triangle mesh ({why})") from None
     if faces.ndim != 2 or faces.shape[0] == 0 or faces.shape[1] != 3:
         raise MeshError(f"path: {name!r} holds no triangles")
     if vertices.ndim != 2 or vertices.shape[1] != 3 or faces.min() < 0 or faces.max() >= len(vertices):
@@ -136,6 +145,23 @@ def _read(path: Path):
     index = np.empty(len(v), np.int64)
     index[order] = np.cumsum(new) - 1
     return vs[new], index[faces]
+
+
+def read_meshio(path):
+    """``meshio.read(path)`` with what its readers print kept off the terminal, and its
+    exit when none can read the file raised as UnreadableMesh saying so, or naming the
+    failing reader's error type: never its words, which may quote the file."""
+    import contextlib
+    import io
+
+    import meshio
+
+    try:
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            return meshio.read(path)
+    except (Exception, SystemExit) as err:  # its readers raise anything from ReadError to IndexError, or exit
+        raise UnreadableMesh("no meshio reader understands it" if isinstance(err, SystemExit) else
+                             f"meshio: {type(err).__name__}") from None
 
 
 def _mix(u: np.ndarray) -> np.ndarray:
@@ -366,7 +392,7 @@ class MeshSurface(Surface):
     def __init__(self, path, units: str = "mm", press_direction=(0.0, 0.0, 1.0), edge_blend_mm: float = EDGE_BLEND_MM):
         self.path = Path(path)
         name = str(self.path)
-        if units not in UNITS:
+        if not isinstance(units, str) or units not in UNITS:
             raise ParameterError("units", f"units must be one of {', '.join(UNITS)}, got {units!r}")
         self.units = units
         if isinstance(press_direction, str):  # "x,y,z", as a command-line --param gives it

@@ -131,6 +131,9 @@ REACH_SD = 7.0
 #: Largest sd of ln length a study may draw its lengths with: a factor e^7 ~ 1,100 at the
 #: reach, past which a drawn field is constant over any net or iid on its lattice.
 MAX_LENGTH_LOG_SD = 1.0
+#: Most blank-holder sectors a [design] optimises: one force each, every candidate a
+#: whole ensemble of drapes (36: 10 degrees of the rim a sector).
+MAX_DESIGN_SECTORS = 36
 
 
 class _Source(Document):
@@ -618,7 +621,7 @@ def _design(src: _Source, doc: dict, process: Process, uncertainty: Uncertainty,
     variables = t.string("variables", choices=DESIGN_VARIABLES)
     sectors = None
     if variables == "sectors":
-        sectors = t.number("sectors", integer=True, ge=2)
+        sectors = t.number("sectors", integer=True, ge=2, lt=MAX_DESIGN_SECTORS + 1)
     elif t.has("sectors"):
         t.invalid("sectors", 'sectors is only used with variables = "sectors"')
     lo, hi = _bounds(t, "force_bounds_N", " (N" + (", each sector's force)" if sectors else ", total force)"))

@@ -26,7 +26,8 @@ from ..calibration.emulator import Emulator, design_points
 from ..calibration.fit import Estimate
 from ..ensemble import Progress, compute_tasks, drape_inputs, reach_scheduler, sampled_inputs
 from ..experimental import ExperimentalPoints, read_experimental
-from ..files import is_number, read_text, read_toml, toml_text, write_all, write_atomic, write_text_atomic
+from ..files import (is_number, local_path, read_text, read_toml, toml_text, write_all, write_atomic,
+                     write_text_atomic)
 from ..schema import FORCE
 from ..stats import shear_at_points
 from ..study import load_study
@@ -56,7 +57,9 @@ def calibrate_fibre_angles(points_csv, out, plot=None, *, family: str = "auto", 
     sample too (its intervals in the comments, sd_dof from it). An image (a suffix of
     calibration.image.IMAGE_SUFFIXES) is read as tows of ``fibre_set`` at scale
     ``mm_per_px`` through the structure tensor (window ``window_px``). Returns the summary."""
-    out = Path(out)
+    out = local_path(out, "--out")
+    plot = local_path(plot, "--plot") if isinstance(plot, (str, Path)) else plot
+    report = None if report is None else local_path(report, "--report")
     if out.suffix.lower() != ".toml":
         raise ValueError(f"--out must name the study block to write, a .toml path; got {str(out)!r}")
     points = _image_points(Path(points_csv), mm_per_px, window_px, fibre_set)
@@ -66,10 +69,10 @@ def calibrate_fibre_angles(points_csv, out, plot=None, *, family: str = "auto", 
     if plot:
         from ..report.calibration_figure import plot_calibration
 
-        png = plot_calibration(calibration, out.with_suffix(".png") if plot is True else Path(plot))
+        png = plot_calibration(calibration, out.with_suffix(".png") if plot is True else plot)
     block = block_text(calibration, command)
     if report is not None:
-        page = _points_report(calibration, Path(report), block)
+        page = _points_report(calibration, report, block)
     write_text_atomic(out, block)
     fit = calibration.fit
     est = fit.estimates
@@ -87,6 +90,10 @@ def calibrate_fibre_angles(points_csv, out, plot=None, *, family: str = "auto", 
 
 #: Design points per calibrated parameter when ``design`` is not given.
 DESIGN_PER_PARAMETER = 10
+#: Most design points (each an ensemble; the emulator's GPs factor an n x n matrix per
+#: measured point) and drapes per design point of a calibration.
+MAX_DESIGN = 1000
+MAX_REALIZATIONS = 10000
 
 
 @dataclass(frozen=True)
@@ -242,14 +249,15 @@ def calibrate_parts(study_path, parts, params, *, design: int | None = None, rea
     if study.is_sweep:
         raise ValueError(f"{study.path}: a calibration from drapes needs one blank-holder force level "
                          f"(the study sweeps {list(study.force_levels)} N)")
-    if not measurement_sd >= 0:
-        raise ValueError(f"--measurement-sd must be >= 0 (deg), got {measurement_sd!r}")
+    if not 0 <= measurement_sd <= 90:
+        raise ValueError(f"--measurement-sd must be from 0 to 90 (deg), got {measurement_sd!r}")
     distance, sign, index = _union(parts)
     n = DESIGN_PER_PARAMETER * len(params) if design is None else design
     r = study.realizations if realizations is None else realizations
-    for flag, value, least in (("--design", n, len(params) + 2), ("--realizations", r, 3)):
-        if not (isinstance(value, int) and value >= least):
-            raise ValueError(f"{flag} must be an integer >= {least}, got {value!r}")
+    for flag, value, least, most in (("--design", n, len(params) + 2, MAX_DESIGN),
+                                     ("--realizations", r, 3, MAX_REALIZATIONS)):
+        if not (isinstance(value, int) and least <= value <= most):
+            raise ValueError(f"{flag} must be an integer from {least} to {most}, got {value!r}")
     lower, upper = np.array([p.lower for p in params]), np.array([p.upper for p in params])
     keys = [p.key for p in params]
     for corner in itertools.product(*zip(lower, upper)):  # a box the study refuses, before any drape
@@ -329,7 +337,8 @@ def calibrate_drapes(parts_csv, study_path, parameters, out, *, report=None, des
     (``-posterior.nc``) and, with ``report`` (a folder), the calibration report. Returns
     the summary."""
     clock = time.perf_counter()
-    out = Path(out)
+    out = local_path(out, "--out")
+    report = None if report is None else local_path(report, "--report")
     if out.suffix.lower() != ".toml":
         raise ValueError(f"--out must name the calibrated study to write, a .toml path; got {str(out)!r}")
     study = load_study(study_path)
@@ -358,7 +367,7 @@ def calibrate_drapes(parts_csv, study_path, parameters, out, *, report=None, des
     writers = {out: write_study, sample: lambda tmp: posterior_dataset(cal, lower, upper).to_netcdf(tmp)}
     page = None
     if report is not None:
-        page = _drape_report(cal, lower, upper, fraction, Path(report), text, time.perf_counter() - clock)
+        page = _drape_report(cal, lower, upper, fraction, report, text, time.perf_counter() - clock)
     write_all(writers)
     text = [f"wrote {out} and {sample}: {len(parts)} part(s), {len(cal.runs.points)} design points x "
             f"{cal.runs.shear.shape[1] // 2} drapes"]

@@ -32,6 +32,20 @@ STORED_BYTES_PER_NODE = 64
 WORKING_BYTES_PER_NODE = 600
 
 
+#: Most local worker processes per CPU core: more only queue for the cores and each holds
+#: its own interpreter and kernels (about 200 MB).
+WORKERS_PER_CORE = 4
+
+
+def check_workers(workers: int | None) -> None:
+    """Refuse a ``--workers`` below 1 or above WORKERS_PER_CORE per core of this machine,
+    before any process is spawned."""
+    most = WORKERS_PER_CORE * (os.cpu_count() or 1)
+    if workers is not None and not 1 <= workers <= most:
+        raise ValueError(f"--workers must be from 1 to {most} ({WORKERS_PER_CORE} per core of this machine's "
+                         f"{os.cpu_count() or 1}), got {workers}; a cluster takes --scheduler ADDRESS")
+
+
 def memory_bytes() -> int:
     """This machine's physical memory (bytes)."""
     return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")

@@ -30,6 +30,11 @@ from .fit import METHOD, MonotoneFit, divergence_end, monotone_fit
 from .reader import BRANCHES, MIN_ROWS, RigFile, ShearTestError, Specimen
 
 
+#: Least rise of a specimen's fitted force over its valid range, in multiples of the
+#: fit's residual RMS: less is a flat, falling or noise-only record, not a shear test.
+RISE_OVER_NOISE = 3.0
+
+
 @dataclass(frozen=True)
 class SpecimenFit:
     """One specimen fitted: θ of its rows (rad), which rows were fitted, the angle source
@@ -95,6 +100,14 @@ def fit_specimen(specimen: Specimen, options: dict) -> SpecimenFit:
             f"{data.path}: only {int(used.sum())} rows have shear between jump_deg = {options['jump_deg']:g} and the "
             f"valid end {np.rad2deg(end):.3g} deg ({rule}); a fit needs at least {MIN_ROWS}", data.path)
     fit = monotone_fit(theta[used], data.force_n[used], end, options["knots"])
+    start = float(np.min(theta[used]))
+    rise = float(fit(end) - fit(start))
+    if not fit(end) > 0 or not rise > RISE_OVER_NOISE * fit.residual_rms:
+        raise ShearTestError(
+            f"{data.path}: the force does not rise with shear: {float(fit(start)):.4g} N at "
+            f"{np.rad2deg(start):.3g} deg to {float(fit(end)):.4g} N at {np.rad2deg(end):.3g} deg, scatter "
+            f"{fit.residual_rms:.3g} N; a shear test's force is positive and grows with the angle (check that "
+            f"[columns] force names the force, in N, and the rows are the loading)", data.path)
     return SpecimenFit(specimen, theta, used, "measured" if measured else "kinematic", end, rule, fit,
                        float(fit(0.0)), options["friction"] == "subtract")
 

@@ -23,12 +23,12 @@ Rig file (TOML), lengths in mm, angles in deg::
     angle = "angle_deg"             # used where the header has it
 
     [fit]                           # optional; these are the defaults
-    knots = 5                       # interior knots of the monotone spline
+    knots = 5                       # interior knots of the monotone spline (1 to 100)
     jump_deg = 1.0                  # rows below this shear are the friction jump: not fitted
     friction = "keep"               # or "subtract": the fit's value at 0 (the jump) removed
     max_angle_deg = 60.0            # the valid range ends here at the latest ...
     max_divergence_deg = 2.0        # ... or where measured and kinematic θ differ by more
-    step_deg = 1.0                  # the card's angle spacing
+    step_deg = 1.0                  # the card's angle spacing (at least 0.01)
 
     [[specimen]]                    # one per test
     file = "pf1.csv"                # relative to the rig file
@@ -52,6 +52,11 @@ from .picture_frame import PictureFrame
 
 #: Fewest data rows a specimen's CSV may have: a spline of 5 knots wants many more points.
 MIN_ROWS = 20
+#: Most interior knots of a specimen's spline: its dense design matrix has a column per
+#: knot and a row per data row, and a test's curve has a few bends, not hundreds.
+MAX_KNOTS = 100
+#: Finest angle spacing of a card's curve, deg (a 90 deg curve: 9,000 points).
+MIN_STEP_DEG = 0.01
 TESTS = ("picture_frame", "bias_extension")
 BRANCHES = ("positive", "negative")
 _COLUMNS = {"force": "force_n", "displacement": "displacement_mm", "angle": "angle_deg"}
@@ -110,6 +115,12 @@ def read_test_csv(path, columns: dict) -> TestData:
     header names (angle optional: used if the header has it). A header without the force
     and displacement columns is not quoted: the file may be any file named by mistake."""
     path = Path(path)
+    named = {}
+    for key, name in columns.items():
+        if name in named:
+            raise ShearTestError(f"{path}: [columns] {named[name]} and {key} both name column {name!r}; each "
+                                 "quantity needs its own column", path)
+        named[name] = key
     (_, header), *rows = csv_rows(read_text(path, "test CSV", error=ShearTestError), str(path),
                                   error=ShearTestError, path=path)
 
@@ -136,6 +147,10 @@ def read_test_csv(path, columns: dict) -> TestData:
     if len(rows) < MIN_ROWS:
         fail(f"{len(rows)} data rows; a fit needs at least {MIN_ROWS}")
     arrays = {key: np.asarray(v) for key, v in values.items()}
+    if "angle" in arrays and (np.abs(arrays["angle"]) >= 90.0).any():
+        row = int(np.argmax(np.abs(arrays["angle"]) >= 90.0))
+        fail(f"line {rows[row][0]}, column {columns['angle']}: a shear angle of 90 deg or more; the angle column "
+             "holds degrees of shear (is [columns] angle the angle?)")
     return TestData(path, arrays["force"], arrays["displacement"], arrays.get("angle"),
                     np.array([n for n, _ in rows]), dict(columns))
 
@@ -150,12 +165,12 @@ def read_rig(path) -> RigFile:
     names = {key: columns.string(key, default) for key, default in _COLUMNS.items()}
     fit = top.table("fit", tuple(_FIT))
     options = {
-        "knots": fit.number("knots", _FIT["knots"], integer=True, ge=1),
+        "knots": fit.number("knots", _FIT["knots"], integer=True, ge=1, lt=MAX_KNOTS + 1),
         "jump_deg": fit.number("jump_deg", _FIT["jump_deg"], ge=0.0),
         "friction": fit.string("friction", _FIT["friction"], choices=("keep", "subtract")),
         "max_angle_deg": fit.number("max_angle_deg", _FIT["max_angle_deg"], gt=0.0),
         "max_divergence_deg": fit.number("max_divergence_deg", _FIT["max_divergence_deg"], gt=0.0),
-        "step_deg": fit.number("step_deg", _FIT["step_deg"], gt=0.0),
+        "step_deg": fit.number("step_deg", _FIT["step_deg"], ge=MIN_STEP_DEG),
     }
     if options["jump_deg"] >= options["max_angle_deg"]:
         fit.invalid("jump_deg", f"jump_deg must be below max_angle_deg = {options['max_angle_deg']:g}")
