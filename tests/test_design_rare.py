@@ -182,3 +182,32 @@ def test_on_real_drapes_the_constraint_agrees_with_plain_monte_carlo(tmp_path):
             assert p_mc <= 1e-2
             p_opt = p_mc
     assert p_mc > p_opt  # the refused force is the riskier one by plain Monte Carlo
+
+
+def test_certain_failure_is_p_one_and_no_design_keeps_the_bound(tmp_path, monkeypatch, capsys):
+    # every drape past the threshold at every force: P = 1 from one level of plain drapes, each
+    # candidate infeasible (not "below" it, as any ValueError of the estimator once read)
+    monkeypatch.setattr(rare, "drape_limit_state", lambda study, qoi, threshold, force: (
+        lambda U: -np.ones(len(U)), D))
+    ds = run(write(tmp_path, TEXT.format(statistic="estimate"), realizations=80), out=tmp_path / "out")
+    assert np.all(ds["rare_probability"].values == 1.0) and np.all(ds["rare_cov"].values == 0.0)
+    assert set(ds["rare_method"].values) == {"montecarlo"} and np.all(ds["rare_drapes"].values == 500)
+    assert np.all(ds["feasible"].values == 0)
+
+
+def test_an_estimate_above_its_target_cov_is_not_feasible_and_says_why(tmp_path, monkeypatch):
+    # failure at both signs, P = 2 Phi(-F / SCALE): no design point carries it, and 1,000 drapes
+    # leave subset rounds above the 10 % target: such a candidate is infeasible whatever its P
+    monkeypatch.setattr(rare, "drape_limit_state", lambda study, qoi, threshold, force: (
+        lambda U: force / SCALE - np.abs(np.asarray(U).sum(axis=1)) / np.sqrt(D), D))
+    ds = run(write(tmp_path, TEXT.format(statistic="estimate").replace("max_drapes = 5000", "max_drapes = 1000"),
+                   realizations=80), out=tmp_path / "out")
+    assert np.all(ds["rare_drapes"].values <= 1000)
+    method, cov = ds["rare_method"].values, ds["rare_cov"].values
+    untrusted = (method != "below") & (cov > 0.1)
+    assert untrusted.any() and np.all(ds["feasible"].values[untrusted] == 0)
+    assert np.all(ds["rare_upper"].values[untrusted] == 1.0)
+    assert all(ds["rare_note"].values[e] for e in np.flatnonzero(untrusted))
+    # the rule: a candidate keeps the constraint by its estimate, and only if that is trusted
+    keeps = (ds["rare_probability"].values <= BOUND) & ~untrusted
+    np.testing.assert_array_equal(ds["feasible"].values, keeps.astype(int))

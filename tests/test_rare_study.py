@@ -139,3 +139,32 @@ def test_a_threshold_no_drape_reaches_is_a_bound_said_in_one_line(tmp_path, caps
             f"{level['drapes']:,} drapes: P < {level['probability']:.2g}, an upper bound, not an estimate") in err
     html = run_report(tmp_path / "rare").read_text()
     assert f"&lt; {level['probability']:.3g}" in html and "an upper bound, not an estimate" in html
+
+
+def test_certain_failure_is_p_one(tmp_path, capsys):
+    # every drape's line shear is above 0 deg: one level of plain drapes, P = 1, no warning
+    path = rare_file(tmp_path, {**RARE, "threshold": 0.0})
+    assert main(["run", str(path), "--scheduler", "synchronous", "--no-report", "-q"]) == 0
+    level = json.loads((tmp_path / "rare" / RARE_FILE).read_text())["levels"][0]
+    assert (level["probability"], level["cov"], level["method"], level["drapes"]) == (1.0, 0.0, "montecarlo", 500)
+    assert "warning" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("threshold, below", [(10.9, False), (12.5, True)])
+def test_the_budget_is_a_hard_limit_and_a_result_not_to_trust_says_so(tmp_path, capsys, threshold, below):
+    # CoV 0.01 within 1,000 drapes: at about 1e-2 (10.9 deg) the budget stops the estimate
+    # above its target; at about 1e-3 (12.5 deg) it stops the subset levels before failure
+    path = rare_file(tmp_path, {**RARE, "threshold": threshold, "cov": 0.01, "max_drapes": 1000})
+    assert main(["run", str(path), "--scheduler", "synchronous", "--no-report", "-q"]) == 0
+    level = json.loads((tmp_path / "rare" / RARE_FILE).read_text())["levels"][0]
+    assert level["drapes"] <= 1000 and (level["method"] == "below") == below
+    assert level["note"].endswith("the budget ran out")
+    said = [line for line in capsys.readouterr().err.splitlines() if line.startswith("rare: warning: ")]
+    html = run_report(tmp_path / "rare").read_text()
+    if below:
+        assert len(said) == 1 and said[0].endswith("an upper bound, not an estimate")
+        assert "an upper bound, not an estimate" in html
+    else:
+        assert level["cov"] > 0.01 and len(said) == 1 and "not to be trusted" in said[0]
+        assert said[0].endswith(f"CoV {level['cov']:.2f} above the target 0.01 ({level['note']})")
+        assert f"NOT TRUSTED: above the target 0.01: {level['note']}" in html

@@ -109,12 +109,11 @@ def design_point(g, samples, features=None) -> tuple[np.ndarray | None, float, i
     root along the surface's design direction within 8 steps out (no design point there).
     ``features`` maps each column of U on its own (e.g. a bounded factor's u to its own
     value); the response surface is linear in them (default: in U)."""
-    features = features or (lambda u: u)
     U = np.concatenate([u for u, _ in samples])
     y = np.concatenate([v for _, v in samples])
     U, first = np.unique(U, axis=0, return_index=True)
     y = y[first]
-    A = np.column_stack([np.ones(len(U)), features(U)])
+    A = np.column_stack([np.ones(len(U)), U if features is None else features(U)])
     coef, *_ = np.linalg.lstsq(A, y, rcond=None)
     r2 = 1 - np.sum((y - A @ coef) ** 2) / np.sum((y - y.mean()) ** 2)
     u_fit = surface_point(coef[0], coef[1:], features, U.shape[1])
@@ -144,7 +143,9 @@ def surface_point(a0: float, a: np.ndarray, features, d: int) -> np.ndarray:
     """The design point of the response surface q(u) = a0 + a . features(u): the u of least
     |u| with q(u) = 0 (FORM on the surface; ``scipy.optimize.minimize``'s SLSQP from the
     linear surface's point, the features' slopes by central differences). In U itself
-    (features the identity) it is -a0 a / |a|^2."""
+    (``features`` None) it is -a0 a / |a|^2."""
+    if features is None:
+        return -a0 * a / float(a @ a)
     h = 1e-6
 
     def q(u):
