@@ -160,3 +160,25 @@ def test_a_bounded_factor_fitted_in_u_is_caught_by_the_beta_check_and_says_its_c
     assert sum(r.beta > 5 for r in runs) >= 0.9 * REPEATS
     observed, stated, bias = spread(runs, p)
     assert 1 / 1.5 <= observed / stated <= 1.5 and abs(bias - 1) <= 3 * observed / np.sqrt(REPEATS)
+
+
+@pytest.mark.parametrize("budget", [1000, 1900, 1960, 2000])
+def test_the_root_search_fits_in_the_budget(budget):
+    # 1e-3 reaches failure in about 1,850 calls: the root search must fit in what is left
+    g, _ = linear_limit_state(20, 1e-3)
+    g, calls = counted(g)
+    r = importance_sampling(g, 20, seed=4, cov=0.01, max_calls=budget)
+    assert r.calls == sum(calls) <= budget and r.note
+
+
+@pytest.mark.parametrize("budget", [1500, 2200, 3000, 3500])
+def test_subset_rounds_stay_in_the_budget(budget):
+    # two half-spaces at 1e-2 and a 1 % target: the pilot, then subset rounds that the
+    # budget cuts; none of them may start a level it cannot pay for
+    d, beta = 10, -stats.norm.ppf(5e-3)
+    a = np.ones(d) / np.sqrt(d)
+    g, calls = counted(lambda u: beta - np.abs(np.asarray(u) @ a))
+    for seed in range(5):
+        calls.clear()
+        r = importance_sampling(g, d, seed=seed, cov=0.01, max_calls=budget)
+        assert r.calls == sum(calls) <= budget and r.method == "subset" and r.note

@@ -76,6 +76,9 @@ FIRST_ROUND = 200
 #: Independent subset-simulation rounds where no design point carries the probability,
 #: and the least samples a level that one may have.
 ROUNDS, LEAST_LEVEL = 5, 100
+#: Model calls the design point's root search may take at most (the origin, 9 bracket
+#: steps, brentq's ends and SEARCH - 12 iterations): kept back from the pilot's budget.
+SEARCH = 40
 #: Failures in none of N independent samples: P < -ln(1 - 0.95) / N with 95 % confidence.
 NONE_SEEN = -math.log(0.05)
 
@@ -133,7 +136,7 @@ def design_point(g, samples, features=None) -> tuple[np.ndarray | None, float, i
         return None, float(r2), len(calls)
     for _ in range(8):
         if along(high) <= 0:
-            beta = optimize.brentq(along, low, high, xtol=1e-3)
+            beta = optimize.brentq(along, low, high, xtol=1e-3, maxiter=SEARCH - 12, disp=False)
             return beta * alpha, float(r2), len(calls)
         low, high = high, 1.5 * high
     return None, float(r2), len(calls)
@@ -192,7 +195,7 @@ def importance_sampling(g, d: int, *, seed: int, cov: float = 0.1, max_calls: in
         raise ValueError(f"max_calls={max_calls} must allow one level of at least 1 / p0 = {chain} samples")
     rng = np.random.default_rng(seed)
     sus, samples = subset_levels(g, d, n_per_level=n_per_level, p0=p0, rng=rng, spread=1.0, max_levels=max_levels,
-                                 max_calls=max_calls)
+                                 max_calls=(pilot := max(max_calls - SEARCH, n_per_level)))
 
     def result(p, delta, calls, method, beta=math.nan, r2=math.nan, opposite=math.nan, importance=0, why=""):
         note = why if delta > cov or method == "below" else ""
@@ -201,10 +204,12 @@ def importance_sampling(g, d: int, *, seed: int, cov: float = 0.1, max_calls: in
 
     if not sus.reached:
         bound = min(NONE_SEEN / n_per_level, sus.probability)
-        why = "the budget" if sus.calls + (chain - 1) * round(p0 * n_per_level) > max_calls else "the levels"
+        why = "the budget" if sus.calls + (chain - 1) * round(p0 * n_per_level) > pilot else "the levels"
         return result(bound, 0.0, sus.calls, "below", why=f"no failure reached before {why} ran out")
     if len(sus.thresholds) == 1:
         return _monte_carlo(g, d, samples[0][1], cov, max_calls, rng, result)
+    if sus.calls + SEARCH > max_calls:  # no budget for the root search: the pilot is the answer
+        return result(sus.probability, sus.cov, sus.calls, "subset", why="the budget ran out")
     u_star, r2, search = design_point(g, samples, features)
     spent = sus.calls + search
     u_last, y_last = samples[-1]
@@ -275,6 +280,8 @@ def _subset_rounds(g, d, sus, spent, cov, max_calls, p0, max_levels, rng, result
     n = max(n, LEAST_LEVEL // chain * chain)
     estimates, covs = [], []
     for _ in range(rounds):
+        if max_calls - spent < n:  # not even a round's level 0 left
+            break
         r = subset_levels(g, d, n_per_level=n, p0=p0, rng=rng, spread=1.0, max_levels=max_levels,
                           max_calls=max_calls - spent)[0]
         spent += r.calls
