@@ -1,6 +1,6 @@
 """Rare-event estimates against plain Monte Carlo on cases with bounded factors and maxima
 over the net (issue 39). Run: python benchmarks/bench_rare_bounded.py [--case energy|lock]
-[--mc 100000] [--repeats 10] [--p 1e-3] [--workers N]
+[--case analytic] [--mc 100000] [--repeats 10] [--p 1e-3] [--workers N]
 
 For each case the threshold t is the (1 - p) quantile of ``--mc`` plain drapes (their P
 estimate has CoV sqrt((1 - p) / (p mc)): 10 % at 1e-3 from 100,000), and ``--repeats``
@@ -19,6 +19,10 @@ would need, (1 - P) / (P CoV^2), over the estimator's drapes: the ratio the issu
   3 deg: P(lock_margin >= t), the largest cell shear over its locking angle (a maximum over
   the net, locks at either skew sign).
 
+- ``analytic``: 30 repeats on limit states of known P (``uqdrape.reliability``'s linear
+  and bounded-factor ones, and two half-spaces), no drapes: the stated CoV against the
+  observed spread, and the calls against plain MC's at that spread.
+
 Plain drapes and the repeats run in parallel over ``--workers`` processes (default: all
 cores), one numba thread each. A tiny run that only proves the script works:
 ``--mc 2000 --repeats 2 --p 1e-2 --max-drapes 3000``.
@@ -27,6 +31,7 @@ cores), one numba thread each. A tiny run that only proves the script works:
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import tempfile
 import time
@@ -46,6 +51,7 @@ realizations = 8
 kind = "nose_cone"
 [fabric]
 material = "ebxhd936_like"
+spacing_mm = 5.0
 [process]
 blankholder_force_N = 126.0
 [solver]
@@ -89,6 +95,7 @@ sd = 3.0
 BATCH = 1000
 
 
+@functools.lru_cache
 def _study(case: str):
     from uqdrape.study import load_study
 
@@ -152,13 +159,59 @@ def run_case(case: str, args, pool) -> None:
           + (f"; notes: {'; '.join(notes)}" if notes else "") + f" ({load()})")
 
 
+#: Analytic limit states with known P, 30 repeats each (``--case analytic``): name -> (d, cov).
+ANALYTIC = {"linear 100-d": (100, 0.1), "bounded factor, surface in its value": (50, 0.1),
+            "bounded factor, surface in U": (50, 0.1), "two half-spaces 10-d": (10, 0.2)}
+
+
+def _analytic(name: str, p: float, seed: int):
+    """One estimate of analytic case ``name`` at P = p: (P, stated CoV, calls, method, exact P)."""
+    from scipy import stats
+
+    from uqdrape.reliability import bounded_limit_state, importance_sampling, linear_limit_state
+
+    d, cov = ANALYTIC[name]
+    features = None
+    if name.startswith("linear"):
+        g, exact = linear_limit_state(d, p)
+    elif name.startswith("bounded"):
+        g, exact, values = bounded_limit_state(d, p)
+        features = values if "its value" in name else None
+    else:
+        beta, a = -stats.norm.ppf(p / 2), np.ones(d) / np.sqrt(d)
+
+        def g(u):
+            return beta - np.abs(np.asarray(u) @ a)
+
+        exact = p
+    r = importance_sampling(g, d, seed=seed, cov=cov, max_calls=20_000, features=features)
+    return r.probability, r.cov, r.calls, r.method, exact
+
+
+def analytic_part(args, pool, repeats: int = 30) -> None:
+    print(f"\n## analytic limit states at P = {args.p:g}, {repeats} repeats each, budget 20,000 ({load()})")
+    print("| case | target CoV | mean / exact | observed CoV | stated CoV | observed / stated | calls (max) | "
+          "plain MC at the observed CoV | ratio | methods |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for name, (d, cov) in ANALYTIC.items():
+        runs = list(pool.map(_analytic, *zip(*[(name, args.p, s) for s in range(repeats)])))
+        est, stated, calls = (np.array([r[k] for r in runs]) for k in range(3))
+        exact = runs[0][4]
+        observed = est.std(ddof=1) / exact
+        mc = (1 - exact) / (exact * observed**2)
+        methods = {m: sum(r[3] == m for r in runs) for m in sorted({r[3] for r in runs})}
+        print(f"| {name} | {cov} | {est.mean() / exact:.3f} | {observed:.3f} | {stated.mean():.3f} | "
+              f"{observed / stated.mean():.2f} | {calls.mean():,.0f} ({calls.max():,.0f}) | {mc:,.0f} | "
+              f"{mc / calls.mean():.1f} | {methods} |")
+
+
 def load() -> str:
     return f"load average {os.getloadavg()[0]:.2f}"
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--case", choices=tuple(CASES), action="append")
+    parser.add_argument("--case", choices=(*CASES, "analytic"), action="append")
     parser.add_argument("--mc", type=int, default=100_000, help="plain drapes of the reference (>= 100,000)")
     parser.add_argument("--repeats", type=int, default=10, help="estimator runs (>= 10)")
     parser.add_argument("--p", type=float, default=1e-3, help="P the threshold is set at")
@@ -170,8 +223,11 @@ def main() -> None:
     import multiprocessing
 
     with ProcessPoolExecutor(args.workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-        for case in args.case or tuple(CASES):
-            run_case(case, args, pool)
+        for case in args.case or (*CASES, "analytic"):
+            if case == "analytic":
+                analytic_part(args, pool)
+            else:
+                run_case(case, args, pool)
 
 
 if __name__ == "__main__":

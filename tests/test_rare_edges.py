@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy import integrate, optimize, stats
+from scipy import optimize, stats
 from scipy.special import ndtr
 
-from uqdrape.reliability import importance_sampling, linear_limit_state
+from uqdrape.reliability import bounded_limit_state, importance_sampling, linear_limit_state
 from uqdrape.reliability.importance import NONE_SEEN
 
 REPEATS = 30
@@ -108,33 +108,10 @@ def test_the_stated_cov_of_subset_rounds_is_true_where_no_design_point_carries_i
     assert abs(bias - 1) <= 3 * observed / np.sqrt(REPEATS)
 
 
-def bounded_limit_state(d: int, p: float, sigma: float = 0.05):
-    """(g, t) of failure x + sigma z >= t, x = Phi(u_0) a standard uniform (a bounded
-    factor), z = sum(u_1..u_{d-1}) / sqrt(d - 1) standard normal (a field's noise), with t
-    such that P = int_0^1 Phi((x - t) / sigma) dx = p: Phi(u_0) saturates, the failure
-    surface curves, and a surface linear in u puts its design point far out."""
-    def prob(t):
-        return integrate.quad(lambda x: ndtr((x - t) / sigma), 0, 1, epsabs=1e-14)[0]
-
-    t = optimize.brentq(lambda t: prob(t) - p, 0.5, 2.0, xtol=1e-14)
-
-    def g(u):
-        u = np.asarray(u)
-        return t - ndtr(u[:, 0]) - sigma * u[:, 1:].sum(axis=1) / np.sqrt(d - 1)
-
-    return g, t
-
-
-def uniform_value(u):
-    """The bounded factor's own value (column 0: Phi(u)), the rest as they are."""
-    x = np.array(u, dtype=float)
-    x[:, 0] = ndtr(x[:, 0])
-    return x
-
-
 def test_a_bounded_factor_fitted_in_its_own_value_gets_its_design_point_and_a_true_cov():
     d, p = 50, 1e-3
-    g, t = bounded_limit_state(d, p)
+    g, exact, uniform_value = bounded_limit_state(d, p)
+    t = g(np.zeros(d))[()] + 0.5  # g(0) = t - Phi(0)
     # FORM's design point: least |u| with Phi(u0) + sigma |z| = t, z along the noise's direction
     u0 = optimize.minimize_scalar(lambda v: v**2 + ((t - ndtr(v)) / 0.05) ** 2, bounds=(0, 5), method="bounded").x
     form = np.hypot(u0, (t - ndtr(u0)) / 0.05)
@@ -143,6 +120,7 @@ def test_a_bounded_factor_fitted_in_its_own_value_gets_its_design_point_and_a_tr
     importance = [r for r in runs if r.method == "importance"]
     assert len(importance) >= 0.9 * REPEATS
     assert all(abs(r.beta - form) < 0.05 and r.r2 == pytest.approx(1.0, abs=1e-9) for r in importance)
+    assert exact == pytest.approx(p, rel=1e-9)
     observed, stated, bias = spread(runs, p)
     assert 1 / 1.5 <= observed / stated <= 1.5 and abs(bias - 1) <= 3 * observed / np.sqrt(REPEATS)
     # >= 10x fewer calls than plain Monte Carlo at the observed accuracy: (1 - p) / (p CoV^2)
@@ -154,7 +132,7 @@ def test_a_bounded_factor_fitted_in_u_is_caught_by_the_beta_check_and_says_its_c
     # the surface linear in u finds the noise's direction only (beta about 9, not 2.9): the
     # beta check refuses it, subset rounds answer, and their stated CoV is their spread's
     d, p = 50, 1e-3
-    g, _ = bounded_limit_state(d, p)
+    g, _, _ = bounded_limit_state(d, p)
     runs = [importance_sampling(g, d, seed=seed, cov=0.1, max_calls=20_000) for seed in range(REPEATS)]
     assert all(r.method == "subset" and "design point beta" in r.note for r in runs if r.beta > 5)
     assert sum(r.beta > 5 for r in runs) >= 0.9 * REPEATS

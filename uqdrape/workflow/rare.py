@@ -33,7 +33,7 @@ from ..material import load_material
 from ..reliability import importance_sampling
 from ..report import rare_rows
 from ..stats import realization_qois
-from ..study import identity, study_error
+from ..study import identity
 
 #: The rare-event estimates of a run, in its output folder.
 RARE_FILE = "rare.json"
