@@ -151,11 +151,12 @@ def run_case(case: str, args, pool) -> None:
     notes = sorted({r["note"] for r in runs if r["note"]})
     print(f"estimator, {args.repeats} runs to CoV {args.cov} within {args.max_drapes:,} drapes ({seconds:.0f} s): "
           f"mean P {est.mean():.4g} ({est.mean() / p_mc:.3f} x MC's), observed CoV {spread:.3f}, stated "
-          f"{stated.mean():.3f} (ratio {spread / stated.mean():.2f}); {np.mean(np.abs(est / p_mc - 1) <= 2 * stated):.0%}"
-          f" within 2 stated CoV of MC's P; drapes a run {drapes.mean():,.0f} (max {drapes.max():,}, budget hit "
+          f"{stated.mean():.3f} (ratio {spread / stated.mean():.2f}); "
+          f"{np.mean(np.abs(est / p_mc - 1) <= 2 * stated):.0%} within 2 stated CoV of MC's P; drapes a run {drapes.mean():,.0f} (max {drapes.max():,}, budget hit "
           f"{int(np.sum(drapes >= args.max_drapes))}); methods {methods}; median beta "
           f"{np.nanmedian([r['beta'] if r['beta'] is not None else np.nan for r in runs]):.2f}")
-    print(f"plain MC drapes at the observed CoV: {mc_equal:,.0f}; ratio to the estimator's {mc_equal / drapes.mean():.1f}"
+    print(f"plain MC drapes at the observed CoV: {mc_equal:,.0f}; ratio to the estimator's "
+          f"{mc_equal / drapes.mean():.1f}"
           + (f"; notes: {'; '.join(notes)}" if notes else "") + f" ({load()})")
 
 
