@@ -152,7 +152,8 @@ def run_case(case: str, args, pool) -> None:
     print(f"estimator, {args.repeats} runs to CoV {args.cov} within {args.max_drapes:,} drapes ({seconds:.0f} s): "
           f"mean P {est.mean():.4g} ({est.mean() / p_mc:.3f} x MC's), observed CoV {spread:.3f}, stated "
           f"{stated.mean():.3f} (ratio {spread / stated.mean():.2f}); "
-          f"{np.mean(np.abs(est / p_mc - 1) <= 2 * stated):.0%} within 2 stated CoV of MC's P; drapes a run {drapes.mean():,.0f} (max {drapes.max():,}, budget hit "
+          f"{np.mean(np.abs(est / p_mc - 1) <= 2 * stated):.0%} within 2 stated CoV of MC's P; drapes a run "
+          f"{drapes.mean():,.0f} (max {drapes.max():,}, budget hit "
           f"{int(np.sum(drapes >= args.max_drapes))}); methods {methods}; median beta "
           f"{np.nanmedian([r['beta'] if r['beta'] is not None else np.nan for r in runs]):.2f}")
     print(f"plain MC drapes at the observed CoV: {mc_equal:,.0f}; ratio to the estimator's "
