@@ -8,9 +8,13 @@ as they are (``kl_retained`` of its variance). A batch of rows is one batched dr
 
 A ``[study] rare = {qoi, threshold, cov, max_drapes}`` is estimated after the run's
 sample, at every force level, by ``uqdrape.reliability.importance_sampling`` (importance
-sampling at the design point the subset levels give, or subset simulation again where
-no design point carries the probability) to CoV ``cov`` within ``max_drapes`` drapes,
-with the seed ``SeedSequence([study seed, RARE_STREAM, level])``. Its drapes are the
+sampling at the design point the subset levels give, its response surface linear in the
+factors' own values; subset simulation in independent rounds where no design point
+carries the probability; plain Monte Carlo where failure is not rare, P = 1 where every
+drape fails; an upper bound where no drape reaches the threshold) to CoV ``cov`` within
+``max_drapes`` drapes, a hard limit, with the seed ``SeedSequence([study seed,
+RARE_STREAM, level])``. A level whose CoV is above the target, or that is a bound, is
+said on stderr in one line whether the run is quiet or not, and its report row says why. Its drapes are the
 estimator's own (their nets are not stored). A resumed run keeps ``rare.json`` if it was
 written for the same study and request.
 """
