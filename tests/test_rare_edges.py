@@ -160,3 +160,18 @@ def test_subset_rounds_stay_in_the_budget(budget):
         calls.clear()
         r = importance_sampling(g, d, seed=seed, cov=0.01, max_calls=budget)
         assert r.calls == sum(calls) <= budget and r.method == "subset" and r.note
+
+
+def test_where_plain_sampling_is_no_dearer_than_subset_rounds_it_is_used():
+    # two half-spaces at P = 0.05: no design point carries it, and plain sampling on from the
+    # pilot's 500 independent samples needs fewer calls than subset rounds to 10 %
+    d = 10
+    beta, a = -stats.norm.ppf(0.025), np.ones(d) / np.sqrt(d)
+    g, calls = counted(lambda u: beta - np.abs(np.asarray(u) @ a))
+    for seed in range(5):
+        calls.clear()
+        r = importance_sampling(g, d, seed=seed, cov=0.1, max_calls=20_000)
+        assert r.method == "montecarlo" and r.cov <= 0.1 and r.note == "" and r.calls == sum(calls)
+        assert abs(r.probability / 0.05 - 1) <= 3 * r.cov
+        # the pilot's levels above level 0 and the root search, plus what plain MC needs
+        assert r.calls <= r.subset.calls + 40 + (1 - 0.05) / (0.05 * 0.1**2) * 1.1

@@ -214,13 +214,13 @@ def importance_sampling(g, d: int, *, seed: int, cov: float = 0.1, max_calls: in
     spent = sus.calls + search
     u_last, y_last = samples[-1]
     if u_star is None:
-        return _subset_rounds(g, d, sus, n_per_level, spent, cov, max_calls, p0, max_levels, rng,
+        return _subset_rounds(g, d, sus, samples[0][1], spent, cov, max_calls, p0, max_levels, rng,
                               lambda *a, **k: result(*a, **k, r2=r2), "no root of g along the fitted direction")
     beta = float(np.linalg.norm(u_star))
     opposite = float(np.mean(u_last[y_last <= 0] @ u_star <= 0))
 
     def subset_again(importance_calls: int, why: str) -> RareResult:
-        return _subset_rounds(g, d, sus, n_per_level, spent + importance_calls, cov, max_calls, p0, max_levels, rng,
+        return _subset_rounds(g, d, sus, samples[0][1], spent + importance_calls, cov, max_calls, p0, max_levels, rng,
                               lambda *a, **k: result(*a, **k, beta=beta, r2=r2, opposite=opposite,
                                                      importance=importance_calls), why)
 
@@ -250,28 +250,38 @@ def importance_sampling(g, d: int, *, seed: int, cov: float = 0.1, max_calls: in
         n = min(max(math.ceil(terms.size * (delta / cov) ** 2), terms.size + FIRST_ROUND), 2 * terms.size)
 
 
-def _monte_carlo(g, d, y0, cov, max_calls, rng, result) -> RareResult:
+def _monte_carlo(g, d, y0, cov, max_calls, rng, result, other: int = 0, why: str = "") -> RareResult:
     """Plain Monte Carlo from the pilot's level-0 values ``y0`` on, to CoV ``cov`` within
-    ``max_calls``: where failure is not rare, n (1 - P) / P more samples are all it needs."""
+    ``max_calls`` with ``other`` calls spent besides level 0's: where failure is not rare,
+    or plain sampling costs no more than subset rounds, n (1 - P) / P samples are all it
+    needs (sized from one failure while none is seen; none at the end is a bound)."""
     fails, n, batch = int(np.sum(y0 <= 0)), len(y0), len(y0)
     while True:
-        p = fails / n
+        p = max(fails, 1) / n
         delta = math.sqrt((1 - p) / (p * n))
-        more = min(math.ceil((1 - p) / (p * cov**2)) - n, int(max_calls) - n, batch)
-        if delta <= cov or more <= 0:
-            return result(p, delta, n, "montecarlo", why="the budget ran out")
+        more = min(math.ceil((1 - p) / (p * cov**2)) - n, int(max_calls) - other - n, batch)
+        if not fails and more <= 0:
+            return result(NONE_SEEN / n, 0.0, other + n, "below", why=f"{why}; no failure in the plain samples")
+        if (delta <= cov and fails) or more <= 0:
+            return result(p, delta, other + n, "montecarlo",
+                          why=f"{why}; the budget ran out" if why else "the budget ran out")
         fails += int(np.sum(np.asarray(g(rng.standard_normal((more, d))), dtype=float) <= 0))
         n += more
 
 
-def _subset_rounds(g, d, sus, n0, spent, cov, max_calls, p0, max_levels, rng, result, why) -> RareResult:
-    """Subset simulation in ROUNDS independent rounds after the pilot ``sus`` (``n0``
-    samples a level) and ``spent`` calls (module docstring), each with the samples a level
+def _subset_rounds(g, d, sus, y0, spent, cov, max_calls, p0, max_levels, rng, result, why) -> RareResult:
+    """Subset simulation in ROUNDS independent rounds after the pilot ``sus`` (level-0
+    values ``y0``) and ``spent`` calls (module docstring), each with the samples a level
     that the pilot's CoV says the target needs, within what the budget leaves; the pilot's
-    estimate where not even two rounds of LEAST_LEVEL samples a level fit."""
-    chain = round(1 / p0)
+    estimate where not even two rounds of LEAST_LEVEL samples a level fit; plain Monte
+    Carlo on from level 0 where that needs no more calls than the rounds would."""
+    chain, n0 = round(1 / p0), len(y0)
     per_sample = sus.calls / n0 * 1.1  # calls a round per sample a level, with a level's margin
     need = n0 * (sus.cov / cov) ** 2 / ROUNDS
+    p = sus.probability
+    if (1 - p) / (p * cov**2) - n0 <= need * ROUNDS * per_sample:
+        return _monte_carlo(g, d, y0, cov, max_calls, rng, result, other=spent - n0,
+                            why=f"{why}; plain sampling no dearer than subset rounds")
     rounds = min(ROUNDS, int((max_calls - spent) / (per_sample * LEAST_LEVEL)))
     if rounds < 2:
         return result(sus.probability, sus.cov, spent, "subset", why=f"{why}; no budget left for subset rounds")
