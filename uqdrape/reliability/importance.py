@@ -108,8 +108,8 @@ class RareResult:
 
 def design_point(g, samples, features=None) -> tuple[np.ndarray | None, float, int]:
     """(u*, R^2, calls): the design point from the pilot's ``samples`` [(U, g)] (module
-    docstring, step 2) and the model calls its root search took; u* None where g has no
-    root along the surface's design direction within 8 steps out (no design point there).
+    docstring, step 2) and the model calls its root search took; u* the surface's own point
+    where g has no root along its direction within 8 steps out, None where g(0) <= 0.
     ``features`` maps each column of U on its own (e.g. a bounded factor's u to its own
     value); the response surface is linear in them (default: in U)."""
     U = np.concatenate([u for u, _ in samples])
@@ -139,7 +139,7 @@ def design_point(g, samples, features=None) -> tuple[np.ndarray | None, float, i
             beta = optimize.brentq(along, low, high, xtol=1e-3, maxiter=SEARCH - 12, disp=False)
             return beta * alpha, float(r2), len(calls)
         low, high = high, 1.5 * high
-    return None, float(r2), len(calls)
+    return c * alpha, float(r2), len(calls)  # no root along alpha: the surface's point (the checks judge it)
 
 
 def surface_point(a0: float, a: np.ndarray, features, d: int) -> np.ndarray:
@@ -215,7 +215,7 @@ def importance_sampling(g, d: int, *, seed: int, cov: float = 0.1, max_calls: in
     u_last, y_last = samples[-1]
     if u_star is None:
         return _subset_rounds(g, d, sus, samples[0][1], spent, cov, max_calls, p0, max_levels, rng,
-                              lambda *a, **k: result(*a, **k, r2=r2), "no root of g along the fitted direction")
+                              lambda *a, **k: result(*a, **k, r2=r2), "the origin fails")
     beta = float(np.linalg.norm(u_star))
     opposite = float(np.mean(u_last[y_last <= 0] @ u_star <= 0))
 
