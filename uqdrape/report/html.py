@@ -91,8 +91,8 @@ def rare_rows(record: Mapping) -> list[tuple[str, str, str]]:
     rows = []
     for level in record["levels"]:
         below = level["method"] == "below"
-        short = (f" (NOT TRUSTED: above the target {record['cov']:g}: {level.get('note', '')})"
-                 if level["cov"] > record["cov"] else "")
+        note = f": {level['note']}" if level.get("note") else ""  # a record of an older run has none
+        short = f" (NOT TRUSTED: above the target {record['cov']:g}{note})" if level["cov"] > record["cov"] else ""
         rows.append((f"P({record['qoi']} >= {record['threshold']:g}{unit}) at {level['force']:g} N",
                      ("< " if below else "") + f"{level['probability']:.3g}",
                      (f"no drape reached the threshold: an upper bound, not an estimate, {level['drapes']:,} drapes"

@@ -112,8 +112,9 @@ def untrusted(record: dict, level: dict) -> str:
         return (f"{what}: no drape reached the threshold in {level['drapes']:,} drapes: P < "
                 f"{level['probability']:.2g}, an upper bound, not an estimate")
     if level["cov"] > record["cov"]:
+        why = f" ({level['note']})" if level.get("note") else ""  # a record of an older run has none
         return (f"{what} = {level['probability']:.3g} is not to be trusted: CoV {level['cov']:.2f} above the target "
-                f"{record['cov']:g} ({level['note']})")
+                f"{record['cov']:g}{why}")
     return ""
 
 
