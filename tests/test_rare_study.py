@@ -19,7 +19,7 @@ from uqdrape.reliability import importance_sampling
 from uqdrape.stats import realization_qois
 from uqdrape.study import load_study
 from uqdrape.workflow import run_report, run_study
-from uqdrape.workflow.rare import RARE_FILE, RARE_STREAM, drape_limit_state, read_rare
+from uqdrape.workflow.rare import RARE_FILE, RARE_STREAM, drape_limit_state, factor_values, read_rare
 
 from conftest import assert_one_line_error, write_study
 
@@ -46,7 +46,7 @@ def test_a_study_estimates_its_rare_probability_and_reports_it(tmp_path, capsys,
     study = load_study(path)
     g, d = drape_limit_state(study, "mean_shear_positive", 10.9, 50.0)
     seed = int(np.random.SeedSequence([1, RARE_STREAM, 0]).generate_state(1)[0])
-    direct = importance_sampling(g, d, seed=seed, cov=0.2, max_calls=5000)
+    direct = importance_sampling(g, d, seed=seed, cov=0.2, max_calls=5000, features=factor_values(study))
     assert (level["probability"], level["cov"], level["drapes"], level["method"]) == (
         direct.probability, direct.cov, direct.calls, "importance")
     assert record["variables"] == d == 313 and level["cov"] <= 0.2 and level["drapes"] <= 5000
@@ -120,13 +120,51 @@ def test_a_study_rare_probability_agrees_with_plain_monte_carlo(tmp_path):
     assert abs(level["probability"] / p_mc - 1) <= 3 * np.hypot(level["cov"], np.sqrt((1 - p_mc) / (p_mc * 20_000)))
 
 
-def test_a_threshold_no_drape_reaches_is_one_line(tmp_path, capsys, monkeypatch):
-    # subset simulation's 30 levels cut to 2: the line shear never reaches 80 deg on this dome
+def test_a_threshold_no_drape_reaches_is_a_bound_said_in_one_line(tmp_path, capsys, monkeypatch):
+    # subset simulation's 30 levels cut to 2: the line shear never reaches 80 deg on this dome;
+    # the record is "no failure in N drapes: P < bound", strict JSON, said on stderr even with -q
     import uqdrape.workflow.rare as rare
     real = rare.importance_sampling
     monkeypatch.setattr(rare, "importance_sampling", lambda *a, **k: real(*a, **{**k, "max_levels": 2}))
     path = rare_file(tmp_path, {**RARE, "threshold": 80.0})
-    assert main(["run", str(path), "--scheduler", "synchronous", "--no-report", "-q"]) == 2
-    assert_one_line_error(capsys.readouterr().err, file=path, key="study.rare.threshold", value="80.0",
-                          valid=("no drape at 50 N reached it", "in 2 levels"))
-    assert not (tmp_path / "rare" / RARE_FILE).exists()
+    assert main(["run", str(path), "--scheduler", "synchronous", "--no-report", "-q"]) == 0
+    text = (tmp_path / "rare" / RARE_FILE).read_text()
+    level = json.loads(text, parse_constant=lambda c: pytest.fail(f"{c} in {RARE_FILE}"))["levels"][0]
+    assert level["method"] == "below" and level["cov"] == 0.0 and level["beta"] is None
+    # two levels of 500 (the second 450 moved points at most): the bound is the smaller of
+    # -ln(0.05) / 500 and the levels' P(g <= their last threshold)
+    assert level["drapes"] <= 950 and 0 < level["probability"] <= -np.log(0.05) / 500
+    err = capsys.readouterr().err.splitlines()
+    assert (f"rare: warning: P(mean_shear_positive >= 80) at 50 N: no drape reached the threshold in "
+            f"{level['drapes']:,} drapes: P < {level['probability']:.2g}, an upper bound, not an estimate") in err
+    html = run_report(tmp_path / "rare").read_text()
+    assert f"&lt; {level['probability']:.3g}" in html and "an upper bound, not an estimate" in html
+
+
+def test_certain_failure_is_p_one(tmp_path, capsys):
+    # every drape's line shear is above 0 deg: one level of plain drapes, P = 1, no warning
+    path = rare_file(tmp_path, {**RARE, "threshold": 0.0})
+    assert main(["run", str(path), "--scheduler", "synchronous", "--no-report", "-q"]) == 0
+    level = json.loads((tmp_path / "rare" / RARE_FILE).read_text())["levels"][0]
+    assert (level["probability"], level["cov"], level["method"], level["drapes"]) == (1.0, 0.0, "montecarlo", 500)
+    assert "warning" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("threshold, below", [(10.9, False), (12.5, True)])
+def test_the_budget_is_a_hard_limit_and_a_result_not_to_trust_says_so(tmp_path, capsys, threshold, below):
+    # CoV 0.01 within 1,000 drapes: at about 1e-2 (10.9 deg) the budget stops the estimate
+    # above its target; at about 1e-3 (12.5 deg) it stops the subset levels before failure
+    path = rare_file(tmp_path, {**RARE, "threshold": threshold, "cov": 0.01, "max_drapes": 1000})
+    assert main(["run", str(path), "--scheduler", "synchronous", "--no-report", "-q"]) == 0
+    level = json.loads((tmp_path / "rare" / RARE_FILE).read_text())["levels"][0]
+    assert level["drapes"] <= 1000 and (level["method"] == "below") == below
+    assert level["note"].endswith("the budget ran out")
+    said = [line for line in capsys.readouterr().err.splitlines() if line.startswith("rare: warning: ")]
+    html = run_report(tmp_path / "rare").read_text()
+    if below:
+        assert len(said) == 1 and said[0].endswith("an upper bound, not an estimate")
+        assert "an upper bound, not an estimate" in html
+    else:
+        assert level["cov"] > 0.01 and len(said) == 1 and "not to be trusted" in said[0]
+        assert said[0].endswith(f"CoV {level['cov']:.2f} above the target 0.01 ({level['note']})")
+        assert f"NOT TRUSTED: above the target 0.01: {level['note']}" in html

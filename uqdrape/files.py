@@ -108,7 +108,7 @@ def check_input_file(path, what: str, max_bytes: int, *, error: type[ValueError]
 def local_path(target, flag: str) -> Path:
     """``target`` as a path on this machine; a URL raises ValueError naming ``flag``
     (pathlib would fold ``http://host/x`` into the local folder ``http:/host``)."""
-    if is_url(target):
+    if isinstance(location(target), str):
         raise ValueError(f"{flag} {target}: this command writes files on this machine; give a path (a store URL "
                          "is written by run and design, and read by report and export)")
     return Path(target)

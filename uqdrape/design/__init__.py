@@ -43,7 +43,11 @@ force where the held edge would otherwise be pulled in too far.
 Rare constraint. With ``rare`` (``[design] rare = {qoi, threshold, max_probability, cov,
 max_drapes}``) a design is feasible also when the same statistic of its P(qoi >=
 threshold) is at most ``max_probability``: the upper limit is the log-normal one of the
-estimate and its CoV (:func:`rare_interval`). The estimate is the ``[study] rare`` one
+estimate and its CoV (:func:`rare_interval`). An estimate whose CoV is above the
+constraint's target is not to be trusted: its upper limit is 1 and the design is not
+feasible, whatever its P (``estimators.rare_statistic``); certain failure is P = 1, and a
+candidate whose drapes never reach the threshold has an upper bound as its P (method
+"below", CoV 0). The estimate is the ``[study] rare`` one
 (``uqdrape.workflow.rare.design_rare``, passed in as the Evaluator's ``rare``: this
 package does not drape limit states itself), one per design and sample with the sample's
 seed, kept in the design's record (``rare_*`` attributes) and in ``design.nc``. Its

@@ -61,6 +61,16 @@ def rare_interval(probability: float, cov: float, confidence: float) -> tuple[fl
     return float(probability), float(probability * np.exp(-z)), float(probability * np.exp(z))
 
 
+def rare_statistic(attrs, spec, confidence: float) -> tuple[float, float, float]:
+    """(estimate, lower, upper) of a design's rare estimate (its record's ``rare_*``
+    ``attrs``): :func:`rare_interval`, but with upper 1 where the estimate's CoV is above the
+    constraint's target (nothing bounds it: :func:`excess` then keeps no bound). A bound
+    (method "below", CoV 0) is its own interval."""
+    p, lower, upper = rare_interval(attrs["rare_probability"], attrs["rare_cov"], confidence)
+    trusted = attrs["rare_method"] == "below" or attrs["rare_cov"] <= spec.rare.cov
+    return p, lower, upper if trusted else 1.0
+
+
 def _statistic(stats: dict, name: str, spec):
     """The spec's statistic (upper limit or estimate) of statistic ``name``."""
     estimate, _, upper = stats[name]
@@ -73,14 +83,16 @@ def _statistic(stats: dict, name: str, spec):
 
 def excess(stats: dict, spec):
     """How far a design breaks its limits, 0 if it keeps them: the draw-in limit's excess
-    (mm) plus the rare constraint's (decades: log10 of P over max_probability), a ranking
-    of infeasible designs by how far they miss, not a physical quantity."""
+    (mm) plus the rare constraint's (decades: log10 of P over max_probability, P taken as 1
+    where its upper limit is 1: certain failure, or an estimate above its target CoV), a
+    ranking of infeasible designs by how far they miss, not a physical quantity."""
     over = np.zeros(np.shape(stats[DRAW_IN][0]))
     if spec.max_draw_in_mm is not None:
         over = over + np.maximum(_statistic(stats, DRAW_IN, spec) - spec.max_draw_in_mm, 0.0)
     if spec.rare is not None:
         with np.errstate(divide="ignore"):  # P = 0: keeps it
-            over = over + np.maximum(np.log10(_statistic(stats, RARE, spec) / spec.rare.max_probability), 0.0)
+            p = np.where(stats[RARE][2] >= 1.0, 1.0, _statistic(stats, RARE, spec))
+            over = over + np.maximum(np.log10(p / spec.rare.max_probability), 0.0)
     return over
 
 

@@ -18,7 +18,7 @@ from ..drape import max_shear_lines
 from ..ensemble import Progress, at, compute_tasks, drape_inputs, sampled_inputs
 from ..stats import realization_qois
 from ..study import identity
-from .estimators import RARE, per_realization, rare_interval, statistics
+from .estimators import RARE, per_realization, rare_statistic, statistics
 from .problem import Problem
 
 #: Folder of the per-design records in a design run's output folder.
@@ -100,8 +100,7 @@ class Evaluator:
                 values = per_realization(record, self.k_max)
                 stats = statistics(values, self.prob.spec.confidence)
                 if self.rare is not None:
-                    stats[RARE] = rare_interval(record.attrs["rare_probability"], record.attrs["rare_cov"],
-                                                self.prob.spec.confidence)
+                    stats[RARE] = rare_statistic(record.attrs, self.prob.spec, self.prob.spec.confidence)
                 self.cache[key] = (values, stats)
             out.append(self.cache[key][1])
         return out

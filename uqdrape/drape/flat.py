@@ -18,17 +18,23 @@ from .solver import drape
 
 
 def flat_positions(ds: xr.Dataset) -> np.ndarray:
-    """Flat-blank plan positions (R, N, N, 2) mm of the realisations of drape Dataset ``ds``."""
+    """Flat-blank plan positions (..., N, N, 2) mm of the realisations of drape Dataset
+    ``ds``, its leading dims those of its nodes' ``x`` (realization, or an ensemble's
+    blankholder_force and realization): the realisations are draped flat as one batch."""
     n = int(ds.attrs["rings"])
     spacing = float(ds.attrs["spacing_mm"])
-    crossover = np.stack([ds.crossover_x.values, ds.crossover_y.values], axis=-1).reshape(-1, 2)
-    seg_i = ds.seg_i.values if "seg_i" in ds else None
-    seg_j = ds.seg_j.values if "seg_j" in ds else None
+    lead = ds["x"].isel(i=0, j=0, drop=True)  # one value per realisation, in the nodes' order
+
+    def batch(name, tail=()):
+        return ds[name].broadcast_like(lead).transpose(*lead.dims, ...).values.reshape(lead.size, *tail)
+
+    crossover = np.stack([batch("crossover_x"), batch("crossover_y")], axis=-1)
+    seg_i, seg_j = (batch(s, ds[s].shape[-2:]) if s in ds else None for s in ("seg_i", "seg_j"))
     longest = max([spacing] + [float(np.max(s)) for s in (seg_i, seg_j) if s is not None])
     plate = Plate(float(np.abs(crossover).max()) + 4 * n * longest)
-    flat = drape(plate, spacing, n, orientation=ds.orientation.values.ravel(),
-                 pre_shear=ds.pre_shear.values.ravel(), crossover=crossover, seg_i=seg_i, seg_j=seg_j)
-    return np.stack([flat.x.values, flat.y.values], axis=-1)
+    flat = drape(plate, spacing, n, orientation=batch("orientation"),
+                 pre_shear=batch("pre_shear"), crossover=crossover, seg_i=seg_i, seg_j=seg_j)
+    return np.stack([flat.x.values, flat.y.values], axis=-1).reshape(*lead.shape, 2 * n + 1, 2 * n + 1, 2)
 
 
 def draw_in(ds: xr.Dataset) -> xr.DataArray:

@@ -5,15 +5,16 @@ variation and the number of model calls it took.
 
 ``subset_simulation`` (Au & Beck 2001: nested intermediate failure domains, each
 populated by modified Metropolis chains from the previous one's samples);
-``importance_sampling`` (to a target CoV: importance sampling around the design point
-the subset levels give, or subset simulation again where no design point carries the
-probability); ``limit_states`` holds analytic cases with known P (linear, and the
-sphere's exterior) that check them.
+``importance_sampling`` (to a target CoV within a hard budget: importance sampling
+around the design point the subset levels give, subset simulation in independent rounds
+where no design point carries the probability, plain Monte Carlo where failure is not
+rare, an upper bound where none is reached); ``limit_states`` holds analytic cases with
+known P (linear, the sphere's exterior, a bounded factor plus noise) that check them.
 """
 
 from .importance import RareResult, importance_sampling
-from .limit_states import linear_limit_state, sphere_limit_state
+from .limit_states import bounded_limit_state, linear_limit_state, sphere_limit_state
 from .subset import SubsetResult, subset_simulation
 
-__all__ = ["RareResult", "SubsetResult", "importance_sampling", "linear_limit_state", "sphere_limit_state",
-           "subset_simulation"]
+__all__ = ["RareResult", "SubsetResult", "bounded_limit_state", "importance_sampling", "linear_limit_state",
+           "sphere_limit_state", "subset_simulation"]

@@ -45,6 +45,12 @@ class SubsetResult:
     gammas: tuple[float, ...]
     acceptance: tuple[float, ...]
 
+    @property
+    def reached(self) -> bool:
+        """Whether the levels reached the failure domain (else ``probability`` is the
+        estimate of P(g <= the last threshold), above P: the budget or the levels ran out)."""
+        return self.thresholds[-1] == 0.0
+
 
 def chain_gamma(indicator: np.ndarray) -> float:
     """Au & Beck's gamma (their Eqs 27-29) of a level's failure indicator (chain length Ns,
@@ -72,14 +78,20 @@ def subset_simulation(g, d: int, *, n_per_level: int = 1000, p0: float = 0.1, se
     """P(g(U) <= 0), U ~ N(0, I_d), by subset simulation with ``n_per_level`` samples a
     level and conditional probability ``p0`` (p0 N and 1 / p0 integers); ``spread`` the
     first level's proposal sd. ValueError if failure is not reached in ``max_levels``."""
-    return subset_levels(g, d, n_per_level=n_per_level, p0=p0, rng=np.random.default_rng(seed), spread=spread,
-                         max_levels=max_levels)[0]
+    result = subset_levels(g, d, n_per_level=n_per_level, p0=p0, rng=np.random.default_rng(seed), spread=spread,
+                           max_levels=max_levels)[0]
+    if not result.reached:
+        raise ValueError(f"subset simulation reached no failure (g <= 0) in {max_levels} levels of p0 = {p0}: "
+                         f"P < {p0 ** max_levels:.1e} or g has no failure domain")
+    return result
 
 
-def subset_levels(g, d: int, *, n_per_level: int, p0: float, rng, spread: float,
-                  max_levels: int) -> tuple[SubsetResult, list[tuple[np.ndarray, np.ndarray]]]:
+def subset_levels(g, d: int, *, n_per_level: int, p0: float, rng, spread: float, max_levels: int,
+                  max_calls: float = np.inf) -> tuple[SubsetResult, list[tuple[np.ndarray, np.ndarray]]]:
     """:func:`subset_simulation` drawing from ``rng``, also returning each level's samples
-    and their g values, [(U (N, d), g (N,)), ...] (a chain's repeated states included)."""
+    and their g values, [(U (N, d), g (N,)), ...] (a chain's repeated states included).
+    It stops before a level whose chains could take it past ``max_calls`` points, and
+    after ``max_levels``: the result's ``reached`` is then False."""
     n = int(n_per_level)
     n_seeds, chain = round(p0 * n), round(1 / p0)
     if n_seeds < 1 or n_seeds * chain != n or abs(n_seeds - p0 * n) > 1e-9:
@@ -89,7 +101,7 @@ def subset_levels(g, d: int, *, n_per_level: int, p0: float, rng, spread: float,
     calls, indicator_shape = n, (n, 1)  # level 0: n independent "chains" of one state
     probability, cov2 = 1.0, 0.0
     thresholds, levels, gammas, rates, samples = [], [], [], [np.nan], []
-    for _ in range(max_levels):
+    for level in range(max_levels):
         samples.append((u, y))
         b = max(_threshold(y, n_seeds), 0.0)
         inside = (y <= b).reshape(indicator_shape)
@@ -100,9 +112,8 @@ def subset_levels(g, d: int, *, n_per_level: int, p0: float, rng, spread: float,
         thresholds.append(b)
         levels.append(p)
         gammas.append(gamma)
-        if b == 0.0:
-            return SubsetResult(probability, float(np.sqrt(cov2)), calls, tuple(thresholds), tuple(levels),
-                                tuple(gammas), tuple(rates[:len(levels)])), samples
+        if b == 0.0 or level == max_levels - 1 or calls + (chain - 1) * n_seeds > max_calls:
+            break  # failure reached, or no level left (then P(g <= b) is above P)
         seeds = np.argsort(y)[:n_seeds]
         x, yx = u[seeds].copy(), y[seeds].copy()
         states, values, accepted, moved_total = [x.copy()], [yx.copy()], 0, 0
@@ -126,5 +137,5 @@ def subset_levels(g, d: int, *, n_per_level: int, p0: float, rng, spread: float,
         u = np.concatenate(states)  # (chain x n_seeds, d), state l of chain c at row l n_seeds + c
         y = np.concatenate(values)
         indicator_shape = (chain, n_seeds)
-    raise ValueError(f"subset simulation reached no failure (g <= 0) in {max_levels} levels of p0 = {p0}: "
-                     f"P < {p0 ** max_levels:.1e} or g has no failure domain")
+    return SubsetResult(probability, float(np.sqrt(cov2)), calls, tuple(thresholds), tuple(levels), tuple(gammas),
+                        tuple(rates[:len(levels)])), samples

@@ -214,15 +214,17 @@ def _rare_limit(ds: xr.Dataset) -> str:
 
 
 def _rare_table(ds: xr.Dataset) -> str:
-    """Each evaluated design's rare estimate: force, P with its limits, CoV, drapes, feasible."""
+    """Each evaluated design's rare estimate: force, P with its limits, CoV, drapes, method
+    (with why, where its CoV is above the target or it is a bound), feasible."""
     if "rare_probability" not in ds:
         return ""
+    notes = ds["rare_note"].values if "rare_note" in ds else [""] * ds.sizes["evaluation"]
     head = ("sample", "total force (N)", "P", "limits", "CoV", "drapes", "method", "feasible")
     rows = [(str(ds["sample"].values[e]), f"{ds['total_force'].values[e]:.1f}",
              ("< " if ds["rare_method"].values[e] == "below" else "") + f"{ds['rare_probability'].values[e]:.3g}",
              f"[{ds['rare_lower'].values[e]:.3g}, {ds['rare_upper'].values[e]:.3g}]",
              f"{ds['rare_cov'].values[e]:.3f}", f"{int(ds['rare_drapes'].values[e]):,}",
-             str(ds["rare_method"].values[e]), "yes" if ds["feasible"].values[e] else "no")
+             str(ds["rare_method"].values[e]) + (f": {notes[e]}" if notes[e] else ""), "yes" if ds["feasible"].values[e] else "no")
             for e in np.argsort(ds["total_force"].values, kind="stable")]
     cells = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in row) + "</tr>" for row in rows)
     return ("<h2>Rare constraint per design</h2>\n<table><tr>" + "".join(f"<th>{h}</th>" for h in head)

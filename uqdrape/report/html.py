@@ -76,22 +76,28 @@ def _where(site: Mapping) -> str:
 
 #: The rare-event estimators (``uqdrape.reliability.importance_sampling``'s ``method``) in words.
 RARE_METHODS = {"importance": "importance sampling at the design point of subset levels",
-                "subset": "subset simulation (no design point carries the probability)"}
+                "subset": "subset simulation in independent rounds (no design point carries the probability)",
+                "montecarlo": "plain Monte Carlo (failure is not rare)",
+                "below": "subset levels that reached no failure"}
 
 
 def rare_rows(record: Mapping) -> list[tuple[str, str, str]]:
     """(quantity, value, how) of each force level of a rare-event record
     (``uqdrape.workflow.rare``), e.g. ("P(lock_margin >= 1) at 126 N", "1.02e-03",
-    "CoV 0.09, 2,650 drapes, importance sampling ..., 313 standard variables")."""
+    "CoV 0.09, 2,650 drapes, importance sampling ..., 313 standard variables"); an upper
+    bound reads "< 1.6e-03", and an estimate above its target CoV says so and why."""
     units = QOI_ATTRS[record["qoi"]]["units"]
     unit = "" if units == "1" else " deg" if units == "degree" else f" {units}"
     rows = []
     for level in record["levels"]:
-        short = f" (above the target {record['cov']:g})" if level["cov"] > record["cov"] else ""
+        below = level["method"] == "below"
+        note = f": {level['note']}" if level.get("note") else ""  # a record of an older run has none
+        short = f" (NOT TRUSTED: above the target {record['cov']:g}{note})" if level["cov"] > record["cov"] else ""
         rows.append((f"P({record['qoi']} >= {record['threshold']:g}{unit}) at {level['force']:g} N",
-                     f"{level['probability']:.3g}",
-                     f"CoV {level['cov']:.2f}{short}, {level['drapes']:,} drapes, {RARE_METHODS[level['method']]}, "
-                     f"{record['variables']} standard variables"))
+                     ("< " if below else "") + f"{level['probability']:.3g}",
+                     (f"no drape reached the threshold: an upper bound, not an estimate, {level['drapes']:,} drapes"
+                      if below else f"CoV {level['cov']:.2f}{short}, {level['drapes']:,} drapes") +
+                     f", {RARE_METHODS[level['method']]}, {record['variables']} standard variables"))
     return rows
 
 

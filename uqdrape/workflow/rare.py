@@ -8,9 +8,13 @@ as they are (``kl_retained`` of its variance). A batch of rows is one batched dr
 
 A ``[study] rare = {qoi, threshold, cov, max_drapes}`` is estimated after the run's
 sample, at every force level, by ``uqdrape.reliability.importance_sampling`` (importance
-sampling at the design point the subset levels give, or subset simulation again where
-no design point carries the probability) to CoV ``cov`` within ``max_drapes`` drapes,
-with the seed ``SeedSequence([study seed, RARE_STREAM, level])``. Its drapes are the
+sampling at the design point the subset levels give, its response surface linear in the
+factors' own values; subset simulation in independent rounds where no design point
+carries the probability; plain Monte Carlo where failure is not rare, P = 1 where every
+drape fails; an upper bound where no drape reaches the threshold) to CoV ``cov`` within
+``max_drapes`` drapes, a hard limit, with the seed ``SeedSequence([study seed,
+RARE_STREAM, level])``. A level whose CoV is above the target, or that is a bound, is
+said on stderr in one line whether the run is quiet or not, and its report row says why. Its drapes are the
 estimator's own (their nets are not stored). A resumed run keeps ``rare.json`` if it was
 written for the same study and request.
 """
@@ -31,7 +35,7 @@ from ..material import load_material
 from ..reliability import importance_sampling
 from ..report import rare_rows
 from ..stats import realization_qois
-from ..study import identity, study_error
+from ..study import identity
 
 #: The rare-event estimates of a run, in its output folder.
 RARE_FILE = "rare.json"
@@ -67,33 +71,49 @@ def drape_limit_state(study, qoi: str, threshold: float, force: float | None = N
     return g, len(names)
 
 
+def factor_values(study):
+    """The map of U's columns (n, d) to what a response surface of the drapes is fitted in:
+    a scalar factor's own value (its ``ppf`` of Phi(u): a bounded factor saturates in u),
+    the random fields' KL modes as they are (``uqdrape.reliability.design_point``)."""
+    factors = list(study.uncertainty.factors.values())
+
+    def features(U):
+        X = np.array(U, dtype=float)
+        for k, factor in enumerate(factors):
+            X[:, k] = factor.ppf(ndtr(np.clip(X[:, k], -8.0, 8.0)))
+        return X
+
+    return features
+
+
 def estimate(study, spec, seed: int, force: float, *, below: float | None = None) -> tuple[dict, int]:
-    """({probability, cov, drapes, method, beta, subset_probability, subset_cov}, standard
-    variables) of P(``spec.qoi`` >= ``spec.threshold``) of ``study``'s drapes at ``force``
-    (N) by ``importance_sampling`` to CoV ``spec.cov`` within ``spec.max_drapes`` drapes,
-    with ``seed``. A threshold no drape reaches is the study's error (``study.rare``); with
-    ``below``, the subset levels stop at the first level of P under it (p0 = 0.1 each), and
-    reaching no failure there is the record ``method = "below"``, ``probability`` that level
-    (P is below it; cov 0)."""
+    """({probability, cov, drapes, method, beta, subset_probability, subset_cov, note},
+    standard variables) of P(``spec.qoi`` >= ``spec.threshold``) of ``study``'s drapes at
+    ``force`` (N) by ``importance_sampling`` to CoV ``spec.cov`` within ``spec.max_drapes``
+    drapes (a hard limit), with ``seed``. ``method`` "below": no drape reached the
+    threshold, and ``probability`` is an upper bound (CoV 0); with ``below``, the subset
+    levels stop at the first level of P under it (p0 = 0.1 each). ``note``: why the
+    estimate is above the target CoV or a bound ("" otherwise)."""
     g, d = drape_limit_state(study, spec.qoi, spec.threshold, force)
-    drapes = []
-
-    def counted(U):
-        drapes.append(len(U))
-        return g(U)
-
     levels = 30 if below is None else math.ceil(round(math.log(below) / math.log(P0), 9))
-    try:
-        r = importance_sampling(counted, d, seed=seed, cov=spec.cov, max_calls=spec.max_drapes, p0=P0,
-                                max_levels=levels)
-    except ValueError as e:  # no failure domain reached: say it of the study's request
-        if below is not None:
-            return {"probability": P0**levels, "cov": 0.0, "drapes": sum(drapes), "method": "below",
-                    "beta": math.nan, "subset_probability": math.nan, "subset_cov": math.nan}, d
-        raise study_error(study.path, "study.rare.threshold", spec.threshold,
-                          f"no drape at {force:g} N reached it ({e})") from None
+    r = importance_sampling(g, d, seed=seed, cov=spec.cov, max_calls=spec.max_drapes, p0=P0, max_levels=levels,
+                            features=factor_values(study))
     return {"probability": r.probability, "cov": r.cov, "drapes": r.calls, "method": r.method, "beta": r.beta,
-            "subset_probability": r.subset.probability, "subset_cov": r.subset.cov}, d
+            "subset_probability": r.subset.probability, "subset_cov": r.subset.cov, "note": r.note}, d
+
+
+def untrusted(record: dict, level: dict) -> str:
+    """One line saying why a force level's estimate of rare-event record ``record`` is not
+    to be trusted ("" if it is): P below a bound, or its CoV above the target."""
+    what = f"P({record['qoi']} >= {record['threshold']:g}) at {level['force']:g} N"
+    if level["method"] == "below":
+        return (f"{what}: no drape reached the threshold in {level['drapes']:,} drapes: P < "
+                f"{level['probability']:.2g}, an upper bound, not an estimate")
+    if level["cov"] > record["cov"]:
+        why = f" ({level['note']})" if level.get("note") else ""  # a record of an older run has none
+        return (f"{what} = {level['probability']:.3g} is not to be trusted: CoV {level['cov']:.2f} above the target "
+                f"{record['cov']:g}{why}")
+    return ""
 
 
 def design_rare(variant) -> dict:
@@ -135,15 +155,25 @@ def rare_probabilities(study, output_dir, *, resume: bool = True, progress: bool
     if kept is not None:
         if progress:
             print(f"{study.name}: rare probability already estimated in {output_dir}", file=sys.stderr)
+        _warn(study, kept)
         return kept
     levels = []
     for level, force in enumerate(study.force_levels):
         seed = int(np.random.SeedSequence([study.seed, RARE_STREAM, level]).generate_state(1)[0])
         entry, d = estimate(study, spec, seed, force)
-        levels.append({"force": force, **entry})
+        levels.append({"force": force, **{k: None if isinstance(v, float) and not math.isfinite(v) else v
+                                          for k, v in entry.items()}})  # strict JSON: no NaN (beta of a bound)
     record = {"key": key, **dataclasses.asdict(spec), "variables": d, "levels": levels}
     if progress:
         for quantity, value, how in rare_rows(record):
             print(f"{study.name}: {quantity} = {value} ({how})", file=sys.stderr)
+    _warn(study, record)
     at(output_dir).write_text(RARE_FILE, json.dumps(record, indent=2) + "\n")
     return record
+
+
+def _warn(study, record: dict) -> None:
+    """Say on stderr, quiet or not, each force level of ``record`` not to be trusted (:func:`untrusted`)."""
+    for level in record["levels"]:
+        if line := untrusted(record, level):
+            print(f"{study.name}: warning: {line}", file=sys.stderr)
