@@ -17,11 +17,13 @@ from uqdrape.material import load_material
 ds = drape(build("hemisphere", radius=100.0), 5.0, 12, mode="energy",
            material=load_material("ebxhd936_like"), blankholder_force=100.0, friction=0.2)
 net = ds.isel(realization=0)
-print(f"largest |shear| {float(abs(net.shear).max()):.1f} deg, locking angle {ds.attrs['locking_angle_deg']:g} deg")
+print(f"largest |shear| {float(abs(net.shear).max()):.1f} deg")
 
 # %%
-# The net seen from above, each node coloured by its shear. The two quadrants that
-# extend the stitch (positive shear) shear less than the compliant ones.
+# The net from above
+# ------------------
+# Each node coloured by its shear. The two quadrants that extend the stitch (positive
+# shear, x y > 0) shear less than the two compliant ones.
 
 fig, ax = plt.subplots(figsize=(6.4, 5.2))
 dots = ax.scatter(net.x, net.y, c=net.shear, cmap="RdBu_r", vmin=-30, vmax=30, s=14)
