@@ -43,6 +43,7 @@ sphinx_gallery_conf = {
     "remove_config_comments": True,
     "abort_on_example_error": True,
     "reference_url": {},
+    "capture_repr": (),  # show what an example prints, not the value of its last expression
 }
 
 html_theme = "pydata_sphinx_theme"
