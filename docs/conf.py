@@ -32,6 +32,7 @@ myst_heading_anchors = 3
 
 autosummary_generate = True
 autodoc_default_options = {"members": True}
+autodoc_member_order = "bysource"  # a module with __all__: in its order (the API in the order its docstring lists it)
 numpydoc_show_class_members = False
 numpydoc_validation_checks = set()
 
