@@ -72,9 +72,13 @@ def user_commands(text: str) -> list[tuple[int, str]]:
 
 
 def documented_commands(root: Path) -> list[tuple[str, str]]:
-    """("FILE:LINE", command) of every command this test runs: the README's, then ``PAGES``'."""
-    return [(f"{name}:{n}", c) for name in ("README.md", *PAGES)
-            for n, c in user_commands((root / name).read_text(encoding="utf-8"))]
+    """("FILE:LINE", command) of every command this test runs: the README's, then ``PAGES``',
+    each distinct command once (a how-to repeats commands of the user guide)."""
+    commands = {}
+    for name in ("README.md", *PAGES):
+        for n, c in user_commands((root / name).read_text(encoding="utf-8")):
+            commands.setdefault(c, f"{name}:{n}")
+    return [(where, c) for c, where in commands.items()]
 
 
 def script(commands: list[tuple[str, str]]) -> str:
