@@ -77,13 +77,6 @@ def study_error(path, key: str, value, why: str) -> StudyError:
 # factor distributions offered in a study file (a constant is the fixed setting itself)
 _DISTS = tuple(d for d in _stochastic.DISTRIBUTIONS if d != "constant")
 _NAME_RE = re.compile(r"^[A-Za-z0-9_-]+$")
-#: How far a random input's values reach, in standard deviations: a few million draws of a
-#: standard normal (a large ensemble's cells) stay within 7 with all but 1e-5 probability.
-REACH_SD = 7.0
-#: Largest sd of ln length a study may draw its lengths with: a factor e^7 ~ 1,100 at the
-#: reach, past which a drawn field is constant over any net or iid on its lattice.
-MAX_LENGTH_LOG_SD = 1.0
-
 
 #: The keys of each table of a study file, in the order they are checked. The mould's keys
 #: are its kind's shape parameters (``uqdrape.geometry.KINDS``), a scalar factor's its
@@ -109,6 +102,13 @@ KEYS = {
     "report": ("histogram_nodes", "experimental_csv", "fixed_twin"),
     "output": ("directory", "float32"),
 }
+
+#: How far a random input's values reach, in standard deviations: a few million draws of a
+#: standard normal (a large ensemble's cells) stay within 7 with all but 1e-5 probability.
+REACH_SD = 7.0
+#: Largest sd of ln length a study may draw its lengths with: a factor e^7 ~ 1,100 at the
+#: reach, past which a drawn field is constant over any net or iid on its lattice.
+MAX_LENGTH_LOG_SD = 1.0
 
 
 class _Source(Document):
