@@ -1,6 +1,6 @@
 """The reference gallery (``tools/gallery.py``) and the pieces it relies on: ring
-statistics, the scalar-vs-factor figure, the README, and the committed gallery agreeing
-with the gallery's entries."""
+statistics, the scalar-vs-factor figure, the README it writes, and each entry's study.
+The gallery's output is not kept in git: ``python tools/gallery.py`` writes it."""
 
 from __future__ import annotations
 
@@ -103,14 +103,7 @@ def test_only_rejects_an_unknown_entry(capsys):
 
 
 @pytest.mark.parametrize("entry", gallery.GALLERY, ids=lambda e: e.name)
-def test_each_entry_has_its_study_and_its_committed_report(entry):
+def test_each_entry_has_its_study(entry):
     study = load_study(ROOT / entry.study)
     assert study.name == entry.name
     assert str(study.output_dir) == f"results/{entry.name}"
-    folder = ROOT / gallery.GALLERY_DIR / entry.name
-    record = json.loads((folder / "summary.json").read_text())
-    assert entry.picture in record["figures"]
-    for name in record["figures"]:
-        assert (folder / name).is_file()
-    assert json.loads((folder / "headline.json").read_text())["thesis_figure"] == entry.figure
-    assert f"]({entry.name}/index.html)" in (ROOT / gallery.GALLERY_DIR / "README.md").read_text()

@@ -98,9 +98,8 @@ def test_every_figure_has_print_resolution_and_9_pt_type_as_the_page_shows_it(dr
 
 
 def test_a_design_page_keeps_the_same_rule(tmp_path):
-    """The shipped sector design (design.nc of the gallery): its polar bars on fixed axes too."""
-    folder = ROOT / "results" / "gallery" / "design-doubledome-sectors"
-    ds = xr.load_dataset(folder / "design.nc")
+    """The double dome's sector design (its design.nc, kept as test data): its polar bars on fixed axes too."""
+    ds = xr.load_dataset(ROOT / "tests" / "data" / "design-doubledome-sectors.nc")
     surface = from_dict(json.loads(ds.attrs["study_json"]), ROOT).geometry.build_mould()
     index, saved = drawn_report(lambda: write_design_report(ds, tmp_path, surface=surface))
     assert len(assert_print_rule(index, saved)) == 4  # objective, sectors, risk maps, convergence

@@ -12,8 +12,9 @@ rebuilt from the headline files of all entries present, so ``--only`` refreshes 
 The PNGs are the report's own lossless ones. Paths are relative to the checkout root
 (the folder holding ``studies/``), whatever the current directory, so the stored study
 records carry the relative output folder and the gallery is reproducible on any machine.
-A script of the checkout, not of the installed package: it needs ``studies/`` and
-``results/gallery/`` beside it.
+A script of the checkout, not of the installed package: it needs ``studies/`` beside
+it. ``results/gallery/`` is generated output, not kept in git (the documentation's
+validation page quotes its headline numbers and a few of its figures).
 """
 
 from __future__ import annotations
@@ -409,7 +410,8 @@ def write_readme() -> Path:
     lines = [
         "# uqdrape reference gallery",
         "",
-        "Small reference reports of the thesis-figure studies (Wiggers 2007, ch. 5) and studies beyond it.",
+        "Small reference reports of the thesis-figure studies (Wiggers 2007, ch. 5) and studies beyond it,",
+        "written by `python tools/gallery.py` (generated output: not kept in git).",
         "Each folder holds the report of `uqdrape run studies/<name>.toml` (open its `index.html`),",
         "its `summary.json` and the headline numbers below (`headline.json`). The ensembles",
         "themselves (netCDF chunks) are not kept.",

@@ -3,57 +3,9 @@
 ``load_study(path)`` reads a study file (TOML, via ``tomllib``) into a frozen
 :class:`~uqdrape.study.spec.Study`.
 
-Sections and keys (units: mm, N, degrees)::
-
-    [study]        name, seed, realizations, chunk_size = 64, description = "",
-                   target = {qoi, statistic ("mean" | "probability"), half_width, confidence = 0.95}
-                   and max_realizations (both or neither): run in rounds from ``realizations``
-                   until the statistic's interval half-width is at most half_width at every
-                   force level, or max_realizations are drawn (uqdrape.workflow.target);
-                   rare = {qoi (RARE_QOIS), threshold, cov = 0.1, max_drapes = 20000}: P(qoi >= threshold)
-                   at every force level after the run, by importance sampling at the design point of
-                   subset levels (uqdrape.workflow.rare), in the report with its CoV and drapes;
-                   not with a [design] or a per-realisation sd or length (sd_dof, length_log_sd)
-    [geometry]     kind + that kind's shape parameters (see uqdrape.geometry.KINDS)
-    [fabric]       material, spacing_mm, orientation_deg = 0, pre_shear_deg = 0, skew_deg = 0, crossover = [0, 0]
-    [process]      blankholder_force_N (a number, or a list: a sweep), friction = 0.2, sectors,
-                   blankholder_model = "slip" ("radial": thesis Eq 5.1-5.5)
-    [solver]       mode = "energy", rings, tolerance_deg = 1e-3, max_iterations = 30,
-                   failure_budget = 0.5 (a run stops before draping if more of the first
-                   realisation's nodes cannot be placed)
-    [uncertainty.spacing]     cv, correlation = "iid", length_mm, kl_retained = 0.95
-    [uncertainty.zero_angle]  mean_deg = 0, sd_deg, correlation = "iid", length_mm, kl_retained = 0.95,
-                   sd_dof (> 0; a hierarchical ensemble: each realisation's sd is sd_deg sqrt(m / chi2_m),
-                   m = sd_dof, the estimation uncertainty of a calibrated sd; `uqdrape calibrate` writes it;
-                   sampling plans other than rqmc, no sensitivity design),
-                   length_log_sd (in (0, 1], a correlated field; likewise: each realisation's lengths are
-                   length_mm exp(s z), s = length_log_sd, one standard normal z for both, so length_mm
-                   is their median)
-    [uncertainty.stitch_prestrain]  mean, sd (fractions), correlation = "iid", length_mm, kl_retained = 0.95:
-                   each cell's stitch pre-strain, mapped to its zero-energy angle gamma0 through the
-                   material card's [architecture] (uqdrape.material.architecture.material_zero_force_table);
-                   needs a card derived from an architecture; not together with zero_angle
-    [uncertainty.<factor>]    dist + parameters, factor in FACTOR_SETTINGS
-    [uncertainty.card]        dist + parameters of a score z (e.g. normal, mean 0, sd 1): each
-                   realisation's card is N_s = mean + z sd of the card's specimens (its [scatter]
-                   table, ``uqdrape materials fit``); energy mode only (uqdrape.material.scatter)
-    [sampling]     plan = "monte_carlo" (or latin_hypercube, sobol, rqmc), randomizations (rqmc only, >= 2:
-                   realizations = randomizations x a power of two; uqdrape.stochastic.sampling)
-    [sensitivity]  method = "none", base_samples, qoi = SENSITIVITY_QOIS (any of uqdrape.schema.QOI_ATTRS)
-    [design]       variables ("force" | "sectors"), sectors (>= 2, for "sectors"), force_bounds_N = [lo, hi]
-                   (the total force, or each sector's), friction_bounds = [lo, hi], budget_N (total force),
-                   objective (DESIGN_OBJECTIVES), statistic = "upper" | "estimate", target, confidence = 0.95,
-                   max_evaluations = 40, tolerance_N = 5, validation_realizations = study.realizations,
-                   max_draw_in_mm (a draw-in limit: the statistic of q95_max_draw_in at most this),
-                   rare = {qoi (RARE_QOIS), threshold, max_probability, cov = 0.1, max_drapes = 20000}
-                   (a constraint: the statistic of P(qoi >= threshold), estimated per candidate as a
-                   [study] rare is, at most max_probability; not with a per-realisation sd):
-                   a blank-holder design (uqdrape.design); the study's own force is the baseline design
-    [report]       histogram_nodes = [], experimental_csv, fixed_twin = true (a hierarchical study without a
-                   [design] only: also drape the study with sd and lengths at their estimates, the same
-                   realisations, into <output>/fixed, and measure the widening from the two; twice the drapes)
-    [output]       directory = "results/<study name>", float32 = false (true: chunks store floats as
-                   float32 with zlib, about a third of the size, rounded to 7 significant digits)
+Sections and keys: ``KEYS`` below, in the order they are checked. What each key means,
+with its units and default, is the study-file reference of the documentation, rendered
+from ``KEYS`` and the other tables here by ``docs/_ext/studyref.py``.
 
 Factor distributions (values in the units of the setting they override): normal
 (mean, sd), truncnormal (mean, sd, bounds = [lo, hi]; mean/sd of the parent normal),
@@ -125,6 +77,32 @@ def study_error(path, key: str, value, why: str) -> StudyError:
 # factor distributions offered in a study file (a constant is the fixed setting itself)
 _DISTS = tuple(d for d in _stochastic.DISTRIBUTIONS if d != "constant")
 _NAME_RE = re.compile(r"^[A-Za-z0-9_-]+$")
+
+#: The keys of each table of a study file, in the order they are checked. The mould's keys
+#: are its kind's shape parameters (``uqdrape.geometry.KINDS``), a scalar factor's its
+#: distribution's (``DIST_KEYS``). The study-file reference of the documentation is
+#: generated from this table (``docs/_ext/studyref.py``), so a key added here needs its
+#: entry there (a test holds the two equal).
+_FIELD_COMMON = ("correlation", "length_mm", "kl_retained")
+KEYS = {
+    "study": ("name", "seed", "realizations", "chunk_size", "description", "target", "max_realizations", "rare"),
+    "study.target": ("qoi", "statistic", "half_width", "confidence"),
+    "study.rare": ("qoi", "threshold", "cov", "max_drapes"),
+    "fabric": ("material", "spacing_mm", "orientation_deg", "pre_shear_deg", "skew_deg", "crossover"),
+    "process": ("blankholder_force_N", "friction", "sectors", "blankholder_model"),
+    "solver": ("mode", "rings", "tolerance_deg", "max_iterations", "failure_budget"),
+    **{f"uncertainty.{name}": (*keys, *_FIELD_COMMON, *(("sd_dof", "length_log_sd") if name == "zero_angle" else ()))
+       for name, keys in FIELD_KEYS.items()},
+    "sampling": ("plan", "randomizations"),
+    "sensitivity": ("method", "base_samples", "qoi"),
+    "design": ("variables", "sectors", "force_bounds_N", "friction_bounds", "budget_N", "objective", "statistic",
+               "target", "confidence", "max_evaluations", "tolerance_N", "validation_realizations",
+               "max_draw_in_mm", "rare"),
+    "design.rare": ("qoi", "threshold", "max_probability", "cov", "max_drapes"),
+    "report": ("histogram_nodes", "experimental_csv", "fixed_twin"),
+    "output": ("directory", "float32"),
+}
+
 #: How far a random input's values reach, in standard deviations: a few million draws of a
 #: standard normal (a large ensemble's cells) stay within 7 with all but 1e-5 probability.
 REACH_SD = 7.0
@@ -170,8 +148,7 @@ class _Source(Document):
 
 
 def _study(src: _Source, doc: dict) -> dict:
-    t = Table(src, "study", doc.get("study", {}), ("name", "seed", "realizations", "chunk_size", "description",
-                                                    "target", "max_realizations", "rare"))
+    t = Table(src, "study", doc.get("study", {}), KEYS["study"])
     name = t.string("name", hint="name must be a non-empty string of letters, digits, '-' and '_'",
                     valid=_NAME_RE.match)
     head = {
@@ -186,10 +163,10 @@ def _study(src: _Source, doc: dict) -> dict:
         t.invalid(given, f"a run to a target needs both study.target and study.max_realizations (its budget): "
                          f"add {absent} or remove {given}")
     if t.has("target"):
-        head["target"] = _target(t.table("target", ("qoi", "statistic", "half_width", "confidence")))
+        head["target"] = _target(t.table("target", KEYS["study.target"]))
         head["max_realizations"] = t.number("max_realizations", integer=True, ge=head["realizations"])
     if t.has("rare"):
-        r = t.table("rare", ("qoi", "threshold", "cov", "max_drapes"))
+        r = t.table("rare", KEYS["study.rare"])
         head["rare"] = Rare(*_rare(r))
     return head
 
@@ -255,8 +232,7 @@ def _geometry_section(src: _Source, doc: dict):
 
 
 def _fabric(src: _Source, doc: dict, mould) -> Fabric:
-    t = Table(src, "fabric", doc.get("fabric", {}),
-               ("material", "spacing_mm", "orientation_deg", "pre_shear_deg", "skew_deg", "crossover"))
+    t = Table(src, "fabric", doc.get("fabric", {}), KEYS["fabric"])
     shipped = _material.available_materials()
     hint = (f"material must be a shipped card ({', '.join(shipped)}) "
             "or the path of a .toml/.csv card relative to the study file")
@@ -291,8 +267,7 @@ def _fabric(src: _Source, doc: dict, mould) -> Fabric:
 
 
 def _process(src: _Source, doc: dict) -> Process:
-    t = Table(src, "process", doc.get("process", {}), ("blankholder_force_N", "friction", "sectors",
-                                                                    "blankholder_model"))
+    t = Table(src, "process", doc.get("process", {}), KEYS["process"])
     hint = ("blankholder_force_N must be a number >= 0 (N), "
             "or a non-empty list of distinct numbers >= 0 (a sweep)")
     force = t.raw("blankholder_force_N", REQUIRED, hint)
@@ -319,8 +294,7 @@ def _process(src: _Source, doc: dict) -> Process:
 
 
 def _solver(src: _Source, doc: dict) -> Solver:
-    t = Table(src, "solver", doc.get("solver", {}), ("mode", "rings", "tolerance_deg", "max_iterations",
-                                                        "failure_budget"))
+    t = Table(src, "solver", doc.get("solver", {}), KEYS["solver"])
     solver = Solver(
         mode=t.string("mode", "energy", choices=MODES),
         rings=t.number("rings", integer=True, ge=1),
@@ -341,8 +315,7 @@ def _solver(src: _Source, doc: dict) -> Solver:
 
 def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, material: str) -> RandomField:
     section = f"uncertainty.{name}"
-    extra = ("sd_dof", "length_log_sd") if name == "zero_angle" else ()
-    t = Table(src, section, data, (*FIELD_KEYS[name], "correlation", "length_mm", "kl_retained", *extra))
+    t = Table(src, section, data, KEYS[section])
     if name == "spacing":
         params = {"cv": t.number("cv")}  # its range is checked by SpacingInput
     elif name == "zero_angle":
@@ -521,7 +494,7 @@ def _describe(mould) -> str:
 
 def _sampling(src: _Source, doc: dict, realizations: int, seed: int, uncertainty: Uncertainty,
               solver: Solver, fabric: Fabric) -> Sampling:
-    t = Table(src, "sampling", doc.get("sampling", {}), ("plan", "randomizations"))
+    t = Table(src, "sampling", doc.get("sampling", {}), KEYS["sampling"])
     plan = t.string("plan", "monte_carlo", choices=STUDY_PLANS)
     given = {"plan": ("sampling.plan", plan), "n": ("study.realizations", realizations)}
     if plan != RQMC:
@@ -563,7 +536,7 @@ def _fixed_sd(src: _Source, uncertainty: Uncertainty, what: str) -> None:
 
 
 def _sensitivity(src: _Source, doc: dict, uncertainty: Uncertainty) -> Sensitivity:
-    t = Table(src, "sensitivity", doc.get("sensitivity", {}), ("method", "base_samples", "qoi"))
+    t = Table(src, "sensitivity", doc.get("sensitivity", {}), KEYS["sensitivity"])
     method = t.string("method", "none", choices=SENSITIVITY_METHODS)
     base = None
     if method == "none":
@@ -614,10 +587,7 @@ def _design(src: _Source, doc: dict, process: Process, uncertainty: Uncertainty,
     """The [design] section (None without one) and the rules tying it to the study."""
     if "design" not in doc:
         return None
-    t = Table(src, "design", doc["design"], ("variables", "sectors", "force_bounds_N", "friction_bounds",
-                                              "budget_N", "objective", "statistic", "target", "confidence",
-                                              "max_evaluations", "tolerance_N", "validation_realizations",
-                                              "max_draw_in_mm", "rare"))
+    t = Table(src, "design", doc["design"], KEYS["design"])
     variables = t.string("variables", choices=DESIGN_VARIABLES)
     sectors = None
     if variables == "sectors":
@@ -641,7 +611,7 @@ def _design(src: _Source, doc: dict, process: Process, uncertainty: Uncertainty,
     draw_in = t.number("max_draw_in_mm", None, gt=0)
     rare = None
     if t.has("rare"):
-        r = t.table("rare", ("qoi", "threshold", "max_probability", "cov", "max_drapes"))
+        r = t.table("rare", KEYS["design.rare"])
         qoi, threshold, cov, drapes = _rare(r)
         rare = RareLimit(qoi, threshold, r.number("max_probability", gt=0, lt=1), cov, drapes)
         _fixed_sd(src, uncertainty, "a [design] rare constraint")
@@ -667,7 +637,7 @@ def _design(src: _Source, doc: dict, process: Process, uncertainty: Uncertainty,
 
 
 def _report(src: _Source, doc: dict, rings: int, uncertainty: Uncertainty, design: Design | None) -> Report:
-    t = Table(src, "report", doc.get("report", {}), ("histogram_nodes", "experimental_csv", "fixed_twin"))
+    t = Table(src, "report", doc.get("report", {}), KEYS["report"])
     hint = f"histogram_nodes must be a list of [i, j] integer pairs with |i|, |j| <= rings = {rings}"
     nodes = t.raw("histogram_nodes", [], hint)
     ok = isinstance(nodes, list) and all(
@@ -703,7 +673,7 @@ def _fixed_twin(t: Table, uncertainty: Uncertainty, design: Design | None) -> bo
 
 
 def _output(src: _Source, doc: dict, name: str) -> tuple[Path | str, bool]:
-    t = Table(src, "output", doc.get("output", {}), ("directory", "float32"))
+    t = Table(src, "output", doc.get("output", {}), KEYS["output"])
     directory = t.string("directory", f"results/{name}", hint="directory must be a non-empty path without NUL",
                          valid=lambda d: bool(d) and "\0" not in d)
     if isinstance(location(directory), Path) and not Path(directory).is_absolute() and not inside(directory):
