@@ -28,7 +28,7 @@ def _describe(path: Path) -> str:
     """A study's ``[study] description`` (its name if it has none); a folder's file count."""
     if path.is_dir():
         files = [p for p in path.rglob("*") if p.is_file() and "__pycache__" not in p.parts]
-        return f"data folder: {len(files)} files ({', '.join(sorted({p.suffix for p in files if p.suffix}))})"
+        return f"data folder: {len(files)} file{'s' * (len(files) != 1)} ({', '.join(sorted({p.suffix for p in files if p.suffix}))})"
     head = tomllib.loads(path.read_text(encoding="utf-8")).get("study", {})
     return str(head.get("description") or head.get("name", path.stem))
 
