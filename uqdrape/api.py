@@ -209,7 +209,7 @@ def open_sensitivity(run: PathLike) -> tuple[xr.Dataset, xr.Dataset] | None:
     Examples
     --------
     >>> indices, maps = ud.open_sensitivity(out)  # doctest: +SKIP
-    >>> indices["ST"].sel(qoi="max_shear").to_series()  # doctest: +SKIP
+    >>> indices["ST"].sel(qoi="max_abs_shear").to_series()  # doctest: +SKIP
     """
     from .workflow.run import open_sensitivity as open_
 
@@ -351,7 +351,7 @@ def realization_qois(ensemble: xr.Dataset, qoi: Sequence[str] | None = None) -> 
     ensemble : xarray.Dataset
         An ensemble (:func:`open_ensemble`).
     qoi : sequence of str, optional
-        Names of ``uqdrape.stats.QOIS`` (e.g. ``"max_shear"`` deg, ``"energy_shear"`` J);
+        Names of ``uqdrape.stats.QOIS`` (e.g. ``"max_abs_shear"`` deg, ``"energy_shear"`` J);
         default: those sensitivity studies rank.
 
     Returns
@@ -361,8 +361,8 @@ def realization_qois(ensemble: xr.Dataset, qoi: Sequence[str] | None = None) -> 
 
     Examples
     --------
-    >>> q = ud.realization_qois(ud.open_ensemble(out), ["max_shear"])  # doctest: +SKIP
-    >>> q["max_shear"].mean("realization")  # doctest: +SKIP
+    >>> q = ud.realization_qois(ud.open_ensemble(out), ["max_abs_shear"])  # doctest: +SKIP
+    >>> q["max_abs_shear"].mean("realization")  # doctest: +SKIP
     """
     from .stats import SENSITIVITY_QOIS
     from .stats import realization_qois as qois
