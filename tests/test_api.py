@@ -55,7 +55,7 @@ def test_the_public_names_are_the_documented_list():
     assert len(set(ud.__all__)) == len(ud.__all__) and 20 <= len(ud.__all__) <= 30
     # what IDEs follow (the TYPE_CHECKING import) names the same
     tree = ast.parse(Path(ud.__file__).read_text(encoding="utf-8"))
-    typed = [alias.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom) and node.module == "api"
+    typed = [alias.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom) and node.level == 1
              for alias in node.names]
     assert sorted(typed) == sorted(ud.__all__)
     assert set(ud.__all__) <= set(dir(ud))
@@ -217,6 +217,9 @@ def test_report_and_export_of_a_run(tiny_run, tmp_path, unrasterised):
     assert index == tmp_path / "report" / "index.html" and "tiny" in index.read_text()
     written, notes = ud.export_result(out, ["netcdf"], out=tmp_path / "all.nc")
     assert written == [tmp_path / "all.nc"] and notes == []
+    with pytest.raises(ValueError) as err:
+        ud.export_result(out, ["fe"])
+    assert_one_line_error(str(err.value), valid=["needs mesh"])
     with xr.open_dataset(written[0]) as one:
         np.testing.assert_array_equal(one["shear"].values, ud.open_ensemble(out)["shear"].values)
 

@@ -48,19 +48,24 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:  # what IDEs and type checkers follow; at run time __getattr__ imports on first use
-    from .api import (Study, StudyError, available_materials, calibrate_drapes, calibrate_fibre_angles,
-                      copy_example, derive_material, drape_mould, exceedance_probability, export_result,
-                      fit_material, line_statistics, list_examples, load_material, load_study, mould,
-                      node_statistics, open_design, open_ensemble, open_sensitivity, rare_probability,
-                      realization_qois, run_study, validate_study, write_report)
+    from .api import (available_materials, calibrate_drapes, calibrate_fibre_angles, derive_material, drape_mould,
+                      exceedance_probability, export_result, fit_material, line_statistics, load_material,
+                      load_study, mould, node_statistics, open_design, open_ensemble, open_sensitivity,
+                      rare_probability, realization_qois, run_study, validate_study, write_report)
+    from .study import Study, StudyError
+    from .workflow.examples import copy_example, list_examples
+
+#: Where the names not written in uqdrape.api live.
+_HOME = {"Study": "study", "StudyError": "study", "list_examples": "workflow.examples",
+         "copy_example": "workflow.examples"}
 
 
 def __getattr__(name: str):
     if name not in __all__:
         raise AttributeError(f"module 'uqdrape' has no attribute {name!r}")
-    from . import api
+    import importlib
 
-    value = globals()[name] = getattr(api, name)
+    value = globals()[name] = getattr(importlib.import_module(f".{_HOME.get(name, 'api')}", __name__), name)
     return value
 
 

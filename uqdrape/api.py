@@ -12,8 +12,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .study import Study, StudyError
-from .workflow.examples import copy_example, list_examples
+from .study import Study
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -23,8 +22,6 @@ if TYPE_CHECKING:
 
 #: A local path, or for a run's output also an fsspec URL (``s3://bucket/prefix``).
 PathLike = str | os.PathLike
-
-# Study, StudyError: uqdrape.study's own; list_examples, copy_example: uqdrape.workflow.examples's
 
 
 def load_study(path: PathLike, overrides: Mapping[str, Any] | None = None) -> Study:

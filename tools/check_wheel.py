@@ -1,0 +1,98 @@
+"""Build the wheel and the sdist, check them, and use the wheel as a user would, outside the checkout.
+
+    python tools/check_wheel.py [--keep DIR]
+
+1. ``python -m build`` (wheel and sdist) and ``twine check`` on both;
+2. the wheel holds every file of ``studies/`` (as ``uqdrape/examples/``) and the material
+   cards, and the sdist the files that build the wheel;
+3. a fresh virtual environment in a temporary folder outside the checkout installs ONLY
+   the wheel (its dependencies from the package index) and pytest;
+4. there ``uqdrape examples pan-corner-lock`` copies an example out, ``uqdrape run``
+   drapes it end to end (ensemble and report), and ``tests/test_api.py`` (with
+   ``tests/conftest.py``, copied beside it) passes against the installed package.
+
+Needs ``build`` and ``twine`` in this interpreter (``pip install build twine``). Exits
+non-zero at the first failure, saying which step failed; prints each step's time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+import zipfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def step(what: str, *command, cwd=None, env=None) -> str:
+    """Run ``command``, print its time; on failure print its output and stop."""
+    start = time.perf_counter()
+    done = subprocess.run([str(c) for c in command], cwd=cwd, env=env, capture_output=True, text=True)
+    print(f"{what}: {'ok' if done.returncode == 0 else 'FAILED'} ({time.perf_counter() - start:.0f} s)", flush=True)
+    if done.returncode:
+        print(done.stdout[-4000:], done.stderr[-4000:], sep="\n", file=sys.stderr)
+        sys.exit(f"check_wheel: {what} failed (exit {done.returncode})")
+    return done.stdout
+
+
+def tracked(folder: str) -> list[str]:
+    """The files git tracks under ``folder`` of the checkout, relative to it."""
+    out = subprocess.run(["git", "ls-files", folder], cwd=ROOT, capture_output=True, text=True, check=True).stdout
+    return [str(Path(p).relative_to(folder)) for p in out.split()]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--keep", metavar="DIR", help="work in DIR and keep it (default: a temporary folder)")
+    args = parser.parse_args()
+    work = Path(args.keep or tempfile.mkdtemp(prefix="uqdrape-wheel-")).resolve()
+    if work.is_relative_to(ROOT):
+        sys.exit("check_wheel: the work folder must lie outside the checkout")
+    work.mkdir(parents=True, exist_ok=True)
+    dist = work / "dist"
+    shutil.rmtree(dist, ignore_errors=True)
+    step("build wheel and sdist", sys.executable, "-m", "build", "--outdir", dist, ROOT)
+    wheel, sdist = next(dist.glob("*.whl")), next(dist.glob("*.tar.gz"))
+    step("twine check", sys.executable, "-m", "twine", "check", "--strict", wheel, sdist)
+
+    names = set(zipfile.ZipFile(wheel).namelist())
+    missing = [p for p in tracked("studies") if f"uqdrape/examples/{p}" not in names]
+    missing += [p for p in tracked("uqdrape/material/cards") if f"uqdrape/material/cards/{p}" not in names]
+    if missing:
+        sys.exit(f"check_wheel: the wheel lacks {', '.join(missing)}")
+    print(f"wheel contents: every file of studies/ and the cards ({len(names)} files)")
+
+    venv = work / "venv"
+    shutil.rmtree(venv, ignore_errors=True)
+    step("fresh venv", sys.executable, "-m", "venv", venv)
+    python, uqdrape = venv / "bin" / "python", venv / "bin" / "uqdrape"
+    step("install the wheel (dependencies from the index) and pytest", python, "-m", "pip", "install", "-q",
+         wheel, "pytest>=8", "pytest-timeout>=2.2")
+    user = work / "user"
+    shutil.rmtree(user, ignore_errors=True)
+    user.mkdir()
+    where = step("the installed package", python, "-c", "import uqdrape; print(uqdrape.__file__)", cwd=user)
+    if not Path(where.strip()).is_relative_to(venv):
+        sys.exit(f"check_wheel: uqdrape imported from {where.strip()}, not the fresh venv")
+    step("uqdrape examples pan-corner-lock .", uqdrape, "examples", "pan-corner-lock", ".", cwd=user)
+    step("uqdrape run pan-corner-lock.toml (ensemble and report)", uqdrape, "run", "pan-corner-lock.toml", "-q",
+         "--out", "results/pan", cwd=user)
+    if not (user / "results" / "pan" / "report" / "index.html").is_file():
+        sys.exit("check_wheel: the run wrote no report")
+    tests = user / "tests"
+    tests.mkdir()
+    for name in ("test_api.py", "conftest.py"):
+        shutil.copy(ROOT / "tests" / name, tests / name)
+    print(step("tests/test_api.py against the installed wheel", python, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+               "tests/test_api.py", cwd=user).strip().splitlines()[-1])
+    if not args.keep:
+        shutil.rmtree(work)
+
+
+if __name__ == "__main__":
+    main()
