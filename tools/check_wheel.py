@@ -1,6 +1,6 @@
 """Build the wheel and the sdist, check them, and use the wheel as a user would, outside the checkout.
 
-    python tools/check_wheel.py [--keep DIR]
+    python tools/check_wheel.py [--keep DIR [--reuse]]
 
 1. ``python -m build`` (wheel and sdist) and ``twine check`` on both;
 2. the wheel holds every file of ``studies/`` (as ``uqdrape/examples/``) and the material
@@ -49,6 +49,9 @@ def tracked(folder: str) -> list[str]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--keep", metavar="DIR", help="work in DIR and keep it (default: a temporary folder)")
+    parser.add_argument("--reuse", action="store_true",
+                        help="with --keep: reinstall only the wheel into DIR's venv of an earlier check (its "
+                             "dependencies as they are), instead of a fresh venv")
     args = parser.parse_args()
     work = Path(args.keep or tempfile.mkdtemp(prefix="uqdrape-wheel-")).resolve()
     if work.is_relative_to(ROOT):
@@ -68,11 +71,15 @@ def main() -> None:
     print(f"wheel contents: every file of studies/ and the cards ({len(names)} files)")
 
     venv = work / "venv"
-    shutil.rmtree(venv, ignore_errors=True)
-    step("fresh venv", sys.executable, "-m", "venv", venv)
     python, uqdrape = venv / "bin" / "python", venv / "bin" / "uqdrape"
-    step("install the wheel (dependencies from the index) and pytest", python, "-m", "pip", "install", "-q",
-         wheel, "pytest>=8", "pytest-timeout>=2.2")
+    if args.reuse and args.keep and python.is_file():
+        step("reinstall the wheel alone into the kept venv", python, "-m", "pip", "install", "-q", "--no-deps",
+             "--force-reinstall", wheel)
+    else:
+        shutil.rmtree(venv, ignore_errors=True)
+        step("fresh venv", sys.executable, "-m", "venv", venv)
+        step("install the wheel (dependencies from the index) and pytest", python, "-m", "pip", "install", "-q",
+             wheel, "pytest>=8", "pytest-timeout>=2.2")
     user = work / "user"
     shutil.rmtree(user, ignore_errors=True)
     user.mkdir()

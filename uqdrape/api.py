@@ -199,8 +199,8 @@ def open_sensitivity(run: PathLike) -> tuple[xr.Dataset, xr.Dataset] | None:
     -------
     (xarray.Dataset, xarray.Dataset) or None
         The indices of the scalar quantities of interest (dims ``factor, qoi,
-        blankholder_force``: ``S1, ST`` and their confidence limits for Sobol', ``mu_star,
-        sigma`` for Morris), and the per-node index maps of the shear (dims ``factor, i, j,
+        blankholder_force``: ``S1, ST`` and their ``_conf`` half-widths for Sobol', ``mu,
+        mu_star, mu_star_conf, sigma`` for Morris), and the per-node index maps of the shear (dims ``factor, i, j,
         blankholder_force``); None if the run holds no sensitivity results.
 
     Examples
@@ -320,16 +320,17 @@ def line_statistics(ensemble: xr.Dataset, kind: str = "max", confidence: float =
     ensemble : xarray.Dataset
         An ensemble (:func:`open_ensemble`).
     kind : {"max", "min"}, default "max"
-        The max-shear lines (diagonals ``i = +-j``) or the min-shear lines (the fibres
-        through the crossover).
+        The max-shear lines (the four quadrant diagonals from the crossover, dim
+        ``quadrant``) or the min-shear lines (the four generator arms, dim ``arm``).
     confidence : float, default 0.95
         Level of the mean's confidence limits.
 
     Returns
     -------
     xarray.Dataset
-        Along the distance from the crossover (``k``, nodes; ``distance_mm``): the mean,
-        sd and limits of the shear (deg) on each line.
+        Per line and node ``k`` along it (other dims kept): ``shear_mean, shear_sd,
+        shear_skewness, shear_mean_lower, shear_mean_upper`` (deg), the same of the
+        distance from the crossover with prefix ``distance_`` (mm), and ``count``.
 
     Examples
     --------
