@@ -19,7 +19,7 @@ import pytest
 import xarray as xr
 
 import uqdrape as ud
-from conftest import assert_one_line_error, write_study
+from conftest import assert_one_line_error, study_text, write_study
 from uqdrape.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -245,6 +245,21 @@ def test_a_morris_run_gives_its_indices(tmp_path):
     assert indices.attrs["method"] == "morris" and set(indices["factor"].values) == {"spacing", "skew"}
     assert float(indices["mu_star"].sel(factor="skew", qoi="max_abs_shear").max()) > 0
     assert {"factor", "i", "j"} <= set(maps.dims)
+
+
+def test_a_blank_holder_design_runs_and_opens(tmp_path):
+    """Real energy drapes of a tiny study: the least 95 % quantile of max |shear| over a
+    uniform force in [0, 400] N, a few designs."""
+    text = study_text(tmp_path, "d", study={"realizations": 8, "chunk_size": 8}, solver={"mode": "energy"},
+                      uncertainty={"zero_angle": {"sd_deg": 2.0}})
+    path = tmp_path / "d.toml"
+    path.write_text(text + '\n[design]\nvariables = "force"\nforce_bounds_N = [0.0, 400.0]\n'
+                    'objective = "q95_max_abs_shear"\nstatistic = "estimate"\ntolerance_N = 50.0\n'
+                    'max_evaluations = 6\nvalidation_realizations = 8\n', encoding="utf-8")
+    design = ud.open_design(ud.run_study(path, scheduler="synchronous", progress=False))
+    optimum = float(design.attrs["optimum"])
+    assert 0.0 <= optimum <= 400.0 and np.isclose(design["x"].values[:, 0], optimum).any()  # a design evaluated
+    assert design.attrs["summary"].startswith("F = ")
 
 
 def test_a_rare_probability_is_estimated_and_kept(tmp_path):

@@ -142,16 +142,21 @@ def run_study(study: Study | PathLike, *, out: PathLike | None = None, scheduler
     >>> ud.open_ensemble(out).sizes["realization"]
     4
     """
+    from .workflow.run import run_study as run
+
+    return run(located(study, out), scheduler=scheduler, workers=workers, chunk_size=chunk_size, method=method, resume=resume,
+               progress=progress)
+
+
+def located(study: Study | PathLike, out: PathLike | None = None) -> Study:
+    """The study (or the study file's), its output going to ``out`` (a folder or an fsspec
+    URL) if given: where :func:`run_study` and ``uqdrape run --out`` put a run."""
     import dataclasses
 
     from .files import location
-    from .workflow.run import run_study as run
 
     study = study if isinstance(study, Study) else load_study(study)
-    if out is not None:
-        study = dataclasses.replace(study, output_dir=location(out))
-    return run(study, scheduler=scheduler, workers=workers, chunk_size=chunk_size, method=method, resume=resume,
-               progress=progress)
+    return study if out is None else dataclasses.replace(study, output_dir=location(out))
 
 
 def open_ensemble(run: PathLike) -> xr.Dataset:

@@ -99,12 +99,9 @@ def cmd_validate(args) -> int:
 
 def _engine_study(args):
     """The study of ``run`` or ``design``, its output folder replaced by ``--out`` if given."""
-    import dataclasses
+    from .api import located
 
-    from .workflow import load_study, location
-
-    study = load_study(args.study)
-    return dataclasses.replace(study, output_dir=location(args.out)) if args.out else study
+    return located(args.study, args.out or None)
 
 
 def cmd_run(args) -> int:
