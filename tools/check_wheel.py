@@ -1,6 +1,6 @@
 """Build the wheel and the sdist, check them, and use the wheel as a user would, outside the checkout.
 
-    python tools/check_wheel.py [--keep DIR [--reuse]]
+    python tools/check_wheel.py [--quick] [--keep DIR [--reuse]]
 
 1. ``python -m build`` (wheel and sdist) and ``twine check`` on both;
 2. the wheel holds every file of ``studies/`` (as ``uqdrape/examples/``) and the material
@@ -11,6 +11,11 @@
    drapes it end to end (ensemble and report), and ``tests/test_api.py`` (with
    ``tests/conftest.py``, copied beside it) passes against the installed package.
 
+``--quick`` (CI, under a minute): steps 1 and 2, then the wheel alone installed into a
+folder outside the checkout (``pip install --no-deps --target``; the dependencies are this
+interpreter's), an example copied out of it, and the tests of test_api.py that drape
+nothing (QUICK_TESTS) run against it.
+
 Needs ``build`` and ``twine`` in this interpreter (``pip install build twine``). Exits
 non-zero at the first failure, saying which step failed; prints each step's time.
 """
@@ -18,6 +23,7 @@ non-zero at the first failure, saying which step failed; prints each step's time
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
 import subprocess
 import sys
@@ -27,6 +33,8 @@ import zipfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+#: The tests of test_api.py that --quick runs: the names, help, docstrings, examples; no drapes.
+QUICK_TESTS = "names or help or numpydoc or importing or copy or examples_command or load_study or cards"
 
 
 def step(what: str, *command, cwd=None, env=None) -> str:
@@ -49,6 +57,9 @@ def tracked(folder: str) -> list[str]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--keep", metavar="DIR", help="work in DIR and keep it (default: a temporary folder)")
+    parser.add_argument("--quick", action="store_true",
+                        help="for CI: install the wheel alone into a folder (this interpreter's packages for its "
+                             "dependencies), copy an example out, and run the fast tests of test_api.py (no drapes)")
     parser.add_argument("--reuse", action="store_true",
                         help="with --keep: reinstall only the wheel into DIR's venv of an earlier check (its "
                              "dependencies as they are), instead of a fresh venv")
@@ -70,33 +81,43 @@ def main() -> None:
         sys.exit(f"check_wheel: the wheel lacks {', '.join(missing)}")
     print(f"wheel contents: every file of studies/ and the cards ({len(names)} files)")
 
-    venv = work / "venv"
-    python, uqdrape = venv / "bin" / "python", venv / "bin" / "uqdrape"
-    if args.reuse and args.keep and python.is_file():
-        step("reinstall the wheel alone into the kept venv", python, "-m", "pip", "install", "-q", "--no-deps",
-             "--force-reinstall", wheel)
-    else:
-        shutil.rmtree(venv, ignore_errors=True)
-        step("fresh venv", sys.executable, "-m", "venv", venv)
-        step("install the wheel (dependencies from the index) and pytest", python, "-m", "pip", "install", "-q",
-             wheel, "pytest>=8", "pytest-timeout>=2.2")
     user = work / "user"
     shutil.rmtree(user, ignore_errors=True)
-    user.mkdir()
-    where = step("the installed package", python, "-c", "import uqdrape; print(uqdrape.__file__)", cwd=user)
-    if not Path(where.strip()).is_relative_to(venv):
-        sys.exit(f"check_wheel: uqdrape imported from {where.strip()}, not the fresh venv")
-    step("uqdrape examples pan-corner-lock .", uqdrape, "examples", "pan-corner-lock", ".", cwd=user)
-    step("uqdrape run pan-corner-lock.toml (ensemble and report)", uqdrape, "run", "pan-corner-lock.toml", "-q",
-         "--out", "results/pan", cwd=user)
-    if not (user / "results" / "pan" / "report" / "index.html").is_file():
-        sys.exit("check_wheel: the run wrote no report")
-    tests = user / "tests"
-    tests.mkdir()
+    (user / "tests").mkdir(parents=True)
     for name in ("test_api.py", "conftest.py"):
-        shutil.copy(ROOT / "tests" / name, tests / name)
+        shutil.copy(ROOT / "tests" / name, user / "tests" / name)
+    if args.quick:  # the wheel alone in a folder of its own, this interpreter's packages for its dependencies
+        home = work / "site"
+        shutil.rmtree(home, ignore_errors=True)
+        step("install the wheel alone (no dependencies) into a folder", sys.executable, "-m", "pip", "install",
+             "-q", "--no-deps", "--target", home, wheel)
+        python, env = Path(sys.executable), {**os.environ, "PYTHONPATH": str(home)}
+        tests = ["-k", QUICK_TESTS]
+    else:
+        home = work / "venv"
+        python, env, tests = home / "bin" / "python", None, []
+        if args.reuse and args.keep and python.is_file():
+            step("reinstall the wheel alone into the kept venv", python, "-m", "pip", "install", "-q", "--no-deps",
+                 "--force-reinstall", wheel)
+        else:
+            shutil.rmtree(home, ignore_errors=True)
+            step("fresh venv", sys.executable, "-m", "venv", home)
+            step("install the wheel (dependencies from the index) and pytest", python, "-m", "pip", "install", "-q",
+                 wheel, "pytest>=8", "pytest-timeout>=2.2")
+    where = step("the installed package", python, "-c", "import uqdrape; print(uqdrape.__file__)", cwd=user, env=env)
+    if not Path(where.strip()).is_relative_to(home):
+        sys.exit(f"check_wheel: uqdrape imported from {where.strip()}, not {home}")
+    uqdrape = [python, "-m", "uqdrape.cli"]
+    step("uqdrape examples pan-corner-lock .", *uqdrape, "examples", "pan-corner-lock", ".", cwd=user, env=env)
+    if not (user / "meshes" / "pan.stl").is_file():
+        sys.exit("check_wheel: the example was copied without its mesh")
+    if not args.quick:
+        step("uqdrape run pan-corner-lock.toml (ensemble and report)", *uqdrape, "run", "pan-corner-lock.toml", "-q",
+             "--out", "results/pan", cwd=user)
+        if not (user / "results" / "pan" / "report" / "index.html").is_file():
+            sys.exit("check_wheel: the run wrote no report")
     print(step("tests/test_api.py against the installed wheel", python, "-m", "pytest", "-q", "-p", "no:cacheprovider",
-               "tests/test_api.py", cwd=user).strip().splitlines()[-1])
+               "tests/test_api.py", *tests, cwd=user, env=env).strip().splitlines()[-1])
     if not args.keep:
         shutil.rmtree(work)
 
