@@ -81,7 +81,8 @@ def validate_study(path: PathLike) -> Study:
     Raises
     ------
     StudyError
-        The first problem found, naming the file, the key and what would be valid.
+        As :func:`load_study`, or a chunk or the ensemble this machine cannot hold, or a
+        first net that cannot be placed (naming the key to change, e.g. ``solver.rings``).
 
     Examples
     --------
