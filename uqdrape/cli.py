@@ -1,4 +1,4 @@
-"""The ``uqdrape`` command: drape | run | design | report | validate | materials | export | serve.
+"""The ``uqdrape`` command: drape | run | design | report | validate | materials | export | serve | examples.
 
 Heavy imports (xarray, dask, matplotlib, SALib) happen inside the sub-commands so that
 ``uqdrape --help`` answers at once. Every user error is printed as one line on stderr
@@ -99,13 +99,12 @@ def cmd_validate(args) -> int:
 
 def _engine_study(args):
     """The study of ``run`` or ``design``, its output folder replaced by ``--out`` if given."""
-    import dataclasses
+    from .api import located
 
-    from .workflow import check_workers, load_study, location
+    from .workflow import check_workers
 
     check_workers(args.workers)
-    study = load_study(args.study)
-    return dataclasses.replace(study, output_dir=location(args.out)) if args.out else study
+    return located(args.study, args.out or None)
 
 
 def cmd_run(args) -> int:
@@ -207,6 +206,23 @@ def cmd_calibrate(args) -> int:
                                  level=args.level, fibre1_deg=args.fibre1_deg, posterior=args.posterior,
                                  mm_per_px=args.mm_per_px, window_px=args.window_px, fibre_set=args.fibre_set,
                                  report=args.report, command=command))
+    return 0
+
+
+def cmd_examples(args) -> int:
+    """``examples``: list the shipped examples; ``examples NAME DEST``: copy one out."""
+    from .workflow.examples import copy_example, list_examples
+
+    if args.name is None:
+        examples = list_examples()
+        width = max(len(name) for name, _ in examples)
+        for name, description in examples:
+            print(f"{name:{width}s}  {description}")
+        return 0
+    try:
+        print(f"wrote {copy_example(args.name, args.dest, overwrite=args.overwrite)}")
+    except FileExistsError as err:  # the user's own file in the way: a usage error, not an I/O failure
+        raise ValueError(str(err)) from None
     return 0
 
 
@@ -383,6 +399,19 @@ def build_parser() -> argparse.ArgumentParser:
                      help="the outputs, names of uqdrape.stats.qoi (default: the study's [sensitivity] qoi)")
     srv.add_argument("--max-requests", type=int, metavar="N", help="stop after N evaluations")
     srv.add_argument("--timeout", type=float, metavar="S", help="stop after S seconds")
+
+    ex = _command(
+        sub, "examples", cmd_examples, raw=True,
+        help="list the shipped example studies and data, or copy one into a folder",
+        description="List the example studies and data folders shipped with uqdrape, or copy one into DEST:\n"
+                    "a study with every file it names (a mesh, measurements), a data folder whole.\n\n"
+                    "Examples:\n"
+                    "  uqdrape examples\n"
+                    "  uqdrape examples nosecone-zero-angle studies     then: uqdrape run studies/nosecone-zero-angle.toml\n"
+                    "  uqdrape examples sheartests data")
+    ex.add_argument("name", nargs="?", help="the example to copy (default: list them)")
+    ex.add_argument("dest", nargs="?", default=".", help="the folder to copy into (default: the current one)")
+    ex.add_argument("--overwrite", action="store_true", help="replace files in DEST that differ from the example's")
 
     m = _command(
         sub, "materials", cmd_materials, raw=True,

@@ -23,7 +23,7 @@ import importlib
 _EXPORTS = {
     "run": ("run_study", "run_outcome", "design_outcome", "run_design", "run_report", "write_sensitivity", "open_sensitivity", "INDICES_FILE",
             "MAPS_FILE"),
-    "preflight": ("load_study", "location", "validate_study", "check_resources", "check_placement", "run_preflight",
+    "preflight": ("load_study", "validate_study", "check_resources", "check_placement", "run_preflight",
                   "check_workers"),
     "commands": ("check_drape_inputs", "drape_to_files", "material_list", "material_text", "derive_material", "fit_material",
                  "export_result"),

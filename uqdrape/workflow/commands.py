@@ -169,7 +169,8 @@ def export_result(result, to, *, out=None, mesh=None, tolerance=None, reference=
     the mould's own outline), ``ply`` its label. Returns the paths (URLs in a store) and
     the lines to tell the user (the FE mapping counts)."""
     if "fe" in to and not mesh:
-        raise ValueError("--to fe needs --mesh FILE (a surface mesh meshio reads: .inp, .msh, .vtu, .stl, ...)")
+        raise ValueError("an fe export needs mesh, the part's surface mesh (--mesh FILE on the command line): a "
+                         "file meshio reads (.inp, .msh, .vtu, .stl, ...)")
     out = local_path(out, "--out") if out else None
     ds, is_ensemble = open_result(result)
     name = at(result).name if is_ensemble else Path(result).stem

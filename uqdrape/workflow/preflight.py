@@ -23,7 +23,6 @@ import numpy as np
 from ..drape import placement_failures
 from ..ensemble import drape_inputs, inputs_from_design, sampled_inputs
 from ..ensemble import at
-from ..files import location  # noqa: F401 (location: for the CLI's --out)
 from ..study import load_study, study_error
 
 #: Bytes a node costs in a chunk file (x, y, z, shear, locked, status and the cells' values)
