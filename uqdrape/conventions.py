@@ -22,9 +22,12 @@ import datetime
 import functools
 import subprocess
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import xarray as xr
+
+if TYPE_CHECKING:  # only in annotations: the CLI's --version does not load xarray
+    import xarray as xr
 
 from . import __version__
 

@@ -18,9 +18,11 @@ import math
 
 import numpy as np
 
+from .._lazy import lazy_module
 from ..errors import ParameterError
-from . import compiled
 from .base import Surface
+
+compiled = lazy_module("uqdrape.geometry.compiled")  # numba: loaded when a mould is made
 
 
 #: Largest mould dimension accepted (mm): beyond any press, and far from float overflow.

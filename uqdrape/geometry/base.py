@@ -12,7 +12,9 @@ import inspect
 
 import numpy as np
 
-from . import compiled
+from .._lazy import lazy_module
+
+compiled = lazy_module("uqdrape.geometry.compiled")  # numba: loaded when a mould is evaluated
 
 
 class Surface:

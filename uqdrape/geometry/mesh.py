@@ -25,12 +25,15 @@ from pathlib import Path
 
 import numpy as np
 
+from .._lazy import lazy_module
 from ..errors import ParameterError
 from ..files import FileFormatError, check_input_file
-from . import compiled
-from . import meshquery as mq
 from .analytic import MAX_LENGTH_MM
 from .base import Surface
+
+# numba: loaded when a mesh is packed or queried
+compiled = lazy_module("uqdrape.geometry.compiled")
+mq = lazy_module("uqdrape.geometry.meshquery")
 
 #: Length units a mesh file may be in, and their size in mm.
 UNITS = {"mm": 1.0, "m": 1000.0, "in": 25.4}
