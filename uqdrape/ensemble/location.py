@@ -25,7 +25,7 @@ import xarray as xr
 from ..files import write_text_atomic
 from ..stochastic.sampling import extension_problem
 from ..study import Study, identity
-from .chunk import write_atomic
+from .chunk import HDF5_LOCK, write_atomic
 
 #: The manifest and the lock of a run, in a folder or a store alike.
 MANIFEST = "run.json"
@@ -180,7 +180,7 @@ class Location:
     def read_dataset(self, name: str) -> xr.Dataset | None:
         """The run's own netCDF file ``name`` (e.g. ``sensitivity.nc``), loaded; None if the
         run has none. OSError / ValueError as xarray's for an unreadable file."""
-        with self.reading(name) as path:
+        with self.reading(name) as path, HDF5_LOCK:
             return None if path is None else xr.load_dataset(path, engine="netcdf4")
 
     def write_dataset(self, name: str, ds: xr.Dataset, encoding: dict | None = None) -> Path | str:
