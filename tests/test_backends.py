@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 from pathlib import Path
 
 import fsspec
@@ -163,3 +164,25 @@ def test_a_mesh_mould_is_read_once_per_worker_on_a_store_and_in_a_design(tmp_pat
     reads.clear()
     run_design(designed, scheduler="synchronous", progress=False)
     assert reads == [] and xr.load_dataset(tmp_path / "designed" / "design.nc").sizes["evaluation"] >= 2
+
+
+@pytest.mark.slow  # ~40-70 s on the loaded 2-core machine: a one-process cluster of two threads, 64 chunks
+def test_two_threads_of_one_worker_write_chunks_without_killing_it(tmp_path):
+    """Issue 40: a dask worker with two threads writes two netCDF chunks at once; the HDF5
+    library under netCDF4 is not thread-safe, and without ``chunk.HDF5_LOCK`` the worker
+    died mid-run (restarted by its nanny, its chunks drawn again) or a write failed with
+    "NetCDF: HDF error". The run's worker is the same process from start to end, and its
+    numbers are the synchronous run's."""
+    from distributed import Client, LocalCluster
+
+    study = load_study(write_study(tmp_path, "threads", study={"seed": 5, "realizations": 128, "chunk_size": 2},
+                                   solver={"mode": "geodesic", "rings": 4}, uncertainty={"spacing": {"cv": 0.02}}))
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=True, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        before = client.run(os.getpid)
+        out = engine.run_ensemble(study, output_dir=tmp_path / "threads", scheduler=cluster.scheduler_address,
+                                  progress=False)
+        assert client.run(os.getpid) == before  # one worker process throughout: none died
+    alone = engine.run_ensemble(study, output_dir=tmp_path / "alone", scheduler="synchronous", progress=False)
+    xr.testing.assert_identical(open_ensemble(out).load().drop_attrs(deep=False),
+                                open_ensemble(alone).load().drop_attrs(deep=False))

@@ -15,6 +15,7 @@ import errno
 import functools
 import json
 import shutil
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +29,12 @@ from ..material.scatter import card_scatter, scattered
 from ..schema import SOLVER_INPUTS, at_level
 from ..study.spec import CARD
 from .inputs import inputs_from_design, sampled_inputs
+
+
+#: One netCDF (HDF5) write or read at a time in a process: the HDF5 library under netCDF4
+#: is not built thread-safe, and a dask worker with two threads writes two chunks at once
+#: (a "NetCDF: HDF error", or the worker dying).
+HDF5_LOCK = threading.RLock()
 
 
 @functools.lru_cache(maxsize=2)
@@ -131,7 +138,8 @@ def write_netcdf(ds: xr.Dataset, part: Path, encoding: dict | None = None, *, ta
     a failure removes ``part`` and raises OSError naming ``target`` and the cause (a full
     disk said so: netCDF itself only reports "HDF error")."""
     try:
-        ds.to_netcdf(part, engine="netcdf4", encoding=encoding)
+        with HDF5_LOCK:
+            ds.to_netcdf(part, engine="netcdf4", encoding=encoding)
     except Exception as err:
         if isinstance(err, OSError) and err.errno is not None:  # the OS said what went wrong
             raise

@@ -13,7 +13,6 @@ checks of a resumed run.
 
 from __future__ import annotations
 
-import contextlib
 import errno
 import json
 import re
@@ -25,7 +24,7 @@ import xarray as xr
 from ..files import write_text_atomic
 from ..stochastic.sampling import extension_problem
 from ..study import Study, identity
-from .chunk import write_atomic
+from .chunk import HDF5_LOCK, write_atomic
 
 #: The manifest and the lock of a run, in a folder or a store alike.
 MANIFEST = "run.json"
@@ -180,7 +179,7 @@ class Location:
     def read_dataset(self, name: str) -> xr.Dataset | None:
         """The run's own netCDF file ``name`` (e.g. ``sensitivity.nc``), loaded; None if the
         run has none. OSError / ValueError as xarray's for an unreadable file."""
-        with self.reading(name) as path:
+        with self.reading(name) as path, HDF5_LOCK:
             return None if path is None else xr.load_dataset(path, engine="netcdf4")
 
     def write_dataset(self, name: str, ds: xr.Dataset, encoding: dict | None = None) -> Path | str:
@@ -199,21 +198,3 @@ class Location:
         with self.writing(name) as path:
             write_text_atomic(path, text)
         return self.path_of(name)
-
-    @contextlib.contextmanager
-    def made_from(self, sub: str):
-        """A local folder for the files made from the run into its ``sub`` (a report,
-        exports), put in place as :meth:`writing` says; yields a :class:`Made`."""
-        with self.writing(sub) as local:
-            yield Made(self, sub, Path(local))
-
-
-class Made:
-    """The local ``folder`` of :meth:`Location.made_from`; :meth:`where` names a file's final place."""
-
-    def __init__(self, where: Location, sub: str, folder: Path):
-        self.location, self.sub, self.folder = where, sub, folder
-
-    def where(self, path) -> Path | str:
-        place, inner = self.location.path_of(self.sub), Path(path).relative_to(self.folder).as_posix()
-        return f"{place}/{inner}" if isinstance(place, str) else place / inner

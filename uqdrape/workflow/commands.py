@@ -178,9 +178,10 @@ def export_result(result, to, *, out=None, mesh=None, tolerance=None, reference=
                    ply=ply or name, history=f"uqdrape export {result} --to {' '.join(to)}")
     if out or not is_ensemble:
         return _export(ds, is_ensemble, to, out or Path(result).with_suffix(""), **options)
-    with at(result).made_from("export") as made:
-        written, notes = _export(ds, is_ensemble, to, made.folder / name, **options)
-    return [made.where(path) for path in written], notes
+    where = at(result)
+    with where.writing("export") as folder:
+        written, notes = _export(ds, is_ensemble, to, folder / name, **options)
+    return [where.path_of(f"export/{path.relative_to(folder).as_posix()}") for path in written], notes
 
 
 def _export(ds, is_ensemble: bool, to, stem: Path, *, mesh, tolerance, reference, flavours, trim, ply,

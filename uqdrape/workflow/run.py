@@ -232,9 +232,10 @@ def run_report(output_dir, out_dir=None, formats=()) -> Path | str:
     URL), its figures also in the vector ``formats`` (svg, pdf) beside the PNGs; returns
     the index.html path (a URL in a store)."""
     if out_dir is None:
-        with at(output_dir).made_from("report") as made:
-            index = run_report(output_dir, made.folder, formats)
-        return made.where(index)
+        where = at(output_dir)
+        with where.writing("report") as folder:
+            index = run_report(output_dir, folder, formats)
+        return where.path_of(f"report/{index.relative_to(folder).as_posix()}")
     design = at(output_dir).read_dataset(DESIGN_FILE)
     ds = open_ensemble(output_dir) if design is None else design
     study = from_dict(json.loads(ds.attrs["study_json"]), Path(at(output_dir).name))
