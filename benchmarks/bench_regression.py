@@ -12,11 +12,13 @@ round, so load changes hit both alike. Workloads, all on one thread:
 - ``energy1``: a single such drape with no zero-angle field;
 - ``geodesic256``: 256 geodesic drapes of a hemisphere (R 100 mm, 5 mm, 20 rings) with
   random orientation, crossover and segment lengths (cv 1 %);
-- ``geodesic1``: one such drape.
+- ``geodesic1``: one such drape;
+- with ``--mesh`` (a reference that has mesh moulds): ``mesh64``, the 256 geodesic drapes'
+  first 64 on that hemisphere exported as a triangle mesh on a 1 mm plan grid.
 
 Prints per workload the median wall time and CPU time of each commit, their ratio (this
 checkout / reference), whether the node coordinates agree bitwise, and ``uptime`` before
-and after. Run: ``python benchmarks/bench_regression.py [--rounds 7] [--ref 38a9b35]``.
+and after. Run: ``python benchmarks/bench_regression.py [--rounds 7] [--ref 38a9b35] [--mesh]``.
 """
 
 import argparse
@@ -41,6 +43,14 @@ def _inputs(name):
     from uqdrape.geometry import Hemisphere, build
     from uqdrape.material import load_material
 
+    if name == "mesh64":
+        from uqdrape.geometry import MeshSurface, export_stl
+
+        _, s, rings, kwargs = _inputs("geodesic256")
+        with tempfile.TemporaryDirectory() as folder:
+            path = export_stl(Hemisphere(100.0), Path(folder) / "dome.stl", half_width=150.0, resolution_mm=1.0)
+            mould = MeshSurface(path)
+        return mould, s, rings, {k: v[:64] for k, v in kwargs.items()}
     if name.startswith("energy"):
         rings, n = 30, int(name.removeprefix("energy"))
         kwargs = dict(mode="energy", material=load_material("ebxhd936_like"), blankholder_force=126.0,
@@ -58,13 +68,13 @@ def _inputs(name):
     return Hemisphere(100.0), s, rings, kwargs
 
 
-def worker():
-    """Serve workloads named on stdin, one JSON line each on stdout: wall and CPU seconds of
-    one drape call and a SHA-256 of its node coordinates."""
+def worker(names):
+    """Serve the workloads ``names`` as they are named on stdin, one JSON line each on stdout:
+    wall and CPU seconds of one drape call and a SHA-256 of its node coordinates."""
     import uqdrape
     from uqdrape.drape import drape
 
-    calls = {name: _inputs(name) for name in WORKLOADS}
+    calls = {name: _inputs(name) for name in names}
 
     def run(name):
         mould, spacing, rings, kwargs = calls[name]
@@ -74,7 +84,7 @@ def worker():
         digest = hashlib.sha256(b"".join(ds[v].values.tobytes() for v in ("x", "y", "z"))).hexdigest()
         return dict(wall=wall, cpu=cpu, digest=digest)
 
-    for name in WORKLOADS:  # warm-up: compiling or loading the kernels is not timed
+    for name in names:  # warm-up: compiling or loading the kernels is not timed
         run(name)
     print(json.dumps(dict(ready=uqdrape.__file__)), flush=True)
     for line in sys.stdin:
@@ -95,9 +105,9 @@ def reference_tree(commit):
 class Worker:
     """A worker process importing the package of checkout ``tree``."""
 
-    def __init__(self, tree):
+    def __init__(self, tree, names):
         env = dict(os.environ, PYTHONPATH=str(tree))
-        self.proc = subprocess.Popen([sys.executable, __file__, "--worker"], cwd=tree, env=env, text=True,
+        self.proc = subprocess.Popen([sys.executable, __file__, "--worker", *names], cwd=tree, env=env, text=True,
                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE)
         self.package = json.loads(self.proc.stdout.readline())["ready"]
 
@@ -115,15 +125,15 @@ def uptime():
     return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
 
 
-def main(rounds, ref):
+def main(rounds, ref, names):
     t0 = time.perf_counter()
-    workers = {"this": Worker(ROOT), ref: Worker(reference_tree(ref))}
+    workers = {"this": Worker(ROOT, names), ref: Worker(reference_tree(ref), names)}
     for label, w in workers.items():
         print(f"{label}: {w.package}")
     print(f"start-up and warm-up {time.perf_counter() - t0:.0f} s; {uptime()}")
-    results = {label: {name: [] for name in WORKLOADS} for label in workers}
+    results = {label: {name: [] for name in names} for label in workers}
     for r in range(rounds):
-        for name in WORKLOADS:
+        for name in names:
             for label in (list(workers) if r % 2 == 0 else list(workers)[::-1]):
                 results[label][name].append(workers[label](name))
     for w in workers.values():
@@ -131,7 +141,7 @@ def main(rounds, ref):
     print(f"{rounds} rounds, threads=1, medians; {uptime()}")
     print(f"{'workload':12} {'this wall':>10} {'ref wall':>10} {'ratio':>6} {'this cpu':>10} {'ref cpu':>10} "
           f"{'ratio':>6}  bitwise equal")
-    for name in WORKLOADS:
+    for name in names:
         this, other = results["this"][name], results[ref][name]
         med = {k: (statistics.median(x[k] for x in this), statistics.median(x[k] for x in other))
                for k in ("wall", "cpu")}
@@ -144,6 +154,7 @@ if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--rounds", type=int, default=7, help="timed rounds (each workload once per commit)")
     parser.add_argument("--ref", default="38a9b35", help="the reference commit")
-    parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--mesh", action="store_true", help="add the meshed hemisphere (mesh64)")
+    parser.add_argument("--worker", nargs="+", help=argparse.SUPPRESS)
     args = parser.parse_args()
-    worker() if args.worker else main(args.rounds, args.ref)
+    worker(args.worker) if args.worker else main(args.rounds, args.ref, WORKLOADS + ("mesh64",) * args.mesh)

@@ -6,7 +6,7 @@ disk in a folder named by the kernels' sources.
 numba stamps a cached function with its own file only, not with the files of the kernels it
 calls or of the constants it compiles in: after an edit of ``geometry/compiled.py`` it would
 load the old machine code of ``drape/kernels.py``. So the cache folder, ``CACHE_DIR``, is
-named by a hash of every module that compiles kernels (imports ``jit`` from here), of the
+named by a hash of every module that compiles kernels (imports ``jit`` or ``inline`` from here), of the
 package modules those import (transitively) and of numba's version: an edit of any of them
 gives a new folder and a fresh compile, in every process (dask workers compute the same name
 from the same files). The folder lies under ``$NUMBA_CACHE_DIR`` if set, else in the
@@ -64,7 +64,7 @@ def _imported_files(path: Path, tree: ast.Module) -> dict[Path, set[str]]:
 
 def kernel_sources(package: Path = _PACKAGE) -> list[Path]:
     """The files whose contents the compiled kernels depend on: the modules of ``package``
-    that import ``jit`` from this module, and every package module those import."""
+    that import ``jit`` or ``inline`` from this module, and every package module those import."""
     @functools.cache
     def imports(path: Path) -> dict[Path, set[str]]:
         return _imported_files(path, ast.parse(path.read_bytes(), str(path)))
@@ -72,7 +72,7 @@ def kernel_sources(package: Path = _PACKAGE) -> list[Path]:
     this = package / Path(__file__).name
     # Only files that name this module can import from it: parse those, not the package.
     named = [p for p in package.rglob("*.py") if "__pycache__" not in p.parts and this.stem.encode() in p.read_bytes()]
-    todo = [p for p in named if "jit" in imports(p).get(this, ())]
+    todo = [p for p in named if {"jit", "inline"} & imports(p).get(this, set())]
     needed = set(todo)
     while todo:
         for module in imports(todo.pop()):
