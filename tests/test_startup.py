@@ -1,16 +1,23 @@
 """Start-up matches the work (issue 41): ``uqdrape --help``, a sub-command's help (its
 epilog lists the mould kinds from the geometry registry), ``--version`` and ``import
-uqdrape`` load none of the numerical stack they do not use. Each runs in a fresh
-interpreter, which then lists the heavy modules it holds."""
+uqdrape`` load none of the numerical stack they do not use (each in a fresh interpreter,
+which then lists the heavy modules it holds); successive runs share the workers'
+forkserver and give the same numbers."""
 
+import dataclasses
 import json
+import multiprocessing
 import subprocess
 import sys
 from pathlib import Path
 
+import psutil
 import pytest
+import xarray as xr
 
 import uqdrape
+from conftest import write_study
+from uqdrape.study import load_study
 
 ROOT = Path(uqdrape.__file__).resolve().parents[1]
 HEAVY = ("numba", "xarray", "scipy", "dask", "matplotlib", "pandas", "distributed")
@@ -61,3 +68,29 @@ def test_drape_help_lists_every_geometry_kind_and_the_moulds_still_evaluate(caps
     epilog = capsys.readouterr().out.split("geometry kinds and their parameters")[1]
     assert [line.split()[0] for line in epilog.splitlines()[1:] if line.strip()] == list(KINDS)
     assert KINDS["hemisphere"](radius=80).height(0.0, 0.0) == pytest.approx(80.0)
+
+
+def _forkservers() -> set[int]:
+    """Pids of this process's multiprocessing forkservers."""
+    return {p.pid for p in psutil.Process().children() if "forkserver" in " ".join(p.cmdline())}
+
+
+@pytest.mark.skipif("forkserver" not in multiprocessing.get_all_start_methods(), reason="no forkserver here")
+def test_successive_runs_share_a_warm_forkserver_and_give_the_same_numbers_as_in_process(tmp_path):
+    """Two local runs from one Python process: the second forks its workers from the
+    forkserver the first started (its engine imported once), and both ensembles equal
+    the synchronous one bitwise (netCDF variables, coordinates and their attributes)."""
+    from uqdrape.ensemble import open_ensemble
+    from uqdrape.workflow import run_study
+
+    path = write_study(tmp_path, study={"seed": 5, "realizations": 6, "chunk_size": 3},
+                       solver={"mode": "geodesic", "rings": 4}, uncertainty={"spacing": {"cv": 0.01}})
+    study = load_study(path)
+    inline = run_study(study, scheduler="synchronous", progress=False)
+    cold = run_study(dataclasses.replace(study, output_dir=tmp_path / "cold"), workers=2, progress=False)
+    servers = _forkservers()
+    warm = run_study(dataclasses.replace(study, output_dir=tmp_path / "warm"), workers=2, progress=False)
+    assert len(servers) == 1 and _forkservers() == servers
+    with open_ensemble(inline) as a, open_ensemble(cold) as b, open_ensemble(warm) as c:
+        xr.testing.assert_identical(b.drop_attrs(deep=False), a.drop_attrs(deep=False))
+        xr.testing.assert_identical(c.drop_attrs(deep=False), a.drop_attrs(deep=False))

@@ -107,7 +107,17 @@ def _engine_study(args):
     return located(args.study, args.out or None)
 
 
+def _start_workers(args) -> None:
+    """Start the local workers' forkserver now (a local run), so that its imports of the
+    drape engine overlap this process's."""
+    if args.scheduler is None:
+        from .pool import prepare
+
+        prepare()
+
+
 def cmd_run(args) -> int:
+    _start_workers(args)
     from .workflow import run_outcome, run_report, run_study
 
     study = _engine_study(args)
@@ -150,6 +160,7 @@ exit codes: 0 done, 2 a user error (one line on stderr naming the key, flag or p
 
 
 def cmd_design(args) -> int:
+    _start_workers(args)
     from .workflow import design_outcome, run_design, run_report
 
     study = _engine_study(args)

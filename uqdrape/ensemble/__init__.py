@@ -13,7 +13,7 @@ dask tasks on the same schedulers (e.g. the candidate designs of ``uqdrape.desig
 
 from .chunk import drape_inputs, study_mould, write_atomic, write_netcdf
 from .inputs import design_variables, inputs_from_design, sampled_inputs
-from .hygiene import local_pool
+from ..pool import local_pool
 from .progress import Progress
 from .run import compute_tasks, reach_scheduler, run_ensemble
 from .storage import at, open_ensemble, read_manifest

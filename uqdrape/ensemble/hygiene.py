@@ -1,17 +1,5 @@
-"""A run's processes and its claim on an output folder, so that nothing outlives the run.
+"""A run's claim on an output folder (its worker processes: ``uqdrape.pool``).
 
-* :func:`local_pool`: the local worker processes of a run. Each worker dies with the
-  process that started it (a SIGKILL of ``uqdrape run``, the OOM killer, a closed batch
-  job): on Linux the kernel kills it at once (``PR_SET_PDEATHSIG``: the same moment its
-  run's pipes close, so it never gets to print a BrokenPipeError traceback); elsewhere it
-  watches its parent's pid and exits within WATCH_INTERVAL. Once orphaned, whatever a
-  worker writes to stderr is dropped. Workers ignore SIGINT (the run's own process
-  handles Ctrl-C for all of them), and an interrupted or failed run terminates its
-  workers instead of waiting for their chunks. :func:`orphaned` tells a worker not to
-  commit a chunk file after its run has gone. multiprocessing's resource tracker (the
-  process that removes the pool's semaphores) would warn of "leaked semaphore objects"
-  after a SIGKILL; it reads PYTHONWARNINGS when it starts, which the CLI sets to ignore
-  (``uqdrape.cli``), and removes them either way.
 * :func:`hold_lock`: one run per output location (a folder's :func:`run_lock`, a store's
   ``ZarrStore.lock``). The lock records pid, host and start time, and is created whole
   (a folder's written beside, then hard-linked into place: there is no moment at which it
@@ -25,91 +13,17 @@
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import errno
 import json
-import multiprocessing
 import os
-import signal
 import socket
-import sys
 import threading
 import time
 from pathlib import Path
 
+
 #: The lock file in a run folder.
 LOCK = "run.lock"
-#: How often a worker checks that its run is alive where the kernel cannot be asked to
-#: kill it with its run (s).
-WATCH_INTERVAL = 0.2
-#: Linux prctl option: the signal a process gets when the thread that started it dies.
-PR_SET_PDEATHSIG = 1
-
-_parent: int | None = None  # pid of the run that started this worker process
-
-
-def _watch_parent(parent: int) -> None:
-    """Worker initializer: remember the run's pid, die with it, leave Ctrl-C to it."""
-    global _parent
-    _parent = parent
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    sys.stderr = _OrphanMuted(sys.stderr)
-    if _die_with_parent():
-        if orphaned():  # the run died before the kernel was asked
-            os._exit(1)
-        return
-
-    def watch():
-        while not orphaned():
-            time.sleep(WATCH_INTERVAL)
-        os._exit(1)
-
-    threading.Thread(target=watch, name="uqdrape-parent-watch", daemon=True).start()
-
-
-def _die_with_parent() -> bool:
-    """Ask the kernel to SIGKILL this process when the thread that started it dies (Linux;
-    local_pool's opening thread holds the pool for its whole life). False where it cannot."""
-    if not sys.platform.startswith("linux"):
-        return False
-    try:
-        return ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) == 0
-    except (OSError, AttributeError):
-        return False
-
-
-class _OrphanMuted:
-    """A worker's stderr that says nothing once its run is gone (the run's terminal is the
-    user's, and the run can no longer explain what a dying worker prints)."""
-
-    def __init__(self, stream):
-        self._stream = stream
-
-    def write(self, text):
-        return len(text) if orphaned() else self._stream.write(text)
-
-    def __getattr__(self, name):
-        return getattr(self._stream, name)
-
-
-def orphaned() -> bool:
-    """True in a worker process whose run has died (False outside local workers)."""
-    return _parent is not None and os.getppid() != _parent
-
-
-@contextlib.contextmanager
-def local_pool(workers: int | None):
-    """A pool of ``workers`` spawned processes (default: one per CPU) tied to this process."""
-    pool = multiprocessing.get_context("spawn").Pool(workers or os.cpu_count(), initializer=_watch_parent,
-                                                     initargs=(os.getpid(),))
-    try:
-        yield pool
-    except BaseException:
-        pool.terminate()
-        pool.join()
-        raise
-    pool.close()
-    pool.join()
 
 
 class RunLocked(OSError):

@@ -46,7 +46,7 @@ from ..files import read_text
 from ..study import Study
 from ..stochastic.inputs import positive_int
 from .chunk import drape_chunk
-from .hygiene import local_pool
+from ..pool import local_pool
 from .progress import Progress
 from .storage import at
 
@@ -81,7 +81,7 @@ def compute_tasks(tasks: list, sizes: list, scheduler: str | None, workers: int 
     """Run dask tasks locally or on a dask.distributed cluster, counting each finished
     task's realisations (``sizes``) in ``progress``; return their results in task order and
     re-raise a failure. ``scheduler`` and ``workers`` as for :func:`run_ensemble`; ``pool``
-    (a ``hygiene.local_pool``) keeps local workers alive across calls. A cluster address must
+    (a ``pool.local_pool``) keeps local workers alive across calls. A cluster address must
     have passed :func:`reach_scheduler` (a design calls this once per batch: one handshake a run)."""
     if not tasks:
         return []

@@ -27,7 +27,8 @@ from ..conventions import cf_decode, cf_encode
 from ..files import write_text_atomic
 from ..schema import FORCE, REALIZATION
 from .chunk import write_atomic
-from .hygiene import orphaned, run_lock
+from ..pool import orphaned
+from .hygiene import run_lock
 from .location import (MANIFEST, MAX_MANIFEST_BYTES, Location, check_growth, check_same_study, corrupt_manifest,
                        held, parse_manifest, plan_chunks)
 
@@ -132,7 +133,7 @@ class Folder(Location):
 
     def write_chunk(self, study, ds: xr.Dataset, chunk, level: int, attrs: dict) -> str:
         """In the worker: write the draped chunk ``ds`` as its file (not after the run has
-        died: ``hygiene.orphaned``); return its name."""
+        died: ``pool.orphaned``); return its name."""
         ds.attrs.update(attrs)
         ds, encoding = cf_encode(ds, title=f"uqdrape ensemble chunk: study {study.name}, realisations "
                                            f"{chunk.start}-{chunk.stop - 1} at {chunk.force:g} N",
