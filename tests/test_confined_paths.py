@@ -67,12 +67,12 @@ def test_a_card_csv_that_is_not_text_names_the_file(tmp_path):
     assert_one_line_error(str(err.value), file=tmp_path / "c.csv", valid=["UTF-8"])
 
 
-def test_a_long_bad_cell_is_quoted_short(tmp_path):
+def test_a_long_bad_cell_is_named_not_quoted(tmp_path):
     (tmp_path / "c.csv").write_text("angle_deg,ns_positive\n0,0\n10," + "z" * 5000 + "\n")
     with pytest.raises(ValueError) as err:
         load_material(tmp_path / "c.csv")
-    assert_one_line_error(str(err.value), file="c.csv", valid=["data row 3, column ns_positive", "z" * 40])
-    assert "z" * 41 not in str(err.value)
+    assert_one_line_error(str(err.value), file="c.csv", valid=["data row 3, column ns_positive", "expected a number"])
+    assert "zz" not in str(err.value)
 
 
 @pytest.mark.parametrize("sections, key", [

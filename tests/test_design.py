@@ -218,7 +218,7 @@ FORCE = 'variables = "force"\nforce_bounds_N = [0.0, 100.0]\nobjective = "p_lock
     ('variables = "force"\nforce_bounds_N = [0.0, 100.0]\nobjective = "p_wrinkle"',
      "design.objective", '"p_wrinkle"', ['"p_locked"', '"q95_max_abs_shear"', '"abs_mean_asymmetry"', '"q95_max_draw_in"']),
     ('variables = "sectors"\nsectors = 1\nforce_bounds_N = [0.0, 100.0]\nobjective = "p_locked"',
-     "design.sectors", "1", ["integer >= 2"]),
+     "design.sectors", "1", ["2 <= sectors < 37"]),
     (FORCE + "\nmax_draw_in_mm = -5.0", "design.max_draw_in_mm", "-5.0", ["number > 0"]),
     (FORCE + '\nmax_draw_in_mm = "20 mm"', "design.max_draw_in_mm", '"20 mm"', ["number > 0"]),
     (FORCE + "\nmax_draw_in_mm = 20.0", "study.realizations", "32", ["at least 72", 'statistic = "estimate"']),

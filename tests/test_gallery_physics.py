@@ -79,10 +79,13 @@ def test_random_spacing_moves_the_mean_shear_into_the_compliant_branch(iid, corr
     # ... with it, the minimiser shifts every realisation towards the NCF's soft negative
     # branch (N_s about 8x lower than positive): E[W(mean + noise)] is least below zero.
     # -4.7 deg (iid), -0.9 deg (smooth field, L = 100 mm: smaller mismatches), the same sign
-    # in every realisation; asserted to the minimiser's tolerance (1e-3 deg).
-    for ds, mean in ((iid, PLATE_IID_MEAN_CELL_SHEAR_DEG), (correlated, PLATE_CORRELATED_MEAN_CELL_SHEAR_DEG)):
+    # in every realisation; the iid mean asserted to the minimiser's tolerance (1e-3 deg), the
+    # smooth field's to 0.05 deg: its shallow energy lets the floating point of another CPU's
+    # BLAS kernels move the seeded sample's mean (-0.8761 deg on AVX-512 machines, -0.8975 on
+    # an AMD EPYC with OpenBLAS's Haswell kernels).
+    for ds, mean, tol in ((iid, PLATE_IID_MEAN_CELL_SHEAR_DEG, 1e-3), (correlated, PLATE_CORRELATED_MEAN_CELL_SHEAR_DEG, 0.05)):
         per_realisation = ds["cell_shear"].mean(("cell_i", "cell_j"))
-        assert float(per_realisation.mean()) == pytest.approx(mean, abs=1e-3)
+        assert float(per_realisation.mean()) == pytest.approx(mean, abs=tol)
         assert bool((per_realisation < 0).all())
 
 

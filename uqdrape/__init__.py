@@ -34,8 +34,7 @@ The names are imported on first use (PEP 562), so ``import uqdrape`` and ``uqdra
 
 from typing import TYPE_CHECKING
 
-#: The one place the version is written: pyproject.toml reads it (setuptools dynamic version).
-__version__ = "0.1.0"
+from ._version import __version__  # noqa: F401  (the package's version, written once in _version)
 
 #: The public API: the names of the module docstring, in its order (a test holds them equal).
 __all__ = [

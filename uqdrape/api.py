@@ -245,9 +245,9 @@ def open_design(run: PathLike) -> xr.Dataset:
     >>> print(design.attrs["summary"])  # doctest: +SKIP
     """
     from .design import DESIGN_FILE
-    from .ensemble import read_dataset
+    from .ensemble import at
 
-    ds = read_dataset(run, DESIGN_FILE)
+    ds = at(run).read_dataset(DESIGN_FILE)
     if ds is None:
         raise FileNotFoundError(f"{run} holds no finished design ({DESIGN_FILE}); run a [design] study into it first")
     return ds

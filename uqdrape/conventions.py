@@ -29,7 +29,7 @@ import numpy as np
 if TYPE_CHECKING:  # only in annotations: the CLI's --version does not load xarray
     import xarray as xr
 
-from . import __version__
+from ._version import __version__
 
 CONVENTIONS = "CF-1.8"
 #: Node positions that place every (i, j) variable.

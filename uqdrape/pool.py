@@ -75,7 +75,7 @@ def _watch_parent(run: int) -> None:
     _release_forkserver()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     sys.stderr = _OrphanMuted(sys.stderr)
-    if _die_with_parent():
+    if die_with_parent():
         if orphaned():  # the run died before the kernel was asked
             os._exit(1)
         return
@@ -98,7 +98,7 @@ def _release_forkserver() -> None:
         server._forkserver_alive_fd = None
 
 
-def _die_with_parent() -> bool:
+def die_with_parent() -> bool:
     """Ask the kernel to SIGKILL this process when the thread that started it dies (Linux;
     local_pool's opening thread, or the forkserver's only thread). False where it cannot."""
     if not sys.platform.startswith("linux"):

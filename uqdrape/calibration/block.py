@@ -20,7 +20,7 @@ from pathlib import Path
 import scipy.optimize
 import scipy.stats
 
-from .. import __version__
+from .._version import __version__
 from ..files import toml_text
 
 #: Significant digits of the values written to the block.

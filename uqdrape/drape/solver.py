@@ -12,7 +12,7 @@ import numba
 import numpy as np
 import xarray as xr
 
-from .. import __version__
+from .._version import __version__
 from .._jit import on_threads
 from ..schema import MODES, QUADRANTS, SOLVER_INPUTS
 from .energy import BlankHolder

@@ -41,7 +41,7 @@ from pathlib import Path
 import dask
 from dask.callbacks import Callback
 
-from .. import __version__
+from .._version import __version__
 from ..files import read_text
 from ..study import Study
 from ..stochastic.inputs import positive_int

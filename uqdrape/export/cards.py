@@ -45,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
+from .._version import __version__
 
 #: The flavours and the file each writes (a suffix of the stem).
 FLAVOURS = {"abaqus": "-orientations.inp", "lsdyna": "-lsdyna.k", "nastran": "-nastran.bdf"}

@@ -13,7 +13,7 @@ from collections.abc import Mapping
 
 from PIL import Image
 
-from .. import __version__
+from .._version import __version__
 from ..conventions import git_version
 from .style import GAP_PX, PADDING_PX, PAGE_MAX_PX, is_wide, requested_formats
 

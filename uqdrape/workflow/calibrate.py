@@ -18,7 +18,7 @@ import dask
 import numpy as np
 import xarray as xr
 
-from .. import __version__
+from .._version import __version__
 from ..calibration import block_text, calibrate_points, read_points
 from ..calibration.block import sd_dof, unidentified
 from ..calibration.drapes import DesignRuns, Parts, PartsLikelihood, predictive_bands, sample_posterior
