@@ -30,6 +30,8 @@ def _declared(requirements, with_their_requirements=False) -> set[str]:
         name = _name(requirement)
         names.add(name)
         extras = set(re.findall(r"\w+", requirement.partition("[")[2].partition("]")[0]))
+        if not extras and not with_their_requirements:
+            continue  # an optional extra's package need not be installed to be named
         for sub in requires(name) or []:
             marker = sub.partition(";")[2]
             wanted = re.search(r"extra\s*==\s*['\"](\w+)['\"]", marker)
