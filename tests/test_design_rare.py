@@ -153,16 +153,17 @@ def test_a_rare_constraint_round_trips_through_the_study_dict(tmp_path):
     assert again.design == study.design and again.design.rare.max_probability == BOUND
 
 
-@pytest.mark.slow  # 50 s at load 5: a design of 14 estimates (~36,000 drapes, 31 s) and 40,000 plain drapes
+@pytest.mark.slow  # 26 s at load 1: a design of 12 estimates (~43,000 drapes) and 40,000 plain drapes
 def test_on_real_drapes_the_constraint_agrees_with_plain_monte_carlo(tmp_path):
     # energy drapes of the R 100 mm hemisphere, 4 rings, iid zero angle (64 standard
     # variables): P(max |shear| >= 2.1 deg) falls from 0.99 at 0 N through 1e-2 near 3.3 N to
-    # under 1e-4 at 8 N; the draw-in target 0.23 mm pulls the force below 2 N, the bound up
+    # under 1e-4 at 8 N; the draw-in target 0.23 mm pulls the force below 2 N, the bound up.
+    # Near P = 2e-3 subset rounds need ~5,500 drapes for a CoV of 0.2: the budget allows it
     from uqdrape.design.evaluate import variant
 
     text = ('variables = "force"\nforce_bounds_N = [0.0, 8.0]\nobjective = "q95_max_draw_in"\nstatistic = "estimate"\n'
             'target = 0.23\ntolerance_N = 0.1\nmax_evaluations = 12\n'
-            'rare = {qoi = "max_abs_shear", threshold = 2.1, max_probability = 1e-2, cov = 0.2, max_drapes = 5000}\n')
+            'rare = {qoi = "max_abs_shear", threshold = 2.1, max_probability = 1e-2, cov = 0.2, max_drapes = 10000}\n')
     path = write(tmp_path, text)
     ds = run(path, drape=design.drape_design)
     d = ds.where(ds["sample"] == "design", drop=True)

@@ -121,7 +121,7 @@ def test_a_worker_killed_mid_chunk_is_retried(reference, s3, cluster, tmp_path):
 
     def busy():  # a worker draping a region, and that worker's pid
         for worker, keys in client.processing().items():
-            if any(str(key).startswith("_region_task") for key in keys):
+            if any(str(key).startswith("_run_chunk") for key in keys):
                 return worker, keys[0]
         return None
 

@@ -43,7 +43,8 @@ hundred of them means nothing. Four checks decide that it does:
 - each further round's CoV falls below the previous one's (heavy weights do not).
 
 Otherwise subset simulation runs again in ``ROUNDS`` independent rounds, each sized so
-that their mean meets the target (within the budget), and their mean is the estimate
+that their mean meets the target (within the budget), and more rounds of that size while
+the budget allows one and the rounds' CoV is above the target; their mean is the estimate
 (``method = "subset"``). Its CoV is the larger of the rounds' spread, sd / (sqrt(R) P),
 true whatever the correlation of the chains and levels, and Au & Beck's formula (which
 leaves that correlation out). A result's ``note`` says why its CoV is above the target.
@@ -287,19 +288,18 @@ def _subset_rounds(g, d, sus, y0, spent, cov, max_calls, p0, max_levels, rng, re
         return result(sus.probability, sus.cov, spent, "subset", why=f"{why}; no budget left for subset rounds")
     n = int(min(need, (max_calls - spent) / (rounds * per_sample))) // chain * chain
     n = max(n, LEAST_LEVEL // chain * chain)
-    estimates, covs = [], []
-    for _ in range(rounds):
-        if max_calls - spent < n:  # not even a round's level 0 left
-            break
+    estimates, covs, delta = [], [], math.inf
+    while max_calls - spent >= n and (len(estimates) < rounds or delta > cov):  # a round's level 0 left
         r = subset_levels(g, d, n_per_level=n, p0=p0, rng=rng, spread=1.0, max_levels=max_levels,
                           max_calls=max_calls - spent)[0]
         spent += r.calls
         if r.reached:
             estimates.append(r.probability)
             covs.append(r.cov)
+        if len(estimates) >= 2:
+            p = float(np.mean(estimates))
+            spread = float(np.std(estimates, ddof=1)) / math.sqrt(len(estimates)) / p
+            delta = max(spread, math.sqrt(float(np.sum((np.array(covs) * estimates) ** 2))) / len(estimates) / p)
     if len(estimates) < 2:
         return result(sus.probability, sus.cov, spent, "subset", why=f"{why}; the subset rounds did not reach failure")
-    p = float(np.mean(estimates))
-    spread = float(np.std(estimates, ddof=1)) / math.sqrt(len(estimates)) / p
-    formula = math.sqrt(float(np.sum((np.array(covs) * estimates) ** 2))) / len(estimates) / p
-    return result(p, max(spread, formula), spent, "subset", why=f"{why}; the budget ran out")
+    return result(p, delta, spent, "subset", why=f"{why}; the budget ran out")
