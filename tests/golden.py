@@ -46,6 +46,9 @@ STL_HEMISPHERE_SHEAR_GAP_DEG = 0.11000472205644485
 # -- drape: blank-holder energy --------------------------------------------------------
 #: regression: produced by commit 333d6f2 (blank-holder energy, J, at skew 0 and 55 deg, per model)
 SKEW_BLANKHOLDER_ENERGY_J = {"radial": (2.44411838, 4.04760113), "slip": (2.49354203, 5.83760009)}
+#: Fig 5.6 set-up (Wiggers 2007) over the whole dome (rings 31, radial model); issue 38's "4.93 -> 6.64 J"
+#: regression: produced by commit 4e5c80e (blank-holder energy, J, at skew 0 and 55 deg)
+FIG56_BLANKHOLDER_ENERGY_J = (4.93266595, 6.64426745)
 #: regression: produced by commit 333d6f2 (nose cone: - minus + quadrants' mean |shear|, deg, per force)
 NOSE_CONE_QUADRANT_GAP_DEG = {"radial": (42.50103, 35.67999, 30.96208, 27.48478, 0.36888),
                               "slip": (42.50103, 25.75022, 19.12477, 15.38897, 0.11152)}

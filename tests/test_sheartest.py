@@ -12,11 +12,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import assert_one_line_error
 
 from uqdrape.cli import main
-from uqdrape.material import load_material
+from uqdrape.material import load_material, plot
 from uqdrape.material.sheartest import BiasExtension, PictureFrame, ShearTestError, fit_card, read_rig
 from uqdrape.material.sheartest.bias_extension import halving_solve
+from uqdrape.material.sheartest.picture_frame import shear_per_crosshead
 
 #: Load-cell noise (N), Gaussian sd: 0.3 % of the picture frame's 180 N peak here.
 NOISE_N = 0.5
@@ -110,6 +112,22 @@ def test_picture_frame_kinematics_and_the_two_normalised_forces():
     pf30 = PictureFrame(145.0, 30.0)
     np.testing.assert_allclose(pf30.shear_force(lambda t: pf30.crosshead_force(ns_true, t), theta[:10]),
                                ns_true(theta[:10]), rtol=1e-12)
+
+
+def test_f_over_l_to_f_s_over_l_by_hand_at_three_angles():
+    """N_s = F_s/L = F/L · 1/(2 cos(φ0 − θ/2)) (Eq 3.1 over L), φ0 = 45 deg: at θ = 0, 30,
+    60 deg the factor is 1/(2 cos 45°) = 1/√2 = 0.70711, 1/(2 cos 30°) = 1/√3 = 0.57735
+    and 1/(2 cos 15°) = (√6 − √2)/2 = 0.51764."""
+    theta = np.deg2rad([0.0, 30.0, 60.0])
+    hand = np.array([1.0 / np.sqrt(2.0), 1.0 / np.sqrt(3.0), (np.sqrt(6.0) - np.sqrt(2.0)) / 2.0])
+    np.testing.assert_allclose(hand, [0.70711, 0.57735, 0.51764], atol=5e-6)
+    factor = shear_per_crosshead(theta, np.deg2rad(45.0))
+    np.testing.assert_allclose(factor, hand, rtol=1e-14)
+    f_over_l = np.array([100.0, 250.0, 700.0])  # N/m
+    np.testing.assert_allclose(f_over_l * factor / factor, f_over_l, rtol=1e-15)  # F_s/L back to F/L
+    pf = PictureFrame(145.0, 45.0)  # the rig's raw path agrees: N_s / (F/L) is the same factor
+    np.testing.assert_allclose(pf.shear_force(lambda t: 14.5 + 0 * t, theta) / pf.normalised_force(14.5), hand,
+                               rtol=1e-14)
 
 
 def test_bias_extension_at_kappa_2_has_the_picture_frame_kinematics():
@@ -313,6 +331,63 @@ def test_the_command_writes_the_card_and_its_figure(tmp_path, capsys):
     material = load_material(card)
     assert material.name == "be_fabric" and material.locking_angle_deg == 60.0
     assert main(["materials", str(card)]) == 0
+
+
+@pytest.fixture(scope="module")
+def three_conventions(tmp_path_factory):
+    """One noise-free picture-frame test of ns_true written three ways, crosshead F (N),
+    F/L and F_s/L (N/m), each fitted: {convention: CardFit}."""
+    folder = tmp_path_factory.mktemp("conventions")
+    pf = PictureFrame(145.0, 45.0)
+    theta = np.linspace(0.0, np.deg2rad(62.0), 600)
+    force = pf.crosshead_force(ns_true, theta)
+    columns = {"crosshead": force, "F/L": pf.normalised_force(force), "F_s/L": ns_true(theta)}
+    cards = {}
+    for i, (convention, values) in enumerate(columns.items()):
+        rows = "\n".join(f"{v:.12g},{d:.12g}" for v, d in zip(values, pf.displacement(theta)))
+        (folder / f"c{i}.csv").write_text(f"force_n,displacement_mm\n{rows}\n", encoding="utf-8")
+        path = write_rig(folder / f"rig{i}.toml", "picture_frame", [(f"c{i}.csv", "positive")], side_mm=145.0,
+                         force_convention=convention)
+        cards[convention] = fit_card(read_rig(path), "synthetic", path.name)
+    return cards
+
+
+def test_a_force_column_already_normalised_gives_the_same_card(three_conventions):
+    """F/L is the crosshead force over a constant L, so its card is the crosshead card;
+    F_s/L is fitted as it is; all three are within 0.5 % + 0.05 N/m of the truth."""
+    curves = {c: card_curve(r) for c, r in three_conventions.items()}
+    theta, ns = curves["crosshead"]
+    np.testing.assert_allclose(curves["F/L"][1], ns, rtol=1e-12)
+    for convention, (angles, values) in curves.items():
+        np.testing.assert_array_equal(angles, theta)
+        np.testing.assert_allclose(values, ns_true(theta), rtol=5e-3, atol=0.05, err_msg=convention)
+        record = three_conventions[convention].doc["sheartest"]
+        assert record["force_convention"] == convention
+        assert record["force_unit"] == ("N" if convention == "crosshead" else "N/m")
+    assert three_conventions["F/L"].doc["sheartest"]["normalisation"].startswith("force column is F/L (N/m")
+    assert "N_s = F / (2 L cos" in three_conventions["crosshead"].doc["sheartest"]["normalisation"]
+
+
+def test_the_card_figure_states_the_convention(three_conventions, tmp_path, monkeypatch):
+    monkeypatch.setattr(plot, "_save", lambda fig, path: fig)
+    fig = plot.plot_sheartest(three_conventions["F/L"], tmp_path / "x.png")
+    raw, points, card = fig.axes
+    assert raw.get_ylabel() == "force column F/L (N/m)"
+    assert points.get_ylabel() == card.get_ylabel() == "normalised shear force $N_s = F_s/L$ (N/m)"
+    assert "force column: F/L; force column is F/L (N/m, Eq 3.16): N_s = (F/L) / (2 cos(phi0 - theta/2))" in \
+        fig._suptitle.get_text()
+
+
+@pytest.mark.parametrize("value", ['"N/mm"', '"f/l"', "1.0"])
+def test_a_bad_force_convention_is_refused_in_one_line(tmp_path, value):
+    write_specimen(tmp_path / "good.csv", PictureFrame(145.0, 45.0), np.random.default_rng(0))
+    path = tmp_path / "rig.toml"
+    path.write_text(f'test = "picture_frame"\nside_mm = 145.0\nforce_convention = {value}\n'
+                    '[[specimen]]\nfile = "good.csv"\n', encoding="utf-8")
+    with pytest.raises(ShearTestError) as err:
+        read_rig(path)
+    assert_one_line_error(str(err.value), file=path, key="force_convention", value=value,
+                          valid=['"crosshead"', '"F/L"', '"F_s/L"'])
 
 
 # ---------------------------------------------------------------- bad files: one line each

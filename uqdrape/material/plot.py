@@ -40,7 +40,7 @@ def plot_material(material, path):
     ax_f, ax_w = fig.subplots(1, 2)
     pos, neg = gamma_deg >= 0.0, gamma_deg <= 0.0
     for ax, values, ylabel in (
-        (ax_f, material.shear_force(gamma), "normalised shear force $N_s$ (N/m)"),
+        (ax_f, material.shear_force(gamma), "normalised shear force $N_s = F_s/L$ (N/m)"),
         (ax_w, material.energy_density(gamma), "shear energy density $W$ (J/m²)"),
     ):
         ax.plot(gamma_deg[pos], values[pos], color="tab:red", label="positive shear")
@@ -101,13 +101,18 @@ def plot_architecture(arch, path, terms=None, gamma0_deg=None):
 
 def plot_sheartest(result, path):
     """Write a PNG of a card fitted from shear tests (thesis Figs 3.22-3.27 style), one row
-    per branch: the raw specimens (crosshead force (N) against displacement (mm); rows
+    per branch: the raw specimens (the force column, crosshead force (N) or normalised
+    F/L or F_s/L (N/m) as the rig file's force_convention says, against displacement (mm); rows
     not fitted, the friction jump and past the valid end, in grey); each
     specimen's rows normalised to N_s (N/m) with its fit; the card's mean and its ±1 sd
     band (bias extension: also the thesis's iterative route, Eq 3.34-3.35, on the same
     fits). ``result`` is a `uqdrape.material.sheartest.CardFit`. Returns the path."""
     path = Path(path)
     shear, scatter = result.doc["shear"], result.doc.get("scatter", {})
+    record = result.doc["sheartest"]
+    convention = record["force_convention"]
+    column = "crosshead force (N)" if convention == "crosshead" else f"force column {convention} (N/m)"
+    ns_label = "normalised shear force $N_s = F_s/L$ (N/m)"
     branches = list(shear)
     fig = _figure(13.0, 3.9 * len(branches))
     axes = np.atleast_2d(fig.subplots(len(branches), 3))
@@ -130,20 +135,19 @@ def plot_sheartest(result, path):
         if branch in scatter:
             sd = np.asarray(scatter[branch]["ns_sd"])
             ax_card.fill_between(angles, mean - sd, mean + sd, color="0.6", alpha=0.4, label="±1 sd of the specimens")
-        if result.doc["sheartest"]["test"] == "bias_extension":
+        if record["test"] == "bias_extension" and convention == "crosshead":
             theta = np.deg2rad(angles)
             thesis = np.mean([f.specimen.rig.thesis_iterative(f.force, theta) for f in fits], axis=0)
             ax_card.plot(angles, thesis, "--", color="tab:red", lw=1.0, label="thesis route (Eq 3.34-3.35)")
-        ax_raw.set(xlabel="crosshead displacement (mm)", ylabel="crosshead force (N)",
+        ax_raw.set(xlabel="crosshead displacement (mm)", ylabel=column,
                    title=f"{branch} shear: raw specimens (grey: not fitted)")
-        ax_pts.set(xlabel="shear angle θ (deg)", ylabel="normalised shear force $N_s$ (N/m)",
+        ax_pts.set(xlabel="shear angle θ (deg)", ylabel=ns_label,
                    title="normalised rows and monotone fits")
-        ax_card.set(xlabel="shear angle θ (deg)", ylabel="normalised shear force $N_s$ (N/m)",
+        ax_card.set(xlabel="shear angle θ (deg)", ylabel=ns_label,
                     title="card")
         for ax in row:
             ax.grid(alpha=0.3)
             ax.legend(loc="upper left", fontsize=7, markerscale=4)
-    record = result.doc["sheartest"]
     fig.suptitle(f"{result.doc['name']}: {record['test'].replace('_', ' ')} tests, friction {record['friction']}, "
-                 f"φ0 = {result.doc['phi0_deg']:g}°")
+                 f"φ0 = {result.doc['phi0_deg']:g}°\nforce column: {convention}; {record['normalisation']}")
     return _save(fig, path)

@@ -153,7 +153,8 @@ def fit_material(rig, out, plot=None) -> str:
     record = result.doc["sheartest"]
     branches = "; ".join(
         f"{branch}: {len(record[branch]['files'])} specimens to {material.curve(branch)[0][-1]:g} deg, N_s "
-        f"{material.curve(branch)[1][-1]:.4g} N/m there, fit residual <= {max(record[branch]['residual_rms_n']):.3g} N"
+        f"{material.curve(branch)[1][-1]:.4g} N/m there, fit residual <= {max(record[branch]['residual_rms_n']):.3g} "
+        f"{record['force_unit']}"
         for branch in ("positive", "negative") if branch in record)
     lines = [f"wrote {out}: {material.name} ({branches})", *(f"warning: {w}" for w in result.warnings)]
     return "\n".join(lines + ([f"wrote {png}"] if png else []))

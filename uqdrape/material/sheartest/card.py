@@ -12,8 +12,11 @@ Per specimen (rules recorded in the card's [sheartest] table):
 3. Friction jump: rows below jump_deg are not fitted; the fit's value at θ = 0 is the
    friction offset F0 (N), kept in the curve (``friction = "keep"``, the thesis's choice)
    or subtracted from it (``"subtract"``).
-4. The crosshead force F(θ) is fitted by the monotone spline of `fit.monotone_fit`, then
-   normalised to N_s(θ) (N/m) by the rig: exactly (PF Eq 3.1; BE the W' form).
+4. The force column F(θ) is fitted by the monotone spline of `fit.monotone_fit`, then
+   normalised to N_s(θ) (N/m) as the rig file's ``force_convention`` says: a crosshead
+   force (N) by the rig, exactly (PF Eq 3.1; BE the W' form); F/L (N/m) by
+   1/(2 cos(φ0 − θ/2)) (Eq 3.1); F_s/L (N/m) as it is. The offset F0 and the fit's
+   residual are in the column's unit ([sheartest] force_unit).
 
 A branch's card curve is the mean of its specimens' N_s on angles 0, step, 2·step, ...
 up to the smallest valid end; [scatter.<branch>] holds their sample sd (n − 1) there.
@@ -57,13 +60,13 @@ class SpecimenFit:
 
     def shear_force(self, theta):
         """The specimen's normalised N_s (N/m) at θ (rad), >= 0."""
-        return np.maximum(self.specimen.rig.shear_force(self.force, theta), 0.0)
+        return np.maximum(self.specimen.shear_force(self.force, theta), 0.0)
 
     def points(self):
         """The fitted rows normalised one by one: (θ (rad), N_s (N/m)), friction as in the fit."""
         theta = self.theta[self.used]
         force = self.specimen.data.force_n[self.used] - (self.offset_n if self.subtract else 0.0)
-        return theta, self.specimen.rig.pointwise_shear_force(force, theta, self.force)
+        return theta, self.specimen.pointwise_shear_force(force, theta, self.force)
 
 
 @dataclass(frozen=True)
@@ -102,14 +105,26 @@ def fit_specimen(specimen: Specimen, options: dict) -> SpecimenFit:
     fit = monotone_fit(theta[used], data.force_n[used], end, options["knots"])
     start = float(np.min(theta[used]))
     rise = float(fit(end) - fit(start))
+    unit = specimen.force_unit
     if not fit(end) > 0 or not rise > RISE_OVER_NOISE * fit.residual_rms:
         raise ShearTestError(
-            f"{data.path}: the force does not rise with shear: {float(fit(start)):.4g} N at "
-            f"{np.rad2deg(start):.3g} deg to {float(fit(end)):.4g} N at {np.rad2deg(end):.3g} deg, scatter "
-            f"{fit.residual_rms:.3g} N; a shear test's force is positive and grows with the angle (check that "
-            f"[columns] force names the force, in N, and the rows are the loading)", data.path)
+            f"{data.path}: the force does not rise with shear: {float(fit(start)):.4g} {unit} at "
+            f"{np.rad2deg(start):.3g} deg to {float(fit(end)):.4g} {unit} at {np.rad2deg(end):.3g} deg, scatter "
+            f"{fit.residual_rms:.3g} {unit}; a shear test's force is positive and grows with the angle (check that "
+            f"[columns] force names the force, in {unit}, and the rows are the loading)", data.path)
     return SpecimenFit(specimen, theta, used, "measured" if measured else "kinematic", end, rule, fit,
                        float(fit(0.0)), options["friction"] == "subtract")
+
+
+#: How the card's N_s = F_s/L (N/m) came from the force column, per force_convention
+#: (a crosshead force: per test).
+_NORMALISATION = {
+    "picture_frame": "picture frame: N_s = F / (2 L cos(phi0 - theta/2)) (Eq 3.1, 3.16)",
+    "bias_extension": "bias extension: exact energy balance (2 kappa - 3) W'(theta) + W'(theta/2) = g(theta), "
+                      "N_s = W' sin(2 phi0) / sin(2 phi0 - theta)",
+    "F/L": "force column is F/L (N/m, Eq 3.16): N_s = (F/L) / (2 cos(phi0 - theta/2)) (Eq 3.1)",
+    "F_s/L": "force column is N_s = F_s/L (N/m, Eq 3.1 over L): used as it is",
+}
 
 
 def _grid(end_deg: float, step_deg: float) -> np.ndarray:
@@ -125,7 +140,8 @@ def fit_card(rig_file: RigFile, name: str, rig_label: str) -> CardFit:
     fits = [fit_specimen(s, options) for s in rig_file.specimens]
     warnings = [f"{f.specimen.data.path}: kappa = {f.specimen.rig.kappa:.3g} < 2: the energy normalisation is "
                 "ill-conditioned (errors near 0 deg grow up the curve); the thesis asks for kappa >= 2"
-                for f in fits if rig_file.test == "bias_extension" and f.specimen.rig.kappa < 2.0]
+                for f in fits if rig_file.test == "bias_extension" and rig_file.force_convention == "crosshead"
+                and f.specimen.rig.kappa < 2.0]
     shear, scatter, record = {}, {}, {}
     for branch in BRANCHES:
         group = [f for f in fits if f.specimen.branch == branch]
@@ -165,10 +181,9 @@ def fit_card(rig_file: RigFile, name: str, rig_label: str) -> CardFit:
     doc["sheartest"] = {
         "test": rig_file.test,
         "rig": rig_label,
-        "normalisation": ("picture frame: N_s = F / (2 L cos(phi0 - theta/2)) (Eq 3.1, 3.16)"
-                          if rig_file.test == "picture_frame" else
-                          "bias extension: exact energy balance (2 kappa - 3) W'(theta) + W'(theta/2) = g(theta), "
-                          "N_s = W' sin(2 phi0) / sin(2 phi0 - theta)"),
+        "force_convention": rig_file.force_convention,
+        "force_unit": "N" if rig_file.force_convention == "crosshead" else "N/m",
+        "normalisation": _NORMALISATION.get(rig_file.force_convention) or _NORMALISATION[rig_file.test],
         "fit_method": METHOD.format(knots=options["knots"]),
         "friction": options["friction"],
         "jump_deg": options["jump_deg"],

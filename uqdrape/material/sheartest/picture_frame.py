@@ -13,7 +13,8 @@ Two normalised forces are in use and this module keeps them apart:
     N_s = F_s/L    shear force per unit side length = F / (2 L cos φ), N/m
 
 A card holds N_s (Material's W(θ) = ∫ N_s sin(2φ0 − t)/sin 2φ0 dt); the two agree in
-the energy balance F·ḋ = L² sin 2φ0 · W'(θ) θ̇ (thesis-notes §1.6).
+the energy balance F·ḋ = L² sin 2φ0 · W'(θ) θ̇ (thesis-notes §1.6). `shear_per_crosshead`
+is the factor between them: N_s = F/L · 1/(2 cos(φ0 − θ/2)).
 """
 
 from __future__ import annotations
@@ -21,6 +22,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+
+def shear_per_crosshead(theta, phi0):
+    """N_s / (F/L) = 1/(2 cos(φ0 − θ/2)) (-) at shear θ (rad) of a start φ0 (rad): Eq 3.1.
+
+    Multiply a crosshead form F/L (N/m, Eq 3.16) by it for the shear force per unit side
+    length N_s = F_s/L (N/m); divide N_s by it for F/L."""
+    return 1.0 / (2.0 * np.cos(phi0 - np.asarray(theta, dtype=float) / 2.0))
 
 
 @dataclass(frozen=True)
@@ -58,7 +67,7 @@ class PictureFrame:
     def shear_force(self, force, theta):
         """N_s (N/m) from crosshead force ``force(θ)`` (N, a callable) at θ (rad): Eq 3.1 over L."""
         theta = np.asarray(theta, dtype=float)
-        return force(theta) / (2.0 * self.side_mm * 1e-3 * np.cos(self.phi0 - theta / 2.0))
+        return force(theta) / (self.side_mm * 1e-3) * shear_per_crosshead(theta, self.phi0)
 
     def pointwise_shear_force(self, force_n, theta, force=None):
         """N_s (N/m) of each measured point (θ rad, F N); ``force`` (the fit) is not

@@ -16,6 +16,12 @@ Rig file (TOML), lengths in mm, angles in deg::
     side_mm = 145.0                 # picture frame: side L (hinge to hinge)
     height_mm = 180.0               # bias extension: free height h0 ...
     width_mm = 90.0                 # ... and width w0 (κ = h0/w0 · tan φ0)
+    force_convention = "crosshead"  # what the force column holds (default "crosshead"):
+                                    # "crosshead": crosshead force F (N), normalised here;
+                                    # "F/L": F over side length (N/m, Eq 3.16; BE: the
+                                    # PF-equivalent ψ_A/k2 of Eq 3.33), turned into
+                                    # N_s = F/L · 1/(2 cos(φ0 − θ/2)) (Eq 3.1);
+                                    # "F_s/L": N_s = F_s/L itself (N/m), used as it is
 
     [columns]                       # optional; these are the defaults
     force = "force_n"
@@ -35,6 +41,9 @@ Rig file (TOML), lengths in mm, angles in deg::
     branch = "positive"             # or "negative" (NCFs: tested the other way)
     # height_mm / width_mm / side_mm here override the rig's for this specimen
 
+The default ``force_convention`` is "crosshead", the only reading before the key existed,
+so an older rig file means what it meant. A card always holds N_s = F_s/L (N/m).
+
 Every problem raises `ShearTestError`, one line naming the file and the key, or the line
 and column of the CSV, at fault.
 """
@@ -48,7 +57,7 @@ import numpy as np
 
 from ...files import Document, FileFormatError, Table, csv_number, csv_rows, read_text
 from .bias_extension import BiasExtension
-from .picture_frame import PictureFrame
+from .picture_frame import PictureFrame, shear_per_crosshead
 
 #: Fewest data rows a specimen's CSV may have: a spline of 5 knots wants many more points.
 MIN_ROWS = 20
@@ -58,12 +67,15 @@ MAX_KNOTS = 100
 #: Finest angle spacing of a card's curve, deg (a 90 deg curve: 9,000 points).
 MIN_STEP_DEG = 0.01
 TESTS = ("picture_frame", "bias_extension")
+#: What a specimen's force column holds: raw crosshead force (N), or already normalised
+#: (N/m) as F/L (Eq 3.16) or as N_s = F_s/L (Eq 3.1 over L).
+CONVENTIONS = ("crosshead", "F/L", "F_s/L")
 BRANCHES = ("positive", "negative")
 _COLUMNS = {"force": "force_n", "displacement": "displacement_mm", "angle": "angle_deg"}
 _FIT = {"knots": 5, "jump_deg": 1.0, "friction": "keep", "max_angle_deg": 60.0, "max_divergence_deg": 2.0,
         "step_deg": 1.0}
 _DIMENSIONS = {"picture_frame": ("side_mm",), "bias_extension": ("height_mm", "width_mm")}
-_TOP = ("name", "description", "test", "phi0_deg", "side_mm", "height_mm", "width_mm", "columns", "fit", "specimen")
+_TOP = ("name", "description", "test", "phi0_deg", "force_convention", "side_mm", "height_mm", "width_mm", "columns", "fit", "specimen")
 
 
 class ShearTestError(FileFormatError):
@@ -89,12 +101,30 @@ class TestData:
 
 @dataclass(frozen=True)
 class Specimen:
-    """A specimen of the rig file: its data, branch and rig geometry (a PictureFrame or a
-    BiasExtension at the φ0 it was tested at)."""
+    """A specimen of the rig file: its data, branch, rig geometry (a PictureFrame or a
+    BiasExtension at the φ0 it was tested at) and force convention (`CONVENTIONS`)."""
 
     data: TestData
     branch: str
     rig: PictureFrame | BiasExtension
+    convention: str = "crosshead"
+
+    @property
+    def force_unit(self) -> str:
+        return "N" if self.convention == "crosshead" else "N/m"
+
+    def shear_force(self, force, theta):
+        """N_s (N/m) at θ (rad) of the force column's fit ``force(θ)`` (a callable)."""
+        if self.convention == "crosshead":
+            return self.rig.shear_force(force, theta)
+        factor = shear_per_crosshead(theta, self.rig.phi0) if self.convention == "F/L" else 1.0
+        return force(np.asarray(theta, dtype=float)) * factor
+
+    def pointwise_shear_force(self, force_n, theta, force):
+        """N_s (N/m) of each row (θ rad, force column value), ``force`` the fit."""
+        if self.convention == "crosshead":
+            return self.rig.pointwise_shear_force(force_n, theta, force)
+        return self.shear_force(lambda t: np.asarray(force_n, dtype=float), theta)
 
 
 @dataclass(frozen=True)
@@ -108,6 +138,7 @@ class RigFile:
     phi0_deg: float
     fit: dict
     specimens: list
+    force_convention: str = "crosshead"
 
 
 def read_test_csv(path, columns: dict) -> TestData:
@@ -161,6 +192,7 @@ def read_rig(path) -> RigFile:
     top = Table(doc, "", doc.read(), _TOP)
     test = top.string("test", choices=TESTS)
     phi0 = top.number("phi0_deg", 45.0, gt=0.0, lt=90.0)
+    convention = top.string("force_convention", "crosshead", choices=CONVENTIONS)
     columns = top.table("columns", tuple(_COLUMNS))
     names = {key: columns.string(key, default) for key, default in _COLUMNS.items()}
     fit = top.table("fit", tuple(_FIT))
@@ -196,9 +228,9 @@ def read_rig(path) -> RigFile:
                            f"specimen[{i}]")
         file = entry.string("file", hint="file must name the specimen's test CSV (relative to the rig file)")
         data = read_test_csv(doc.relative_file(f"specimen[{i}].file", file), names)
-        specimens.append(Specimen(data, branch, rig))
+        specimens.append(Specimen(data, branch, rig, convention))
     if not any(s.branch == "positive" for s in specimens):
         doc.missing("specimen", "at least one [[specimen]] must test the positive branch (a card needs "
                                 "[shear.positive])")
     return RigFile(Path(path), top.string("name") if top.has("name") else None,
-                   top.string("description", ""), test, phi0, options, specimens)
+                   top.string("description", ""), test, phi0, options, specimens, convention)
