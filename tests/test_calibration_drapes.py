@@ -106,6 +106,7 @@ def test_calibrate_drapes_command_writes_the_study_the_sample_and_the_report(tmp
     (["--parameter", f"{SD_KEY}=-1:4"], SD_KEY, "sd_deg"),
     ([], None, "--parameter KEY=LOW:HIGH"),
     (["--parameter", f"{SD_KEY}=1:4", "--posterior"], None, "--posterior belong(s) to a calibration from POINTS"),
+    (["--parameter", "fabric.imbalance_Nm=2:50"], "fabric.imbalance_Nm", "set in the study file first"),
 ])
 def test_calibrate_drapes_bad_parameters_are_one_line(tmp_path, capsys, args, key, valid):
     study = write_study(tmp_path, **SMALL)
@@ -140,3 +141,11 @@ def test_a_calibrated_study_that_would_not_find_its_files_is_refused_before_any_
                  "--out", str(out)]) == 2
     assert_one_line_error(capsys.readouterr().err, key="fabric.material", valid=["write it beside", "tiny.toml"])
     assert list((tmp_path / "elsewhere").iterdir()) == []
+
+
+def test_the_card_imbalance_is_a_parameter_once_the_study_sets_it(tmp_path):
+    from uqdrape.workflow.calibrate import parse_parameters, study_at
+
+    path = write_study(tmp_path, **{**SMALL, "fabric": {"material": "ebxhd936_like", "imbalance_Nm": 20.0}})
+    assert parse_parameters(["fabric.imbalance_Nm=2:50"], load_study(path)) == [Parameter("fabric.imbalance_Nm", 2.0, 50.0)]
+    assert study_at(path, {"fabric.imbalance_Nm": 7.5}).fabric.card().name == "ebxhd936_like (dN30 = 7.5 N/m)"

@@ -24,7 +24,6 @@ import xarray as xr
 from .. import files
 from .. import geometry as _geometry
 from ..drape import drape
-from ..material import load_material
 from ..material.scatter import card_scatter, scattered
 from ..schema import SOLVER_INPUTS, at_level
 from ..study.spec import CARD
@@ -89,7 +88,7 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
         crossover=np.stack([value["crossover_x"], value["crossover_y"]], axis=-1),
         seg_i=inputs.get("seg_i"), seg_j=inputs.get("seg_j"), gamma0=inputs.get("gamma0"),
         mode=solver.mode,
-        material=_materials(fabric.material, material, inputs.get(CARD)),
+        material=_materials(fabric, material, inputs.get(CARD)),
         blankholder_force=value["blankholder_force"], friction=value["friction"],
         sectors=process.sectors, blankholder_model=process.blankholder_model,
         tolerance=solver.tolerance_deg, max_iterations=solver.max_iterations,
@@ -106,13 +105,13 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
     return ds
 
 
-def _materials(card: str, material, scores):
-    """The material of a chunk: ``material`` (or the card loaded), or with card scatter
-    scores z one card per realisation (``uqdrape.material.scatter``)."""
-    base = load_material(card) if material is None else material
+def _materials(fabric, material, scores):
+    """The material of a chunk: ``material`` (or the fabric's card, ``Fabric.card``), or
+    with card scatter scores z one card per realisation (``uqdrape.material.scatter``)."""
+    base = fabric.card() if material is None else material
     if scores is None:
         return base
-    scatter = card_scatter(card)
+    scatter = card_scatter(fabric.material)
     return [scattered(base, scatter, z) for z in np.asarray(scores, dtype=float)]
 
 

@@ -97,6 +97,18 @@ class Fabric:
     crossover: tuple[float, float]
     #: extra angle closed between the generator paths at the crossover (thesis Fig 5.5)
     skew_deg: float = 0.0
+    #: the card's mid-angle imbalance ΔN(30°) moved to this value (N/m, F_s/L;
+    #: ``uqdrape.material.imbalance``); None: the card as it is
+    imbalance_Nm: float | None = None
+
+    def card(self):
+        """The Material this fabric drapes with: the card, its imbalance moved if asked."""
+        card = _material.load_material(self.material)
+        if self.imbalance_Nm is None:
+            return card
+        from ..material.imbalance import with_imbalance
+
+        return with_imbalance(card, self.imbalance_Nm)
 
 
 @dataclass(frozen=True)

@@ -88,7 +88,7 @@ KEYS = {
     "study": ("name", "seed", "realizations", "chunk_size", "description", "target", "max_realizations", "rare"),
     "study.target": ("qoi", "statistic", "half_width", "confidence"),
     "study.rare": ("qoi", "threshold", "cov", "max_drapes"),
-    "fabric": ("material", "spacing_mm", "orientation_deg", "pre_shear_deg", "skew_deg", "crossover"),
+    "fabric": ("material", "spacing_mm", "orientation_deg", "pre_shear_deg", "skew_deg", "crossover", "imbalance_Nm"),
     "process": ("blankholder_force_N", "friction", "sectors", "blankholder_model"),
     "solver": ("mode", "rings", "tolerance_deg", "max_iterations", "failure_budget"),
     **{f"uncertainty.{name}": (*keys, *_FIELD_COMMON, *(("sd_dof", "length_log_sd") if name == "zero_angle" else ()))
@@ -263,7 +263,15 @@ def _fabric(src: _Source, doc: dict, mould) -> Fabric:
     if not _inside(mould, *crossover):
         src.invalid("fabric.crossover", list(crossover),
                     f"the crossover must lie inside the mould's domain ({_describe(mould)})")
-    return Fabric(material, spacing, orientation, pre_shear, crossover, skew)
+    imbalance = t.number("imbalance_Nm", None, gt=0)
+    if imbalance is not None:
+        from ..material.imbalance import with_imbalance
+
+        try:
+            with_imbalance(card, imbalance)
+        except ValueError as err:
+            t.invalid("imbalance_Nm", str(err))
+    return Fabric(material, spacing, orientation, pre_shear, crossover, skew, imbalance)
 
 
 def _process(src: _Source, doc: dict) -> Process:

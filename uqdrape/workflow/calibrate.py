@@ -119,7 +119,8 @@ def parse_parameters(texts, study) -> list[Parameter]:
         if not is_number(value):
             raise ValueError(f"--parameter {text!r}: {key!r} is not a number of {study.path} (with defaults "
                              "filled); give a dotted study key such as process.friction or "
-                             "uncertainty.zero_angle.sd_deg, as KEY=LOW:HIGH")
+                             "uncertainty.zero_angle.sd_deg, as KEY=LOW:HIGH (a key without a default, "
+                             "such as fabric.imbalance_Nm, must be set in the study file first)")
         try:
             lower, upper = float(lo), float(hi)
         except ValueError:

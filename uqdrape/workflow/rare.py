@@ -31,7 +31,6 @@ import numpy as np
 from scipy.special import ndtr
 
 from ..ensemble import at, design_variables, drape_inputs, inputs_from_design, study_mould
-from ..material import load_material
 from ..reliability import importance_sampling
 from ..report import rare_rows
 from ..stats import realization_qois
@@ -54,7 +53,7 @@ def drape_limit_state(study, qoi: str, threshold: float, force: float | None = N
     in the nominal drape (U = 0), the same nodes in every batch."""
     names = design_variables(study)
     factors = len(study.uncertainty.factors)
-    surface, material = study_mould(study), load_material(study.fabric.material)
+    surface, material = study_mould(study), study.fabric.card()
 
     def values(U, k_max=None):
         X = np.array(U, dtype=float, ndmin=2)

@@ -41,7 +41,6 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 import numpy as np
 
 from ..ensemble import design_variables, drape_inputs, inputs_from_design
-from ..material import load_material
 from ..schema import SOLVER_INPUTS
 from ..stats.qoi import check_qois, realization_qois
 
@@ -195,7 +194,7 @@ class _Forward:
 
     def __init__(self, study, qoi):
         self.study, self.qoi = study, qoi
-        self.surface, self.material = study.geometry.build_mould(), load_material(study.fabric.material)
+        self.surface, self.material = study.geometry.build_mould(), study.fabric.card()
         self.input_sizes = [len(input_names(study))]
         self.output_sizes = [len(qoi)] * len(study.force_levels)
 

@@ -30,6 +30,8 @@ def architectures() -> list[str]:
 def describe_study(s) -> str:
     """A few lines saying what a validated study will run."""
     material = Path(s.fabric.material).name
+    if s.fabric.imbalance_Nm is not None:
+        material += f" with dN(30 deg) = {s.fabric.imbalance_Nm:g} N/m"
     levels_ = ", ".join(f"{f:g}" for f in s.force_levels)
     force = f"sweep {levels_} N" if s.is_sweep else f"{levels_} N"
     varying = []
