@@ -14,7 +14,7 @@ from uqdrape.material.imbalance import imbalance, with_imbalance
 from uqdrape.material.model import MaterialError
 from uqdrape.stats import line_scalars
 from uqdrape.study import StudyError, load_study
-from uqdrape.symmetry import _gaps, gap_model, imbalance_bounds
+from uqdrape.symmetry import gap_model, imbalance_bounds, quadrant_gaps
 
 from conftest import assert_one_line_error, write_study
 
@@ -91,8 +91,8 @@ SURFACE, SPACING, RINGS = NoseCone(), 5.0, 20
 
 def _ratio(value, force, friction):
     kw = {"friction": friction, "blankholder_model": "radial"}
-    k_max = _gaps(SURFACE, SPACING, RINGS, DERIVED, [0.0], None, kw)[1]
-    gaps = _gaps(SURFACE, SPACING, RINGS, with_imbalance(DERIVED, value), [0.0, force], k_max, kw)[0]
+    k_max = quadrant_gaps(SURFACE, SPACING, RINGS, DERIVED, [0.0], None, kw)[1]
+    gaps = quadrant_gaps(SURFACE, SPACING, RINGS, with_imbalance(DERIVED, value), [0.0, force], k_max, kw)[0]
     return gaps[1] / gaps[0]
 
 
@@ -132,7 +132,7 @@ def test_the_trial_posterior_covers_a_known_imbalance():
     model = gap_model(SURFACE, SPACING, rings, DERIVED, forces, zero_angle_sd_deg=2.0, realizations=8,
                       grid=(1.0, 100.0), points=13, **kw)
     rng = np.random.default_rng(2007)
-    k_max = _gaps(SURFACE, SPACING, rings, DERIVED, [0.0], None, kw)[1]
+    k_max = quadrant_gaps(SURFACE, SPACING, rings, DERIVED, [0.0], None, kw)[1]
     parts = drape(SURFACE, SPACING, rings, mode="energy", material=with_imbalance(DERIVED, truth),
                   blankholder_force=np.tile(forces, trials),
                   gamma0=rng.normal(0.0, 2.0, (trials * len(forces), 2 * rings, 2 * rings)), **kw)

@@ -62,7 +62,10 @@ class SymmetrisingForce:
                 f"at {self.force:.0f} N (bracket {self.bracket[0]:g}-{self.bracket[1]:g} N)")
 
 
-def _gaps(surface, spacing, rings, material, forces, k_max, drape_kwargs):
+def quadrant_gaps(surface, spacing, rings, material, forces, k_max, drape_kwargs):
+    """The −/+ gap (deg) of one energy drape of ``material`` at each blank-holder force of
+    ``forces`` (N), averaged over nodes 1..``k_max`` (None: the largest valid in every
+    drape), and that k_max. ``drape_kwargs`` (a dict) go to :func:`uqdrape.drape.drape`."""
     ds = drape(surface, spacing, rings, mode="energy", material=material, blankholder_force=list(forces),
                **drape_kwargs)
     scalars = line_scalars(ds, k_max) if k_max else line_scalars(ds)
@@ -99,7 +102,7 @@ def symmetrising_force(surface, spacing, rings, material, *, fraction=0.1, force
         raise ValueError(f"batch must be >= 1 and rtol > 0, got batch={batch!r}, rtol={rtol!r}")
     forces = sorted({float(f) for f in forces if 0.0 < f <= f_max})
     first = [0.0, *forces]
-    gaps, k_max = _gaps(surface, spacing, rings, material, first, None, drape_kwargs)
+    gaps, k_max = quadrant_gaps(surface, spacing, rings, material, first, None, drape_kwargs)
     seen = dict(zip(first, gaps))
     gap0 = seen[0.0]
     target = fraction * gap0
@@ -125,14 +128,14 @@ def symmetrising_force(surface, spacing, rings, material, *, fraction=0.1, force
             return result(None, top, None)
         more = [min(top * 2.0 ** (k + 1), f_max) for k in range(batch)] if top > 0 else [min(126.0, f_max)]
         more = sorted(set(more))
-        seen.update(zip(more, _gaps(surface, spacing, rings, material, more, k_max, drape_kwargs)[0]))
+        seen.update(zip(more, quadrant_gaps(surface, spacing, rings, material, more, k_max, drape_kwargs)[0]))
     lo, hi = bracket()
     while hi / max(lo, 1e-300) - 1.0 > rtol:
         if lo == 0.0:
             inner = [hi * (k + 1) / (batch + 1) for k in range(batch)]
         else:
             inner = [lo * (hi / lo) ** ((k + 1) / (batch + 1)) for k in range(batch)]
-        seen.update(zip(inner, _gaps(surface, spacing, rings, material, inner, k_max, drape_kwargs)[0]))
+        seen.update(zip(inner, quadrant_gaps(surface, spacing, rings, material, inner, k_max, drape_kwargs)[0]))
         lo, hi = bracket()
     g_lo, g_hi = seen[lo], seen[hi]
     w = (g_lo - target) / (g_lo - g_hi)
@@ -190,12 +193,12 @@ def imbalance_bounds(surface, spacing, rings, material, *, symmetric_at=(), asym
         raise ValueError(f"fraction must lie in (0, 1) and bounds be 0 < low < high N/m, got {fraction!r}, {bounds!r}")
     card = _family(material)
     forces = [0.0, *sorted({*symmetric, *asymmetric})]
-    k_max = _gaps(surface, spacing, rings, material, [0.0], None, drape_kwargs)[1]
+    k_max = quadrant_gaps(surface, spacing, rings, material, [0.0], None, drape_kwargs)[1]
     ratios = {}
 
     def ratio(log_value: float, force: float) -> float:
         if log_value not in ratios:
-            gaps = _gaps(surface, spacing, rings, card(math.exp(log_value)), forces, k_max, drape_kwargs)[0]
+            gaps = quadrant_gaps(surface, spacing, rings, card(math.exp(log_value)), forces, k_max, drape_kwargs)[0]
             ratios[log_value] = dict(zip(forces, np.divide(gaps, gaps[0])))
         return ratios[log_value][force] - fraction
 
@@ -300,7 +303,7 @@ def gap_model(surface, spacing, rings, material, forces, *, zero_angle_sd_deg=0.
     n = int(rings)
     draws = np.random.default_rng(seed).normal(0.0, zero_angle_sd_deg, (R, 2 * n, 2 * n))
     gamma0 = np.tile(draws, (len(forces), 1, 1))
-    k_max = _gaps(surface, spacing, rings, material, [0.0], None, drape_kwargs)[1]
+    k_max = quadrant_gaps(surface, spacing, rings, material, [0.0], None, drape_kwargs)[1]
     card = _family(material)
     values = np.geomspace(grid[0], grid[1], points)
     mean = np.empty((points, len(forces)))
