@@ -96,7 +96,8 @@ def _levels_headline(ds: xr.Dataset) -> dict:
         crossover=tuple(fabric["crossover"]), tolerance=solver["tolerance_deg"],
         max_iterations=solver["max_iterations"])
     gap = -line_scalars(ds, found.k_max)["asymmetry"].mean("realization")
-    out = {"material card": fabric["material"], "blank-holder model": process["blankholder_model"]}
+    out = {"material card": fabric["material"], "blank-holder model": process["blankholder_model"],
+           "friction": process["friction"]}
     out.update({f"gap - minus + quadrants at {float(f):g} N (deg)": _round(float(gap.sel(blankholder_force=f)))
                 for f in ds["blankholder_force"].values})
     out["symmetrising force, gap down to 10 % of 0 N (N)"] = (
@@ -243,13 +244,16 @@ GALLERY = (
     Entry("hemisphere-skew", "Figs 5.5/5.6", "vs_skew.png", _skew_headline,
           "total blank-holder energy rises as the generator paths are skewed 0-55 deg; a few J (axis to 7 J)"),
     Entry("nosecone-blankholder-levels", "Figs 5.9-5.12", "lines.png", _levels_headline,
-          "the - quadrants shear more at 0 N; the gap closes with force, symmetric at 378 N"),
+          "the - quadrants shear more at 0 N; the gap closes with force, symmetric at 378 N; here the "
+          "picture-frame-scale card, an assumed shape (see card-imbalance below)"),
     Entry("nosecone-blankholder-levels-slip", "Figs 5.9-5.12, blank-holder friction on the full slip",
           "lines.png", _levels_headline,
-          "circumferential restraint not modelled (radial draw-in only); here friction on the whole slip"),
+          "circumferential restraint not modelled (radial draw-in only); here friction on the whole slip, the "
+          "picture-frame-scale card (assumed shape)"),
     Entry("nosecone-blankholder-levels-architecture", "Figs 5.9-5.12 with the ch. 4 card", "lines.png",
           _levels_headline, "almost symmetric at 252 N, entirely symmetric at 378 N (EBXhd-936, "
-          "measured); here the card derived from its architecture and the force that brings the gap to 10 %"),
+          "measured); here the card derived from its architecture (a model prediction) and the force that brings the "
+          "gap to 10 %"),
     Entry("nosecone-blankholder-levels-architecture-slip", "Figs 5.9-5.12 with the ch. 4 card, full slip",
           "lines.png", _levels_headline, "as the entry above, blank-holder friction on the whole slip"),
     Entry("plate-spacing", "Figs 5.15/5.16", "sd_shear.png", _plate_headline,
