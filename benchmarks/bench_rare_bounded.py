@@ -1,5 +1,5 @@
 """Rare-event estimates against plain Monte Carlo on cases with bounded factors and maxima
-over the net (issue 39). Run: python benchmarks/bench_rare_bounded.py [--case energy|lock]
+over the net (issue 39). Run: python benchmarks/bench_rare_bounded.py [--case energy|lock|energy-normal|dome]
 [--case analytic] [--mc 100000] [--repeats 10] [--p 1e-3] [--workers N]
 
 For each case the threshold t is the (1 - p) quantile of ``--mc`` plain drapes (their P
@@ -18,6 +18,11 @@ would need, (1 - P) / (P CoV^2), over the estimator's drapes: the ratio the issu
 - ``lock``: geodesic drapes of the 50 mm dome, 8 rings, iid spacing cv 2 % and a skew of sd
   3 deg: P(lock_margin >= t), the largest cell shear over its locking angle (a maximum over
   the net, locks at either skew sign).
+
+- ``energy-normal``: the ``energy`` case with friction N(0.2, 0.02) (every factor normal).
+- ``dome``: the headline case of ``bench_fewer_drapes.py`` (part ``drape``): geodesic drapes
+  of the 50 mm dome, 6 rings, spacing cv 2 %, skew sd 1 deg: P(mean_shear_positive >= t),
+  one design point.
 
 - ``analytic``: 30 repeats on limit states of known P (``uqdrape.reliability``'s linear
   and bounded-factor ones, and two half-spaces), no drapes: the stated CoV against the
@@ -91,6 +96,10 @@ mean = 0.0
 sd = 3.0
 """),
 }
+CASES["energy-normal"] = ("blankholder_energy", CASES["energy"][1].replace("rare-energy", "rare-energy-normal").replace(
+    'dist = "uniform"\nbounds = [0.15, 0.3]', 'dist = "normal"\nmean = 0.2\nsd = 0.02'))
+CASES["dome"] = ("mean_shear_positive", CASES["lock"][1].replace("rare-lock", "rare-dome").replace(
+    "rings = 8", "rings = 6").replace("sd = 3.0", "sd = 1.0"))
 #: Plain drapes a batch (one call of the limit state in a worker).
 BATCH = 1000
 

@@ -85,6 +85,48 @@ def test_a_stale_lock_of_a_dead_local_process_is_taken_over(tmp_path):
     assert not (out / LOCK).exists()
 
 
+def test_two_runs_that_find_the_same_stale_lock_cannot_both_take_it(tmp_path, monkeypatch):
+    """Both read the dead run's lock before either takes it over (held there by a barrier):
+    the first removes it and makes its own; the second must then see a live lock, not
+    remove the first's and take the folder too (before: both held it)."""
+    import socket
+    import subprocess
+    import sys
+
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / LOCK).write_text(json.dumps({"pid": int(dead.stdout), "host": socket.gethostname(), "started": "x"}))
+    both_read, stale = threading.Barrier(2, timeout=10), hygiene.stale
+
+    def stale_after_both_read(owner):
+        both_read.wait()
+        return stale(owner)
+
+    monkeypatch.setattr(hygiene, "stale", stale_after_both_read)
+    outcome, release = [], threading.Event()
+
+    def run():
+        try:
+            with run_lock(out):
+                outcome.append("held")
+                release.wait(10)
+        except RunLocked:
+            outcome.append("refused")
+
+    threads = [threading.Thread(target=run) for _ in range(2)]
+    for t in threads:
+        t.start()
+    deadline = time.monotonic() + 10
+    while len(outcome) < 2 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    release.set()
+    for t in threads:
+        t.join(10)
+    assert sorted(outcome) == ["held", "refused"]
+    assert not (out / LOCK).exists()
+
+
 def test_the_lock_never_exists_without_its_owner(tmp_path, monkeypatch):
     """A writer slowed between making its lock and linking it into place: a second run
     in that window takes the folder, and the slow one is then refused (the old lock, made

@@ -14,9 +14,12 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import fcntl
+import hashlib
 import json
 import os
 import socket
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -74,8 +77,12 @@ def hold_lock(where, kind: str, create, read, remove):
     """Hold the lock of the run at ``where`` (a ``kind``: "folder", "store") for the block:
     ``create(record)`` makes the lock whole with the bytes given, or raises
     FileExistsError if one exists; ``read()`` its bytes; ``remove()`` deletes it. An
-    existing lock of a run gone from this host is taken over (once); a live run's, one
-    from another host, or one uqdrape did not write raise RunLocked naming ``where``."""
+    existing lock of a run gone from this host is taken over (once): inside
+    :func:`_takeover`, which one process of this host at a time enters, it is removed only
+    if it still is the stale lock read before, so two runs that found the same stale lock
+    cannot both remove it and take the location (only runs of this host judge a lock
+    stale, so a host-local section is enough). A live run's lock, one from another host,
+    or one uqdrape did not write raise RunLocked naming ``where``."""
     taken = False
     while True:
         try:
@@ -94,12 +101,33 @@ def hold_lock(where, kind: str, create, read, remove):
             raise RunLocked(errno.EBUSY, f"another run holds {LOCK} of this {kind} (pid {owner['pid']} on "
                             f"{owner['host']}, started {owner['started']}); wait for it, or use another --out "
                             f"(delete {LOCK} only if that run is certainly gone)", str(where)) from None
-        remove()  # stale: its run on this host is gone
+        with _takeover(where):
+            try:
+                still = lock_owner(read()) == owner
+            except OSError:  # gone: another run took it over and has not made its own yet
+                still = False
+            if still:
+                remove()  # stale: its run on this host is gone
         taken = True
     try:
         yield
     finally:
         remove()
+
+
+@contextlib.contextmanager
+def _takeover(where):
+    """A section one process of this host at a time enters for the location ``where`` (a
+    folder, resolved, or a store URL): flock on a file of the temporary folder named by its
+    hash (the file is kept: removing it would let two holders lock two different files)."""
+    key = str(where.resolve()) if isinstance(where, Path) else str(where)
+    name = hashlib.sha256(key.encode()).hexdigest()[:32]
+    fd = os.open(Path(tempfile.gettempdir()) / f"uqdrape-takeover-{name}", os.O_RDWR | os.O_CREAT, 0o600)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)
 
 
 def run_lock(out: Path):
