@@ -195,6 +195,52 @@ def test_nodes_go_down_a_vertical_wall(tmp_path):
     assert surface.distance(P[st == 0]).max() <= 1e-9
 
 
+
+def _sharp_box(tmp_path, half=50.0, depth=40.0):
+    """A box 2 half x 2 half x depth mm, top z = 0, foot open, triangulated to 10 mm edges, so
+    that its sharp edges have vertices where a 5 mm net's arms cross them."""
+    box = trimesh.creation.box(extents=(2 * half, 2 * half, depth))
+    box.apply_translation((0.0, 0.0, -depth / 2))
+    v, f = trimesh.remesh.subdivide_to_size(box.vertices, box.faces, max_edge=10.0)
+    keep = ~(v[f][:, :, 2] <= -depth + 1e-9).all(1)
+    return MeshSurface(_save(trimesh.Trimesh(v, f[keep], process=False), tmp_path / "box.stl"))
+
+
+def test_the_normal_at_a_vertex_on_a_sharp_edge_is_the_edge_s_bisector(tmp_path):
+    """At a vertex on the top's right-angled edges every face around it ties for closest; the
+    normal there is the bisector of top and wall whichever face wins (issue 38: it was the
+    winning face's own normal, top or wall by face order), and 1 mm in from the edge it is
+    turned half way (blend 2 mm) on faces that touch the edge at that vertex alone."""
+    from uqdrape.geometry.compiled import evaluate_normal
+
+    surface = _sharp_box(tmp_path)
+    r = np.sqrt(0.5)
+    edge = np.array([[50.0, 0.0, 0.0], [-50.0, 0.0, 0.0], [0.0, 50.0, 0.0], [0.0, -50.0, 0.0]])
+    out = np.sign(edge) * np.array([r, r, 0.0]) + np.array([0.0, 0.0, r])
+    np.testing.assert_allclose(evaluate_normal(surface.kernel, edge), out, atol=1e-12)
+    inner = evaluate_normal(surface.kernel, edge * 0.98)  # 1 mm from the edge, at the vertex's ray
+    np.testing.assert_allclose(np.degrees(np.arccos(inner[:, 2])), 22.5, atol=2.0)
+
+
+def test_a_symmetric_box_loses_the_same_nodes_on_every_side(tmp_path):
+    """Box 100 x 100 x 40 mm, 5 mm net of 14 rings from the top's centre, fibres along the
+    sides: each arm reaches the edge at ring 10, on a mesh vertex, and runs 4 nodes down its
+    wall. Only the four corner squares past both walls (|i|, |j| > 10: fabric a kinematic
+    net cannot lay round a sharp box corner) may stay unplaced; on the old normal one arm's
+    step over the edge found no root, and every node of the two quadrants beside it that
+    depends on that arm was lost, all on one side of the flat blank (issue 38)."""
+    from uqdrape.drape import drape
+
+    n = 14
+    ds = drape(_sharp_box(tmp_path), S, n)
+    st = ds.status.values[0]
+    i, j = np.meshgrid(np.arange(-n, n + 1), np.arange(-n, n + 1), indexing="ij")
+    beside = np.minimum(np.abs(i), np.abs(j)) <= 10
+    assert (st[beside] == 0).all(), f"unplaced beside the corners: {int((st[beside] != 0).sum())}"
+    z = ds.z.values[0]
+    for arm in (z[n:, n], z[n, n:], z[::-1, n][n:], z[n, ::-1][n:]):
+        np.testing.assert_allclose(arm[11:], -S * np.arange(1, 5), atol=1e-9)
+
 # -- batch == single -----------------------------------------------------------------------
 @pytest.mark.parametrize("mode", ["geodesic", "energy"])
 def test_a_batch_on_a_mesh_gives_the_numbers_of_single_calls(spheres, mode):
