@@ -191,10 +191,16 @@ def fill(kind, par, memo, a, b, c, la, lb, sign_ij, tol):
     fibre-2 neighbour ``b``, on the side away from the diagonal-opposite node ``c``.
 
     ``sign_ij`` is (i_node - i_a) * (j_node - j_b) = +-1: the orientation that a
-    right-handed cell must keep (a node whose cell turns over is FOLDED). Returns (q, status).
+    right-handed cell must keep (a node whose cell turns over is FOLDED). Neighbours closer
+    than ``tol`` (mm) span no circle (a cell folded flat into a sharp corner, its two
+    neighbours on one point): the node is NO_INTERSECTION, not placed wherever round-off
+    points. Returns (q, status).
     """
     ab = (b[0] - a[0], b[1] - a[1], b[2] - a[2])
     d = math.sqrt(_dot(ab, ab))
+    if d <= tol:
+        parents = math.isfinite(a[0] + a[1] + a[2] + b[0] + b[1] + b[2] + c[0] + c[1] + c[2])
+        return NAN3, _status(False, False, parents)
     e = (ab[0] / d, ab[1] / d, ab[2] / d)
     along = (la * la - lb * lb + d * d) / (2 * d)
     rho = math.sqrt(la * la - along * along)

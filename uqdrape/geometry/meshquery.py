@@ -385,11 +385,13 @@ def _smooth_normal(p, f, w):
 @jit
 def normal(p, x, y, z, memo):
     """Unit normal of the mesh at its point closest to (x, y, z): the interpolated normal,
-    turned towards the bisector of a sharp edge (faces meeting beyond the crease angle) within
-    EDGE_BLEND of it, as if the edge were rounded for the tangent plane alone, so that a node
-    on or next to the edge steps over it (the next node may lie a right angle round);
-    ``memo`` as in ``closest``."""
-    f, _, w, _, _ = closest(p, x, y, z, memo)
+    turned within EDGE_BLEND of a sharp edge (faces meeting beyond the crease angle) towards
+    the edge's bisector, as if the edge were rounded for the tangent plane alone, so that a
+    node on or next to the edge steps over it (the next node may lie a right angle round);
+    ``memo`` as in ``closest``. A face that meets a sharp edge at one corner only (a creased
+    corner, no creased edge there) turns towards that vertex's normal, by the distance to
+    the vertex, so that which face wins a tie at a vertex on the edge does not matter."""
+    f, q, w, _, _ = closest(p, x, y, z, memo)
     if f < 0:
         return (math.nan, math.nan, math.nan)
     n = _smooth_normal(p, f, w)
@@ -399,7 +401,7 @@ def normal(p, x, y, z, memo):
     cr = (e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0])
     area2 = math.sqrt(_dot(cr, cr))
     corners = (a, b, c)
-    best, near = math.inf, -1
+    best, target = math.inf, nf
     for k in range(3):  # edge k runs from corner k to k + 1; its distance is w[k + 2] times its height
         g = int(p[int(p[OFF_NB]) + 3 * f + k])
         if g < 0 or _dot(nf, _face_normal(p, g)) >= p[COS_CREASE]:
@@ -407,13 +409,21 @@ def normal(p, x, y, z, memo):
         e = _sub(corners[(k + 1) % 3], corners[k])
         d = w[(k + 2) % 3] * area2 / math.sqrt(_dot(e, e))
         if d < best:
-            best, near = d, g
-    if near < 0 or best >= p[EDGE_BLEND]:
+            m = _face_normal(p, g)
+            best, target = d, (0.5 * (nf[0] + m[0]), 0.5 * (nf[1] + m[1]), 0.5 * (nf[2] + m[2]))
+    for k in range(3):
+        v, creased = _corner(p, f, k)
+        if not creased:
+            continue
+        r = _sub(q, corners[k])
+        d = math.sqrt(_dot(r, r))
+        if d <= best:  # at the vertex itself its normal, whichever face won the tie
+            o = int(p[OFF_VN]) + 3 * v
+            best, target = d, (p[o], p[o + 1], p[o + 2])
+    if best >= p[EDGE_BLEND]:
         return n
-    m = _face_normal(p, near)
     u = best / p[EDGE_BLEND]
-    s0, s1, s2 = (1 - u) * 0.5 * (nf[0] + m[0]) + u * n[0], (1 - u) * 0.5 * (nf[1] + m[1]) + u * n[1], \
-        (1 - u) * 0.5 * (nf[2] + m[2]) + u * n[2]
+    s0, s1, s2 = (1 - u) * target[0] + u * n[0], (1 - u) * target[1] + u * n[1], (1 - u) * target[2] + u * n[2]
     s = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
     return (s0 / s, s1 / s, s2 / s)
 
