@@ -420,6 +420,18 @@ def _cell(text: str) -> str:
     return text.replace("|", "\\|")
 
 
+def _setup(entry: Entry) -> str:
+    """What an entry's numbers rest on: its card and what the card is, its blank-holder
+    model and friction (read from the study file)."""
+    from uqdrape.material import load_material
+    from uqdrape.study import load_study
+
+    st = load_study(ROOT / entry.study)
+    card = load_material(st.fabric.material)
+    return (f"setup: card {card.name} ({card.description}), {st.process.blankholder_model} blank-holder model, "
+            f"friction {st.process.friction:g}")
+
+
 def write_readme() -> Path:
     """Rebuild ``results/gallery/README.md`` from the headline files of the entries present."""
     lines = [
@@ -452,7 +464,8 @@ def write_readme() -> Path:
         numbers = "<br>".join(_cell(f"{k}: {v}") for k, v in record["headline"].items())
         lines.append(f"| [{entry.name}]({entry.name}/index.html)<br>"
                      f"[![{entry.name}]({entry.name}/{entry.picture})]({entry.name}/index.html) "
-                     f"| {_cell(record['thesis_figure'])}: {_cell(record['thesis'])} | {numbers} |")
+                     f"| {_cell(record['thesis_figure'])}: {_cell(record['thesis'])}<br>{_cell(_setup(entry))} "
+                     f"| {numbers} |")
     lines += _comparison_section()
     lines += ["", "## Beyond a study file", "",
               "- [card-slope](card-slope/card_slope.png): the same specimen sd on cards of slope 1, 1/2 and 1/4: "
