@@ -59,7 +59,7 @@ def test_the_family_refuses_what_it_cannot_scale(card, value, words):
 
 def test_a_study_drapes_the_moved_card(tmp_path):
     from uqdrape.ensemble import drape_inputs
-    from uqdrape.workflow.text import describe_study
+    from uqdrape.workflow.help_text import describe_study
 
     sections = {"geometry": {"kind": "nose_cone", "radius": None}, "fabric": {"material": "ebxhd936_derived", "imbalance_Nm": 20.0},
                 "solver": {"mode": "energy", "rings": 8}, "study": {"realizations": 1, "chunk_size": 1}}

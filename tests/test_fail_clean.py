@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 from uqdrape.cli import main as cli
 from uqdrape.ensemble import open_ensemble
 from uqdrape.ensemble import run as run_module
-from uqdrape.ensemble.hygiene import LOCK, RunLocked
+from uqdrape.ensemble.lock import LOCK, RunLocked
 from uqdrape.study import load_study
 from uqdrape.workflow import run_study
 

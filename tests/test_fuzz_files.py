@@ -33,7 +33,7 @@ import trimesh
 import uqdrape.cli as cli
 from uqdrape.ensemble.location import plan_chunks
 from conftest import assert_one_line_error, write_study
-from uqdrape.ensemble.hygiene import LOCK, run_lock
+from uqdrape.ensemble.lock import LOCK, run_lock
 from uqdrape.ensemble import open_ensemble, read_manifest
 from uqdrape.ensemble.location import MANIFEST
 from uqdrape.ensemble.store import Folder, chunk_intact

@@ -43,7 +43,7 @@ from uqdrape.report.style import COLUMN_IN, DPI, ROW_IN
 from uqdrape.report.html import default_histogram_nodes
 from uqdrape.report.plan import PLAN
 from uqdrape.schema import by_force
-from uqdrape.stats import KINDS, convergence, exceedance_probability, node_statistics, samples_needed, study_kind
+from uqdrape.stats import STUDY_KINDS, convergence, exceedance_probability, node_statistics, samples_needed, study_kind
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 RINGS = 6
@@ -518,7 +518,7 @@ def test_each_kind_s_report_leaves_out_what_does_not_apply(ensemble, sweep, tmp_
     assert design["max_sd_deg"]["value"] == random["max_sd_deg"]["value"] and design["samples_needed"] is None
     for name in ("histograms.png", "convergence.png", "wrinkle_risk.png"):
         assert not (tmp_path / "design" / name).exists()
-    assert {kind for spec in PLAN for kind in spec.kinds} == set(KINDS)
+    assert {kind for spec in PLAN for kind in spec.kinds} == set(STUDY_KINDS)
 
 
 def test_every_page_states_its_provenance_and_the_study_once(ensemble, tmp_path, unrasterised):

@@ -14,8 +14,8 @@ import xarray as xr
 
 from conftest import assert_one_line_error, write_study
 from uqdrape.cli import main as cli
-from uqdrape.ensemble import hygiene, open_ensemble
-from uqdrape.ensemble.hygiene import LOCK, RunLocked, run_lock
+from uqdrape.ensemble import lock as lockmod, open_ensemble
+from uqdrape.ensemble.lock import LOCK, RunLocked, run_lock
 
 
 def _run(path, *extra):
@@ -97,13 +97,13 @@ def test_two_runs_that_find_the_same_stale_lock_cannot_both_take_it(tmp_path, mo
     out = tmp_path / "run"
     out.mkdir()
     (out / LOCK).write_text(json.dumps({"pid": int(dead.stdout), "host": socket.gethostname(), "started": "x"}))
-    both_read, stale = threading.Barrier(2, timeout=10), hygiene.stale
+    both_read, stale = threading.Barrier(2, timeout=10), lockmod.stale
 
     def stale_after_both_read(owner):
         both_read.wait()
         return stale(owner)
 
-    monkeypatch.setattr(hygiene, "stale", stale_after_both_read)
+    monkeypatch.setattr(lockmod, "stale", stale_after_both_read)
     outcome, release = [], threading.Event()
 
     def run():
@@ -132,7 +132,7 @@ def test_the_lock_never_exists_without_its_owner(tmp_path, monkeypatch):
     in that window takes the folder, and the slow one is then refused (the old lock, made
     empty and filled afterwards, let both through: an empty lock counted as stale)."""
     out = tmp_path / "run"
-    link, entered, proceed = hygiene.os.link, threading.Event(), threading.Event()
+    link, entered, proceed = lockmod.os.link, threading.Event(), threading.Event()
 
     def slow_link(src, dst):
         if threading.current_thread().name == "slow":
@@ -140,7 +140,7 @@ def test_the_lock_never_exists_without_its_owner(tmp_path, monkeypatch):
             proceed.wait(10)
         return link(src, dst)
 
-    monkeypatch.setattr(hygiene.os, "link", slow_link)
+    monkeypatch.setattr(lockmod.os, "link", slow_link)
     outcome = {}
 
     def slow():

@@ -475,7 +475,7 @@ def export_result(result: PathLike, to: Sequence[str], *, out: PathLike | None =
     --------
     >>> paths, notes = ud.export_result("drape.nc", ["vtk", "flat"])  # doctest: +SKIP
     """
-    from .workflow.commands import export_result as export
+    from .workflow.single_shot import export_result as export
 
     return export(result, tuple(to), out=out, mesh=mesh, tolerance=tolerance, reference=reference,
                   flavours=tuple(flavours), trim=trim, ply=ply)
@@ -563,7 +563,7 @@ def drape_mould(mould: Surface, spacing: float = 5.0, rings: int = 20, *, materi
     """
     from .drape import drape
     from .ensemble.progress import Progress
-    from .workflow.commands import check_drape_inputs
+    from .workflow.single_shot import check_drape_inputs
 
     named = material if isinstance(material, str | os.PathLike) else None
     check_drape_inputs(spacing, rings, options, named and str(named))
@@ -645,7 +645,7 @@ def derive_material(architecture: PathLike, out: PathLike, plot: bool | PathLike
     >>> text.startswith("wrote")
     True
     """
-    from .workflow.commands import derive_material as derive
+    from .workflow.single_shot import derive_material as derive
 
     return derive(str(architecture), out, plot)
 
@@ -677,7 +677,7 @@ def fit_material(rig: PathLike, out: PathLike, plot: bool | PathLike | None = No
     >>> ud.fit_material(rig, f"{work}/pf.toml").startswith("wrote")
     True
     """
-    from .workflow.commands import fit_material as fit
+    from .workflow.single_shot import fit_material as fit
 
     return fit(rig, out, plot)
 

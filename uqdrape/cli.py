@@ -268,7 +268,7 @@ def _command(sub, name: str, func, *, raw: bool = False, **kwargs) -> argparse.A
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .workflow.text import architectures, geometry_help
+    from .workflow.help_text import architectures, geometry_help
 
     p = argparse.ArgumentParser(
         prog="uqdrape",
@@ -522,7 +522,7 @@ class _Version(argparse.Action):
         super().__init__(option_strings, dest, nargs=0, help="print the version and exit")
 
     def __call__(self, parser, namespace, values, option_string=None):
-        from .workflow.text import version_text
+        from .workflow.help_text import version_text
 
         print(version_text())
         parser.exit()

@@ -33,6 +33,9 @@ FORCE = "blankholder_force"
 #: The per-realisation force (N) each drape of an ensemble was run with (see the module docstring).
 APPLIED_FORCE = "applied_blankholder_force"
 
+#: The design record's draw-in statistic (mm): the 95 % quantile of the largest draw-in.
+DRAW_IN = "q95_max_draw_in"
+
 #: Net quadrants by the signs of (i, j). On a dome draped from its pole the quadrants with
 #: i*j > 0 shear positively ("+ quadrants"), the others negatively.
 QUADRANTS = ("++", "-+", "--", "+-")

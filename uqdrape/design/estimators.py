@@ -7,12 +7,12 @@ import numpy as np
 import xarray as xr
 from scipy.special import ndtri
 
+from ..schema import DRAW_IN, REALIZATION
 from ..stats import line_means, mean_statistics, quantile_statistics, wilson_interval
 from ..study.spec import DESIGN_OBJECTIVES
 
-#: Statistic of the draw-in limit, and the value of a design that breaks it before its
-#: excess (mm) is added: above every feasible objective (probabilities, degrees, mm).
-DRAW_IN = "q95_max_draw_in"
+#: The value of a design that breaks the draw-in limit before its excess (mm) is added:
+#: above every feasible objective (probabilities, degrees, mm).
 INFEASIBLE = 1.0e6
 STATISTICS = tuple(DESIGN_OBJECTIVES)
 #: Statistic of a ``[design] rare`` constraint: the candidate's rare probability estimate.
@@ -34,7 +34,7 @@ def statistics(values: dict, confidence: float) -> dict[str, tuple]:
     for name, v in values.items():
         v = np.asarray(v, dtype=float)
         kind = DESIGN_OBJECTIVES[name][1]
-        drapes = xr.DataArray(v).rename({f"dim_{v.ndim - 1}": "realization"})
+        drapes = xr.DataArray(v).rename({f"dim_{v.ndim - 1}": REALIZATION})
         if kind == "probability":
             n = np.count_nonzero(~np.isnan(v), axis=-1)
             k = np.nansum(v, axis=-1)

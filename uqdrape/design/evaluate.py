@@ -16,6 +16,7 @@ import xarray as xr
 
 from ..drape import max_shear_lines
 from ..ensemble import Progress, at, compute_tasks, drape_inputs, sampled_inputs
+from ..schema import REALIZATION
 from ..stats import realization_qois
 from ..study import identity
 from .estimators import RARE, per_realization, rare_statistic, statistics
@@ -50,10 +51,10 @@ def drape_design(study, realizations, force: float, sectors, friction: float) ->
     return xr.Dataset({
         **realization_qois(ds, RECORD_QOIS).drop_attrs().data_vars,
         "line_shear": max_shear_lines(ds)["shear"],
-        "node_locked": locked.sum("realization"),
-        "node_valid": valid.sum("realization"),
-        "node_x": ds["x"].where(valid).sum("realization"),
-        "node_y": ds["y"].where(valid).sum("realization"),
+        "node_locked": locked.sum(REALIZATION),
+        "node_valid": valid.sum(REALIZATION),
+        "node_x": ds["x"].where(valid).sum(REALIZATION),
+        "node_y": ds["y"].where(valid).sum(REALIZATION),
     }).drop_vars([c for c in ("i", "j") if c in ds.coords]).load()
 
 
@@ -61,7 +62,7 @@ def _merge(parts: list) -> xr.Dataset:
     """One design's record from its chunks: realisations concatenated, node sums summed."""
     per = [p[[*RECORD_QOIS, "line_shear"]] for p in parts]
     nodes = sum(p[["node_locked", "node_valid", "node_x", "node_y"]] for p in parts)
-    return xr.merge([xr.concat(per, "realization"), nodes])
+    return xr.merge([xr.concat(per, REALIZATION), nodes])
 
 
 class Evaluator:

@@ -14,7 +14,7 @@ import xarray as xr
 
 from .._version import __version__
 from .._jit import on_threads
-from ..schema import MODES, QUADRANTS, SOLVER_INPUTS
+from ..schema import MODES, QUADRANTS, REALIZATION, SOLVER_INPUTS
 from .energy import BlankHolder
 from .kernels import net_node_mean, net_shear
 from .net import EnergyRings, NetProblem, build_geodesic
@@ -114,7 +114,7 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
         raise ValueError(f"rings must be an integer >= 1, got {rings!r}")
     if mode == "energy" and material is None:
         raise ValueError("--mode energy needs a material card: --material NAME (uqdrape materials lists them)")
-    materials = _materials(material)
+    materials = _material_list(material)
     if not isinstance(max_iterations, numbers.Integral) or max_iterations < 1:
         raise ValueError(f"max_iterations must be an integer >= 1, got {max_iterations!r}")
     for name, v in (("tolerance", tolerance), ("max_turn", max_turn)):
@@ -184,7 +184,7 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
         blocks.append(_dataset(prob, *solved, mode, {k: v[b] for k, v in stored.items()}, gamma0[b], threads))
     if len(blocks) == 1:
         return blocks[0]
-    ds = xr.concat(blocks, dim="realization", data_vars="minimal", coords="minimal", compat="override",
+    ds = xr.concat(blocks, dim=REALIZATION, data_vars="minimal", coords="minimal", compat="override",
                    join="override")
     return ds.assign_coords(realization=np.arange(R))
 
@@ -216,12 +216,12 @@ def node_mean(cells, threads=1):
 def _coords(R, n):
     """The coordinates of a drape Dataset of R realisations of an n-ring net, with their
     indexes built once per shape (building them was most of a single drape's time)."""
-    return xr.Coordinates({"realization": np.arange(R), "i": np.arange(-n, n + 1), "j": np.arange(-n, n + 1),
+    return xr.Coordinates({REALIZATION: np.arange(R), "i": np.arange(-n, n + 1), "j": np.arange(-n, n + 1),
                            "cell_i": np.arange(-n, n) + 0.5, "cell_j": np.arange(-n, n) + 0.5,
                            "ring": np.arange(1, n + 1), "arm": ["+i", "+j", "-i", "-j"], "quadrant": list(QUADRANTS)})
 
 
-def _materials(material):
+def _material_list(material):
     """``material`` as a list (one Material, or one per realisation), None for none. A
     sequence must agree on what the solver and the lock flags take from one card: locking
     angles, phi0 and bending stiffness."""
@@ -261,8 +261,8 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
     bhk = prob.blankholder
     on_threads(threads, prob.R, lambda r: boundary_blankholder(
         n, n, P[r], prob.blank[r], prob.crossover[r], bhk.force[r], bhk.friction[r], bhk.kernel, bh[r]))
-    node = ("realization", "i", "j")
-    cell = ("realization", "cell_i", "cell_j")
+    node = (REALIZATION, "i", "j")
+    cell = (REALIZATION, "cell_i", "cell_j")
     # to degrees in place, after every use in radians: fresh (R, N, N) copies cost page faults
     node_shear = node_mean(gamma, threads)
     np.rad2deg(node_shear, out=node_shear)
@@ -281,21 +281,21 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
         "locked": (node, node_locked, {"units": "1", "long_name": "node next to a cell sheared beyond "
                                        "its branch's locking angle (1) or not (0); NaN: invalid node"}),
         "gamma0": (cell, gamma0_deg, {"units": "degree", "long_name": "zero-energy shear angle"}),
-        "turn": (("realization", "ring", "arm"), np.rad2deg(turns),
+        "turn": ((REALIZATION, "ring", "arm"), np.rad2deg(turns),
                  {"units": "degree", "long_name": "generator-arm turn angle about the surface normal"}),
-        "energy_shear": ("realization", shear_energy, {"units": "J", "long_name": "shear energy"}),
-        "energy_bending": ("realization", bending, {"units": "J", "long_name": "generator-path bending energy"}),
-        "energy_blankholder": ("realization", bh.sum(-1), {"units": "J", "long_name": "blank-holder friction energy"}),
-        "energy_blankholder_quadrant": (("realization", "quadrant"), bh,
+        "energy_shear": (REALIZATION, shear_energy, {"units": "J", "long_name": "shear energy"}),
+        "energy_bending": (REALIZATION, bending, {"units": "J", "long_name": "generator-path bending energy"}),
+        "energy_blankholder": (REALIZATION, bh.sum(-1), {"units": "J", "long_name": "blank-holder friction energy"}),
+        "energy_blankholder_quadrant": ((REALIZATION, "quadrant"), bh,
                                         {"units": "J", "long_name": "blank-holder energy per quadrant"}),
-        "energy_total": ("realization", total, {"units": "J", "long_name": "total forming energy"}),
-        "iterations": ("realization", iterations, {"long_name": "minimiser iterations, all steps", "units": "1"}),
-        "converged": ("realization", converged, {"long_name": "minimiser converged at every step", "units": "1"}),
+        "energy_total": (REALIZATION, total, {"units": "J", "long_name": "total forming energy"}),
+        "iterations": (REALIZATION, iterations, {"long_name": "minimiser iterations, all steps", "units": "1"}),
+        "converged": (REALIZATION, converged, {"long_name": "minimiser converged at every step", "units": "1"}),
     }
     for name, value in factors.items():  # the per-realisation inputs
         inp = SOLVER_INPUTS.get(name)
         attrs = {"units": inp.units, "long_name": inp.long_name} if inp else {"units": "1", "long_name": f"sampled input {name}"}
-        variables[name] = ("realization", np.asarray(value, dtype=float), attrs)
+        variables[name] = (REALIZATION, np.asarray(value, dtype=float), attrs)
     coords = _coords(prob.R, n)
     return xr.Dataset(
         variables, coords=coords,

@@ -25,7 +25,7 @@ from .. import files
 from .. import geometry as _geometry
 from ..drape import drape
 from ..material.scatter import card_scatter, scattered
-from ..schema import SOLVER_INPUTS, at_level
+from ..schema import REALIZATION, SOLVER_INPUTS, at_level
 from ..study.spec import CARD
 from .inputs import inputs_from_design, sampled_inputs
 
@@ -88,24 +88,24 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
         crossover=np.stack([value["crossover_x"], value["crossover_y"]], axis=-1),
         seg_i=inputs.get("seg_i"), seg_j=inputs.get("seg_j"), gamma0=inputs.get("gamma0"),
         mode=solver.mode,
-        material=_materials(fabric, material, inputs.get(CARD)),
+        material=_chunk_materials(fabric, material, inputs.get(CARD)),
         blankholder_force=value["blankholder_force"], friction=value["friction"],
         sectors=process.sectors, blankholder_model=process.blankholder_model,
         tolerance=solver.tolerance_deg, max_iterations=solver.max_iterations,
     )
     ds = ds.assign_coords(realization=r)
     if CARD in inputs:
-        ds[CARD] = ("realization", np.asarray(inputs[CARD], dtype=float),
+        ds[CARD] = (REALIZATION, np.asarray(inputs[CARD], dtype=float),
                     {"units": "1", "long_name": "card scatter score z: N_s = mean + z sd of the card's specimens"})
     if "seg_i" in inputs:
-        ds["seg_i"] = (("realization", "cell_i", "j"), inputs["seg_i"],
+        ds["seg_i"] = ((REALIZATION, "cell_i", "j"), inputs["seg_i"],
                        {"units": "mm", "long_name": "fibre-1 segment length (flat blank)"})
-        ds["seg_j"] = (("realization", "i", "cell_j"), inputs["seg_j"],
+        ds["seg_j"] = ((REALIZATION, "i", "cell_j"), inputs["seg_j"],
                        {"units": "mm", "long_name": "fibre-2 segment length (flat blank)"})
     return ds
 
 
-def _materials(fabric, material, scores):
+def _chunk_materials(fabric, material, scores):
     """The material of a chunk: ``material`` (or the fabric's card, ``Fabric.card``), or
     with card scatter scores z one card per realisation (``uqdrape.material.scatter``)."""
     base = fabric.card() if material is None else material

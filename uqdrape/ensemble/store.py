@@ -3,7 +3,7 @@
 Layout of ``<output_dir>``::
 
     run.json          manifest: the study (``Study.to_dict()``), chunk size, chunk file names
-    run.lock          one run at a time (``hygiene.hold_lock``)
+    run.lock          one run at a time (``lock.hold_lock``)
     chunks/*.nc       one finished chunk each (written whole, then renamed into place)
     chunks/*.nc.part  a chunk being written, or left by a killed run: never read
     rare.json, sensitivity.nc, design.nc, evaluations/, fixed/, report/, export/
@@ -28,7 +28,7 @@ from ..files import write_text_atomic
 from ..schema import FORCE, REALIZATION
 from .chunk import write_atomic
 from ..pool import orphaned
-from .hygiene import run_lock
+from .lock import run_lock
 from .location import (MANIFEST, MAX_MANIFEST_BYTES, Location, check_growth, check_same_study, corrupt_manifest,
                        held, parse_manifest, plan_chunks)
 
@@ -72,7 +72,7 @@ class Folder(Location):
         """Nothing to ask beforehand: the preflight checks the folder (``local_folder``)."""
 
     def lock(self):
-        """Hold ``run.lock`` for the run (``hygiene.run_lock``); RunLocked if a live run holds it."""
+        """Hold ``run.lock`` for the run (``lock.run_lock``); RunLocked if a live run holds it."""
         return run_lock(self.target)
 
     def read_manifest(self) -> dict | None:
@@ -192,7 +192,7 @@ class Folder(Location):
         # the run's own description, not its first chunk's ("realisations 0-15 at 126 N")
         levels = ", ".join(f"{f:g}" for f in ds[FORCE].values)
         ds.attrs["title"] = (f"uqdrape ensemble: study {ds.attrs.get('study_name', self.target.name)}, "
-                             f"{ds.sizes.get('realization', 0)} realisations at {levels} N")
+                             f"{ds.sizes.get(REALIZATION, 0)} realisations at {levels} N")
         return ds
 
 

@@ -8,7 +8,7 @@ run folders are read, not refused: every reader takes either
 
     run.json        the manifest: study record, chunk size, chunk names, realisations;
                     written as run.json.part, then moved over the old one
-    run.lock        one writer at a time (``hygiene.hold_lock``): created with exclusive
+    run.lock        one writer at a time (``lock.hold_lock``): created with exclusive
                     create ("xb": on S3 a conditional put, If-None-Match: *)
     data/           the zarr store (zarr format 3), the ensemble in the layout of
                     ``open_ensemble``: (blankholder_force, realization, ...), zarr
@@ -48,7 +48,7 @@ import xarray as xr
 from ..conventions import cf_decode, cf_encode
 from ..schema import FORCE, REALIZATION
 from .chunk import drape_chunk
-from .hygiene import hold_lock
+from .lock import hold_lock
 from .location import (LOCK, MANIFEST, MAX_MANIFEST_BYTES, Location, check_growth, check_same_study, corrupt_manifest,
                        parse_manifest, plan_chunks)
 
@@ -122,7 +122,7 @@ class ZarrStore(Location):
         check_store(self.target)
 
     def lock(self):
-        """Hold ``run.lock`` of the store (``hygiene.hold_lock``, with exclusive create)."""
+        """Hold ``run.lock`` of the store (``lock.hold_lock``, with exclusive create)."""
         fs, root = _fs(self.target)
         _check_reachable(fs, root, self.target)
         path = f"{root}/{LOCK}"

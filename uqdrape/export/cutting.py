@@ -35,6 +35,7 @@ import numpy as np
 from ..drape import flat_positions
 from ..drape.net import net_quads
 from ..files import csv_number, csv_rows, read_text, write_all
+from ..schema import REALIZATION
 from .fe import locate
 from .result import Level, surface_of
 
@@ -239,7 +240,7 @@ def cut_files(levels: list[Level], ds, stem, *, trim=None, ply: str = "ply") -> 
         base = f"{stem.name}-{level.label}" if level.label else stem.name
         label = f"{ply} {level.label}".strip()
         pattern = cut_pattern(level, edge)
-        what = (f"mean over {level.data.sizes['realization']} drapes; ENVELOPE: 2.5-97.5 % of each edge point's "
+        what = (f"mean over {level.data.sizes[REALIZATION]} drapes; ENVELOPE: 2.5-97.5 % of each edge point's "
                 "normal offset" if level.is_ensemble else "one drape")
         note = (f"uqdrape cutting pattern {label}: CUT = {source} in the flat blank ({what}); mm, fabric axes: "
                 "origin the seed point, x along fibre 1")

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 from ..files import write_text_atomic
+from ..schema import DRAW_IN
 from .ensemble_figures import RISK_CMAP
 from .figures import panels, save
 from .style import NOTE_PT, canvas, check_formats, styled, vector_formats
@@ -24,7 +25,6 @@ from .page import figures_html, page, provenance, provenance_line
 
 _LABELS = {"p_locked": "P(any node locked)", "q95_max_abs_shear": "95 % quantile of max |shear| (deg)",
            "abs_mean_asymmetry": "|mean asymmetry| (deg)", "q95_max_draw_in": "95 % quantile of max draw-in (mm)"}
-DRAW_IN = "q95_max_draw_in"
 
 
 def _design(ds: xr.Dataset) -> xr.Dataset:
@@ -109,7 +109,7 @@ def _log_if_wide(ax, values):
 
 
 @styled
-def plot_convergence(ds: xr.Dataset, path) -> Path:
+def plot_design_history(ds: xr.Dataset, path) -> Path:
     """The objective of each design in the order evaluated, and the best so far."""
     d = _design(ds)
     f = d["objective"].values
@@ -272,7 +272,7 @@ def _write_design_report(ds: xr.Dataset, out: Path, surface) -> Path:
                         "Sector forces at the optimum; sectors are equal angles from +x, anticlockwise."))
     figures.append((plot_risk_maps(ds, out / "risk_map.png"),
                     "Risk before (the study's own force) and after (the optimum), validation sample."))
-    figures.append((plot_convergence(ds, out / "convergence.png"), "The optimiser's history."))
+    figures.append((plot_design_history(ds, out / "convergence.png"), "The optimiser's history."))
     summary = {k: v for k, v in ds.attrs.items() if k not in ("study_json", "wall_time_s")}
     summary["figures"] = [p.name for p, _ in figures]
     summary["provenance"] = prov = provenance(ds.attrs.get("wall_time_s"))

@@ -44,9 +44,9 @@ from .figures import (
     QUADRANT_STYLE,
     SHEAR_LABEL,
     describe,
+    force_groups,
     force_title,
     label,
-    levels,
     overlay_experimental,
     panels,
     report_figure,
@@ -105,7 +105,7 @@ def _map(ds: xr.Dataset, values: xr.DataArray, path, *, norm, cmap, cbar_label: 
     note across it (a panel with nothing to point at says so rather than stay blank).
     """
     pos = mean_positions(ds)
-    groups = levels(pos)
+    groups = force_groups(pos)
     fig, axes = panels(len(groups), size=(5.4, 4.8))
     for ax, (force, xy) in zip(axes, groups):
         v = values.sel({FORCE: force}).transpose("i", "j").values
@@ -227,7 +227,7 @@ def plot_line_statistics(ds: xr.Dataset, path, *, line_stats: xr.Dataset | None 
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", "All-NaN slice", RuntimeWarning)  # lines end at invalid nodes: NaN band
         band = max_shear_lines(ds)["shear"].quantile([tail, 1.0 - tail], dim=REALIZATION, skipna=True).compute()
-    groups = levels(st)
+    groups = force_groups(st)
     fig, axes = panels(len(groups), size=(5.8, 4.6))
     for ax, (force, s) in zip(axes, groups):
         b = band.sel({FORCE: force})
@@ -270,7 +270,7 @@ def plot_histograms(ds: xr.Dataset, path, nodes: Sequence[Sequence[int]], *, bin
     nodes = [tuple(int(v) for v in node) for node in nodes]
     if not nodes:
         raise ValueError("nodes must list at least one (i, j) node")
-    groups = levels(ds)
+    groups = force_groups(ds)
     fig, grid = panels(len(nodes) * len(groups), size=(4.6, 3.6), cols=len(groups) if len(groups) > 1 else None)
     for ax, (node, (force, level)) in zip(grid, ((n, g) for n in nodes for g in groups)):
         h = node_histogram(level, node, bins=bins)
@@ -313,7 +313,7 @@ def plot_convergence(ds: xr.Dataset, path, node: Sequence[int] | None = None, *,
     node = most_variable_node(ds, node_stats) if node is None else tuple(int(v) for v in node)
     conv = convergence(ds, node, confidence=confidence)
     fig, (ax_m, ax_h) = panels(2, size=(5.8, 4.4))
-    groups = levels(conv)
+    groups = force_groups(conv)
     cmap = mpl.colormaps["viridis"]
     for k, (force, c) in enumerate(groups):
         color = cmap(k / max(len(groups) - 1, 1))

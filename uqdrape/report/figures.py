@@ -110,7 +110,7 @@ def force_title(force) -> str:
     return f"F_BH = {float(force):g} N"
 
 
-def levels(ds: xr.Dataset) -> list:
+def force_groups(ds: xr.Dataset) -> list:
     """[(force N, Dataset at that level)] over the ``blankholder_force`` dim."""
     return [(float(f), ds.sel({FORCE: f})) for f in ds[FORCE].values]
 
@@ -191,7 +191,7 @@ def plot_net(ds: xr.Dataset, path, var: str = "shear", realization: int = 0, tit
         raise ValueError(f"plot_net draws one net per blank-holder level; the Dataset also has dims "
                          f"{sorted(set(extra))}: select one first, e.g. ds.sel({extra[0]}=...)")
     nets = [(force, _net_cells(level[["x", "y", "z", var]].isel({REALIZATION: r}), var, site))
-            for force, level in levels(ds)]
+            for force, level in force_groups(ds)]
     drawn = np.concatenate([values[keep] for _, (_, values, keep) in nets])
     if not drawn.size:
         raise ValueError(f"realization {r} has no cell with four valid nodes and a finite {var!r}; nothing to draw")
@@ -220,8 +220,8 @@ def plot_net(ds: xr.Dataset, path, var: str = "shear", realization: int = 0, tit
 def _line_panels(ds: xr.Dataset, realization):
     """[(force, Dataset over the realisations drawn in that panel)] of an ensemble-layout ``ds``."""
     if realization is None:
-        return levels(ds)
-    return [(f, sub.isel({REALIZATION: [check_realization(sub, realization)]})) for f, sub in levels(ds)]
+        return force_groups(ds)
+    return [(f, sub.isel({REALIZATION: [check_realization(sub, realization)]})) for f, sub in force_groups(ds)]
 
 
 def overlay_experimental(ax, points, force) -> None:

@@ -1,6 +1,6 @@
 """The report plan: which figures a study's report has, decided from what the study is.
 
-Each :class:`Spec` names the study kinds it applies to (``uqdrape.stats.KINDS``: random
+Each :class:`Spec` names the study kinds it applies to (``uqdrape.stats.STUDY_KINDS``: random
 sample, deterministic, swept factor, sensitivity design) and a predicate on the data;
 :func:`render` walks :data:`PLAN` in order and draws what applies. A spec whose kind
 applies but whose data does not (e.g. a wrinkle-risk map where no node ever locks) may
@@ -21,8 +21,8 @@ from pathlib import Path
 
 import xarray as xr
 
-from uqdrape.schema import FORCE
-from uqdrape.stats import KINDS, line_statistics, varying_factors
+from uqdrape.schema import FORCE, REALIZATION
+from uqdrape.stats import STUDY_KINDS, line_statistics, varying_factors
 from uqdrape.stats.headline import DESIGN, DETERMINISTIC, RANDOM, SWEPT
 
 from . import ensemble_figures
@@ -80,7 +80,7 @@ def _vs_factor(c: Context):
 
 
 def _sweep(c: Context):
-    spread = " (mean ± 1 sd over the realisations)" if c.ds.sizes["realization"] > 1 else ""
+    spread = " (mean ± 1 sd over the realisations)" if c.ds.sizes[REALIZATION] > 1 else ""
     return [(ensemble_figures.plot_sweep(c.ds, c.out / "sweep.png"),
              f"Mean shear of the + and − quadrant max-shear lines and their asymmetry against blank-holder "
              f"force{spread}.")]
@@ -108,7 +108,7 @@ def _no_risk(c: Context) -> str:
     if c.exceedance is None:
         return "No wrinkle-risk map: the drapes have no locking angle (a geodesic drape without a material)."
     upper = float(c.exceedance["probability_upper"].max())
-    return (f"No wrinkle-risk map: no node sits next to a locked cell in any of the {c.ds.sizes['realization']} "
+    return (f"No wrinkle-risk map: no node sits next to a locked cell in any of the {c.ds.sizes[REALIZATION]} "
             f"realisations (the {c.exceedance.attrs['confidence']:.0%} upper limit of the risk is "
             f"{upper:.3f} or less at every node).")
 
@@ -137,7 +137,7 @@ def _has_spread(c: Context) -> bool:
 
 
 def _no_spread(c: Context) -> str:
-    return (f"No histograms or convergence plot: node shear is the same in all {c.ds.sizes['realization']} "
+    return (f"No histograms or convergence plot: node shear is the same in all {c.ds.sizes[REALIZATION]} "
             "realisations (no random input of the study changed any drape).")
 
 
@@ -168,7 +168,7 @@ def _sensitivity_maps(c: Context):
             for var, _, name in INDICES[c.sensitivity.attrs["method"]]]
 
 
-ALL = KINDS
+ALL = STUDY_KINDS
 #: The figures of the Sensitivity section, drawn first on a sensitivity design's page.
 SENSITIVITY_PLAN = (
     Spec("sensitivity_vs_force", (DESIGN,), _sensitivity_vs_force,

@@ -17,7 +17,7 @@ from matplotlib.lines import Line2D
 
 from .ensemble_figures import blank_view, mean_positions, triangulation
 from ..schema import FORCE
-from .figures import describe, force_title, levels, panels, report_figure, save, suptitle, unit_text
+from .figures import describe, force_groups, force_title, panels, report_figure, save, suptitle, unit_text
 
 #: The indices drawn per method: (variable, its confidence half-width, label).
 INDICES = {
@@ -53,7 +53,7 @@ def plot_sensitivity_bars(indices: xr.Dataset, path):
     μ*) with their confidence intervals as error bars. Returns the path."""
     method = _method(indices)
     pairs = INDICES[method]
-    groups = levels(indices)
+    groups = force_groups(indices)
     qois = [str(q) for q in indices["qoi"].values]
     factors = [str(f) for f in indices["factor"].values]
     size = (max(3.6, 0.9 * len(factors) + 1.2), 3.6)
@@ -127,7 +127,7 @@ def plot_sensitivity_map(ds: xr.Dataset, maps: xr.Dataset, path, index: str = "S
     if index not in valid:
         raise ValueError(f"index={index!r} is not a {method} index; valid: {', '.join(valid)}")
     pos = mean_positions(ds)
-    groups = levels(maps)
+    groups = force_groups(maps)
     factors = [str(f) for f in maps["factor"].values]
     fig, axes = panels(len(factors) * len(groups), size=(2.9, 2.7), cols=len(groups))
     axes = np.reshape(axes, (len(factors), len(groups)))

@@ -31,6 +31,7 @@ from scipy.stats import norm
 from SALib.analyze import sobol as sobol_analyze
 from SALib.util import compute_groups_matrix
 
+from ..schema import REALIZATION
 from .design import MORRIS_NUM_LEVELS, check_method, check_seed
 from .problem import check_problem
 
@@ -293,7 +294,7 @@ def analyze(problem: Mapping, X, Y, *, method: str = "sobol",
 
 
 def analyze_map(problem: Mapping, X, Y: xr.DataArray, *, method: str = "sobol",
-                sample_dim: str = "realization", conf_level: float = 0.95,
+                sample_dim: str = REALIZATION, conf_level: float = 0.95,
                 seed: int, num_resamples: int = 100, atol: float = 0.0, progress=None) -> xr.Dataset:
     """Index maps of a field output, e.g. node shear (realization, i, j).
 

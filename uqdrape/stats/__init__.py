@@ -11,7 +11,7 @@ with CF ``units`` / ``long_name`` attributes.
 
 from .convergence import convergence, samples_needed
 from .exceedance import clopper_pearson_interval, exceedance_probability, wilson_interval
-from .headline import KINDS, dominant_factors, headline_numbers, study_kind, varying_factors, wrinkle_risk
+from .headline import STUDY_KINDS, dominant_factors, headline_numbers, study_kind, varying_factors, wrinkle_risk
 from .histogram import node_histogram
 from .lines import line_means, line_scalars, line_statistics, shear_at_points
 from .qoi import QOI_ATTRS, QOIS, SENSITIVITY_QOIS, check_qois, realization_qois
@@ -38,7 +38,7 @@ __all__ = [
     "realization_qois",
     "ring_sd",
     "inner_outer_sd",
-    "KINDS",
+    "STUDY_KINDS",
     "study_kind",
     "varying_factors",
     "wrinkle_risk",

@@ -30,7 +30,7 @@ from .exceedance import exceedance_probability
 from .summary import node_statistics
 
 RANDOM, DETERMINISTIC, SWEPT, DESIGN = "random sample", "deterministic", "swept factor", "sensitivity design"
-KINDS = (RANDOM, DETERMINISTIC, SWEPT, DESIGN)
+STUDY_KINDS = (RANDOM, DETERMINISTIC, SWEPT, DESIGN)
 
 
 def varying_factors(ds: xr.Dataset) -> list[str]:
@@ -47,7 +47,7 @@ def varying_factors(ds: xr.Dataset) -> list[str]:
 
 
 def study_kind(ds: xr.Dataset) -> str:
-    """One of :data:`KINDS` for ``ds`` in the ensemble layout (``uqdrape.schema.by_force``;
+    """One of :data:`STUDY_KINDS` for ``ds`` in the ensemble layout (``uqdrape.schema.by_force``;
     see the module docstring for the rules)."""
     ds = by_force(ds)
     if ds.attrs.get("design_method"):

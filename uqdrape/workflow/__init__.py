@@ -5,9 +5,9 @@
 - ``preflight``: what a study needs of this machine and of its physics (memory, disk,
   writability, placement of the first realisation), checked at the start of every run
   and by ``uqdrape validate``;
-- ``commands``: one drape to files, material cards (show, derive, fit to shear tests),
+- ``single_shot``: one drape to files, material cards (show, derive, fit to shear tests),
   exports;
-- ``text``: the command line's descriptions of moulds, architectures and studies;
+- ``help_text``: the command line's descriptions of moulds, architectures and studies;
 - ``serve``: a study as a UM-Bridge model (``uqdrape serve``);
 - ``calibrate``: measured fibre angles -> a calibrated ``[uncertainty.zero_angle]`` block;
   measured drapes -> the posterior of chosen study parameters and the calibrated study.
@@ -25,9 +25,9 @@ _EXPORTS = {
             "MAPS_FILE"),
     "preflight": ("load_study", "validate_study", "check_resources", "check_placement", "run_preflight",
                   "check_workers"),
-    "commands": ("check_drape_inputs", "drape_to_files", "material_list", "material_text", "derive_material", "fit_material",
+    "single_shot": ("check_drape_inputs", "drape_to_files", "material_list", "material_text", "derive_material", "fit_material",
                  "export_result"),
-    "text": ("geometry_help", "architectures", "describe_study", "version_text"),
+    "help_text": ("geometry_help", "architectures", "describe_study", "version_text"),
     "serve": ("serve_study", "input_names", "nominal_input"),
     "calibrate": ("calibrate_fibre_angles", "calibrate_drapes", "calibrate_parts", "synthetic_parts"),
 }
