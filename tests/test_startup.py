@@ -4,6 +4,7 @@ uqdrape`` load none of the numerical stack they do not use (each in a fresh inte
 which then lists the heavy modules it holds); successive runs share the workers'
 forkserver and give the same numbers."""
 
+import argparse
 import dataclasses
 import json
 import multiprocessing
@@ -68,6 +69,30 @@ def test_drape_help_lists_every_geometry_kind_and_the_moulds_still_evaluate(caps
     epilog = capsys.readouterr().out.split("geometry kinds and their parameters")[1]
     assert [line.split()[0] for line in epilog.splitlines()[1:] if line.strip()] == list(KINDS)
     assert KINDS["hemisphere"](radius=80).height(0.0, 0.0) == pytest.approx(80.0)
+
+
+def test_the_command_lines_choices_are_the_registries():
+    """The parser restates the registries so that ``--help`` imports no engine; each list
+    equals the one the engine checks against."""
+    from uqdrape.calibration.fit import CRITERIA
+    from uqdrape.calibration.likelihood import FAMILIES
+    from uqdrape.cli import build_parser
+    from uqdrape.export.cards import FLAVOURS
+    from uqdrape.schema import BLANKHOLDER_MODELS, MODES
+    from uqdrape.study.spec import SENSITIVITY_METHODS
+    from uqdrape.workflow.single_shot import EXPORT_FORMATS
+
+    def choices(command, option):
+        sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+        return tuple(next(a for a in sub.choices[command]._actions if option in a.option_strings).choices)
+
+    assert choices("drape", "--mode") == MODES
+    assert choices("drape", "--blankholder-model") == BLANKHOLDER_MODELS
+    assert choices("run", "--method") == SENSITIVITY_METHODS
+    assert choices("export", "--to") == EXPORT_FORMATS
+    assert choices("export", "--flavour") == tuple(FLAVOURS)
+    assert choices("calibrate", "--family") == ("auto", *FAMILIES)
+    assert choices("calibrate", "--criterion") == CRITERIA
 
 
 def _forkservers() -> set[int]:

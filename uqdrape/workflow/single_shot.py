@@ -160,6 +160,10 @@ def fit_material(rig, out, plot=None) -> str:
     return "\n".join(lines + ([f"wrote {png}"] if png else []))
 
 
+#: What ``export_result`` writes (``to``).
+EXPORT_FORMATS = ("vtk", "fe", "flat", "cut", "netcdf")
+
+
 def export_result(result, to, *, out=None, mesh=None, tolerance=None, reference=None, flavours=("abaqus",),
                   trim=None, ply=None) -> tuple[list, list[str]]:
     """Export a drape file, a run folder or a store URL ``result`` as ``to`` (some of
@@ -169,6 +173,9 @@ def export_result(result, to, *, out=None, mesh=None, tolerance=None, reference=
     FE solvers' cards for "fe"; ``trim``: the part's edge (plan CSV) for "cut" (default:
     the mould's own outline), ``ply`` its label. Returns the paths (URLs in a store) and
     the lines to tell the user (the FE mapping counts)."""
+    unknown = [t for t in to if t not in EXPORT_FORMATS]
+    if unknown or not to:
+        raise ValueError(f"to must name some of {', '.join(EXPORT_FORMATS)}; got {list(to)!r}")
     if "fe" in to and not mesh:
         raise ValueError("an fe export needs mesh, the part's surface mesh (--mesh FILE on the command line): a "
                          "file meshio reads (.inp, .msh, .vtu, .stl, ...)")
