@@ -2,9 +2,9 @@
 
 Heavy imports (xarray, dask, matplotlib, SALib) happen inside the sub-commands so that
 ``uqdrape --help`` answers at once; the options' choices restate the engines' registries
-(``schema.MODES``, ``export.cards.FLAVOURS``, ...; tests/test_startup.py holds them equal). Every user error is printed as one line on stderr
-with exit code 2 (an I/O failure: 3), never as a traceback. ``-q`` / ``-v`` work before
-or after the sub-command.
+(``schema.MODES``, ``export.cards.FLAVOURS``, ...; tests/test_startup.py holds them
+equal). Every user error is printed as one line on stderr with exit code 2 (an I/O
+failure: 3), never as a traceback. ``-q`` / ``-v`` work before or after the sub-command.
 """
 
 from __future__ import annotations
