@@ -1,8 +1,9 @@
 """One ensemble on every storage backend (issue 35): a run folder, a file:// store, a
 memory:// store and an S3 store (moto's server, conftest ``s3``) take the same run
 through the one run loop, a run stopped by a failing worker and resumed, extended to
-more realisations, with a ``[study] rare`` probability and a report, and give
-bitwise-equal numbers and the same side files. The rare study on a file:// URL
+more realisations, with a ``[study] rare`` probability and a report, and a hierarchical
+run with its fixed-parameter twin, and give bitwise-equal numbers and the same side
+files (the blank-holder design on every backend: test_store_design.py). The rare study on a file:// URL
 reproduces issue 35's bug (``rare.json`` written into ``./file:/...``, the report from
 elsewhere silently without the rare probability)."""
 
@@ -11,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import re
 from pathlib import Path
 
 import fsspec
@@ -24,6 +26,7 @@ from uqdrape.files import location
 from uqdrape.study import load_study
 from uqdrape.workflow import run_report, run_study
 from uqdrape.workflow.rare import RARE_FILE
+from uqdrape.workflow.twin import MEASURED, twin_location
 
 from conftest import write_study
 
@@ -113,6 +116,42 @@ def test_every_backend_gives_the_same_run_resume_extension_rare_and_report(backe
     assert numbers(got["summary"]) == numbers(reference["summary"])
     assert got["files"] == reference["files"] and {RARE_FILE, "run.json", "report/summary.json"} <= set(got["files"])
     assert str(got["index"]).endswith("report/index.html")
+
+
+#: A hierarchical study (its zero-angle sd drawn per realisation, sd_dof 6): the run drapes
+#: its fixed-parameter twin beside it and the report states the widening between the two.
+HIERARCHICAL = dict(study={"seed": 3, "realizations": 8, "chunk_size": 4}, fabric={"material": "ebxhd936_like"},
+                    process={"blankholder_force_N": 150.0}, solver={"mode": "energy", "rings": 4},
+                    uncertainty={"zero_angle": {"mean_deg": 0.0, "sd_deg": 1.0, "correlation": "iid",
+                                                "sd_dof": 6.0}})
+
+
+def twin_scenario(folder: Path, out) -> dict:
+    """The hierarchical study run into ``out`` and reported: its ensemble, its twin's and
+    the report's numbers."""
+    study = dataclasses.replace(load_study(write_study(folder, "hier", **HIERARCHICAL)),
+                                output_dir=location(str(out)))
+    run_study(study, scheduler="synchronous", progress=False)
+    run_report(out)
+    return {"summary": json.loads(at(out).read_text("report/summary.json")),
+            "ensemble": open_ensemble(out).load(), "twin": open_ensemble(twin_location(out)).load()}
+
+
+@pytest.fixture(scope="module")
+def twin_reference(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("twin")
+    return twin_scenario(tmp, tmp / "run")
+
+
+@pytest.mark.parametrize("backend", BACKENDS[1:])
+def test_a_hierarchical_run_drapes_and_states_its_twin_alike_on_every_backend(backend, tmp_path, request,
+                                                                              twin_reference, unrasterised):
+    got = twin_scenario(tmp_path, target(backend, tmp_path, request))
+    for key in ("ensemble", "twin"):
+        xr.testing.assert_identical(got[key].drop_attrs(deep=False), twin_reference[key].drop_attrs(deep=False))
+    for summary in (got["summary"], twin_reference["summary"]):  # the twin's wall time aside
+        summary["extra"][MEASURED]["how"] = re.sub(r"\([\d.]+ s of drapes\)", "", summary["extra"][MEASURED]["how"])
+    assert numbers(got["summary"]) == numbers(twin_reference["summary"])
 
 
 def test_a_rare_study_on_a_file_url_keeps_its_record_in_the_store(tmp_path, monkeypatch, capsys, unrasterised):
