@@ -335,8 +335,10 @@ def test_resume_refuses_another_study_or_chunking(tmp_path, reference):
     other = dataclasses.replace(study, seed=12, solver=dataclasses.replace(study.solver, rings=4))
     with pytest.raises(ValueError, match=r"different study definition \(changed: solver.rings, study.seed\)"):
         run_study(other, scheduler="synchronous", progress=False)
-    with pytest.raises(ValueError, match=r"was run with --chunk-size 7; resume with --chunk-size 7"):
+    with pytest.raises(ValueError, match=r"was run in chunks of 7; resume with that chunk size or run again "
+                                         r"without resuming") as refused:
         run_study(study, scheduler="synchronous", chunk_size=5, progress=False)
+    assert refused.value.names == ("chunk_size", "resume")  # the arguments that get past it
     out = run_study(other, scheduler="synchronous", chunk_size=5, resume=False, progress=False)
     assert len(list((out / "chunks").glob("*.nc"))) == 4
     with open_ensemble(out) as ds:

@@ -47,7 +47,7 @@ def test_the_drape_limits_are_the_studys(tmp_path):
 
 
 def test_a_drape_whose_picture_fails_leaves_no_file(tmp_path, monkeypatch, capsys):
-    from uqdrape.workflow import commands
+    from uqdrape.workflow import single_shot as commands
 
     def broken(ds, path, **kwargs):
         raise OSError(28, "No space left on device", str(path))

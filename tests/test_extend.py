@@ -64,7 +64,7 @@ def test_a_plan_that_does_not_extend_and_fewer_realisations_are_refused(tmp_path
     study = load_study(study_file(tmp_path, "mc", 16, out="mc"))
     run_study(study, scheduler="synchronous", progress=False)
     with pytest.raises(ValueError, match=r"holds 16 realisations, more than the 12 asked for: set "
-                                         r"realizations >= 16 in \[study\], or run again with --no-resume"):
+                                         r"realizations >= 16 in \[study\], or run again without resuming"):
         run_study(dataclasses.replace(study, realizations=12), scheduler="synchronous", progress=False)
 
 

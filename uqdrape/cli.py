@@ -41,11 +41,7 @@ def cmd_drape(args) -> int:
     options = dict(orientation=args.orientation, pre_shear=args.pre_shear, skew=args.skew,
                    crossover=tuple(args.crossover), mode=args.mode, blankholder_force=args.blankholder_force,
                    friction=args.friction, blankholder_model=args.blankholder_model, tolerance=args.tolerance)
-    try:
-        check_drape_inputs(args.spacing, args.rings, options, args.material)
-    except ValueError as err:  # a ParameterError: name the flags
-        flags = " and ".join("--" + name.replace("_", "-") for name in getattr(err, "names", ()))
-        raise ValueError(f"{flags}: {err}" if flags else str(err)) from None
+    check_drape_inputs(args.spacing, args.rings, options, args.material)
     written, summary = drape_to_files(
         args.geometry, _parse_params(args.param), args.spacing, args.rings, args.out, material=args.material,
         progress=args.verbosity > 0, command="uqdrape " + shlex.join(args.argv), **options)
@@ -563,12 +559,26 @@ def _no_warnings():
             os.environ["PYTHONWARNINGS"] = saved
 
 
+#: Engine arguments whose option stores under another name.
+_DEST = {"resume": "no_resume", "output_dir": "out", "formats": "format"}
+
+
+def _flagged(parser: argparse.ArgumentParser, command: str, err: BaseException, text: str) -> str:
+    """``text`` led by the flags of the arguments ``err`` names (``ParameterError.names``,
+    ``errors.naming``), as ``command`` spells them."""
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices[command]
+    flags = {a.dest: max(a.option_strings, key=len) for a in sub._actions if a.option_strings}
+    named = [flags[_DEST.get(n, n)] for n in getattr(err, "names", ()) if _DEST.get(n, n) in flags]
+    return f"{' and '.join(named)}: {text}" if named else text
+
+
 def main(argv=None) -> int:
     """Exit codes: 0 done, 2 a user error (bad study, arguments or input file), 3 an I/O or
     environment error (disk full, permissions, unreachable scheduler, a busy output folder,
     a corrupt chunk), 130 interrupted (Ctrl-C or SIGTERM). Every error is one line on stderr."""
     argv = sys.argv[1:] if argv is None else list(argv)
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     args.argv = argv  # the command line, for the history of the files it writes
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, _terminated)  # docker stop, batch schedulers: as Ctrl-C
@@ -577,13 +587,13 @@ def main(argv=None) -> int:
             return args.func(args)
     except (ValueError, FileNotFoundError) as err:
         text = _os_error(err) if isinstance(err, OSError) and err.errno else str(err)
-        print(f"uqdrape {args.command}: error: {text}", file=sys.stderr)
+        print(f"uqdrape {args.command}: error: {_flagged(parser, args.command, err, text)}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into e.g. `head`, which closed early
         sys.stderr.close()
         return 0
     except OSError as err:  # reading or writing files (a missing input is a user error above; a closed pipe before)
-        print(f"uqdrape {args.command}: error: {_os_error(err)}", file=sys.stderr)
+        print(f"uqdrape {args.command}: error: {_flagged(parser, args.command, err, _os_error(err))}", file=sys.stderr)
         return 3
     except KeyboardInterrupt:
         print(f"uqdrape {args.command}: interrupted; finished chunks are kept, run again to resume",

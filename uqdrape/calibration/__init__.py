@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import ParameterError
 from .block import block_text, study_block
 from .fit import CRITERIA, Estimate, FieldFit, fit_field
 from .likelihood import FAMILIES
@@ -64,8 +65,9 @@ def calibrate_points(points: AnglePoints, *, fibre1_deg: float = 45.0, family: s
     """Fit the γ0 field of measured ``points`` (see the package docstring); ``posterior``:
     also sample the chosen family's posterior (:mod:`.posterior`, needs emcee)."""
     if not -360.0 <= fibre1_deg <= 360.0:
-        raise ValueError(f"--fibre1-deg must be a finite angle from -360 to 360 deg, got {fibre1_deg!r}")
-    check_point_count(len(points), points.source, "thin them, or for an image give a larger --window-px (samples "
+        raise ParameterError("fibre1_deg", f"fibre1_deg must be a finite angle from -360 to 360 deg, got "
+                             f"{fibre1_deg!r}")
+    check_point_count(len(points), points.source, "thin them, or for an image give a larger window_px (samples "
                                                   "lie two windows apart)")
     gamma0 = zero_angle_deg(points, fibre1_deg)
     a, b = fibre_coordinates(points.x_mm, points.y_mm, fibre1_deg)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import ParameterError
 from ..files import check_input_file
 from .points import AnglePoints, PointsError
 
@@ -45,8 +46,8 @@ def orientation_field(image, window_px: float = 4.0, derivative_px: float = 0.0)
     if image.ndim != 2 or min(image.shape) < 3:
         raise ValueError(f"the image must be 2-D grey levels of at least 3 x 3 pixels, got shape {image.shape}")
     if not 0 < window_px <= min(image.shape) / 4:  # the samples keep 2 windows off each border
-        raise ValueError(f"window_px must be > 0 and at most a quarter of the image's smaller side, "
-                         f"{min(image.shape) / 4:g} px here, got {window_px!r}")
+        raise ParameterError("window_px", f"window_px must be > 0 and at most a quarter of the image's smaller "
+                             f"side, {min(image.shape) / 4:g} px here, got {window_px!r}")
     if derivative_px > 0:
         import scipy.ndimage
 

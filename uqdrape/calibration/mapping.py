@@ -55,7 +55,7 @@ def zero_angle_deg(points: AnglePoints, fibre1_deg: float = 45.0) -> np.ndarray:
         raise PointsError(f"{points.source}: row {points.rows[i]}: column 'angle_deg' = {points.angle_deg[i]:g} is "
                           f"{delta[i]:+.1f} deg from fibre set {points.fibre_set[i]}'s nominal {nominal[i]:g} deg "
                           f"(valid: within {MAX_DEVIATION_DEG:g} deg of it); angle_deg is the fibre's plan direction, "
-                          "deg anticlockwise from x, and fibre 1's nominal direction is --fibre1-deg",
+                          "deg anticlockwise from x, and fibre 1's nominal direction is fibre1_deg",
                           points.source, "angle_deg")
     return np.where(points.fibre_set == 1, delta, -delta)
 

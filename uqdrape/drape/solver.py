@@ -14,6 +14,7 @@ import xarray as xr
 
 from .._version import __version__
 from .._jit import on_threads
+from ..errors import ParameterError
 from ..schema import MODES, QUADRANTS, REALIZATION, SOLVER_INPUTS
 from .energy import BlankHolder
 from .kernels import net_node_mean, net_shear
@@ -113,7 +114,8 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     if not isinstance(rings, numbers.Integral) or rings < 1:
         raise ValueError(f"rings must be an integer >= 1, got {rings!r}")
     if mode == "energy" and material is None:
-        raise ValueError("--mode energy needs a material card: --material NAME (uqdrape materials lists them)")
+        raise ParameterError("material", "mode 'energy' needs a material card: a shipped card's name "
+                             "(uqdrape.available_materials()) or a card file")
     materials = _material_list(material)
     if not isinstance(max_iterations, numbers.Integral) or max_iterations < 1:
         raise ValueError(f"max_iterations must be an integer >= 1, got {max_iterations!r}")

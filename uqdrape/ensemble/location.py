@@ -21,6 +21,7 @@ from pathlib import Path
 
 import xarray as xr
 
+from ..errors import ParameterError, naming
 from ..files import write_text_atomic
 from ..stochastic.sampling import extension_problem
 from ..study import Study, identity
@@ -38,8 +39,8 @@ MAX_MANIFEST_BYTES = 64 * 2**20
 
 def corrupt_manifest(where, why: str) -> OSError:
     """The one-line error for a manifest at ``where`` (path or URL) that is not one uqdrape wrote."""
-    return OSError(errno.EIO, f"not a uqdrape run manifest ({why}); run the study again with --no-resume, "
-                              "or delete the folder", str(where))
+    return naming(OSError(errno.EIO, f"not a uqdrape run manifest ({why}); run the study again without "
+                                     "resuming, or delete the folder", str(where)), "resume")
 
 
 def parse_manifest(text: bytes, where) -> dict:
@@ -107,16 +108,15 @@ def check_growth(where, study: Study, old_chunk_size: int, held: int, chunk_size
     ``chunk_size``: the same chunk size, no fewer realisations, more only under a plan
     that extends."""
     if old_chunk_size != chunk_size:
-        raise ValueError(
-            f"{where} was run with --chunk-size {old_chunk_size}; resume with --chunk-size {old_chunk_size} "
-            "or run again with --no-resume")
+        raise ParameterError(("chunk_size", "resume"), f"{where} was run in chunks of {old_chunk_size}; resume "
+                             f"with that chunk size or run again without resuming")
     if n < held:
-        raise ValueError(f"{where} holds {held} realisations, more than the {n} asked for: set "
-                         f"realizations >= {held} in [study], or run again with --no-resume")
+        raise ParameterError("resume", f"{where} holds {held} realisations, more than the {n} asked for: set "
+                             f"realizations >= {held} in [study], or run again without resuming")
     why = extension_problem(study.sampling, held, n) if n > held else None
     if why:
-        raise ValueError(f"{where} holds {held} realisations and cannot be extended to {n}: {why}; "
-                         "run again with --no-resume")
+        raise ParameterError("resume", f"{where} holds {held} realisations and cannot be extended to {n}: "
+                             f"{why}; run again without resuming")
 
 
 def check_same_study(where, old: dict, provenance: dict) -> None:
@@ -127,9 +127,9 @@ def check_same_study(where, old: dict, provenance: dict) -> None:
         changed = sorted(f"{section}.{key}" for section in set(before) | set(now)
                          for key in set(before.get(section, {})) | set(now.get(section, {}))
                          if before.get(section, {}).get(key) != now.get(section, {}).get(key))
-        raise ValueError(
-            f"{where} holds a run of a different study definition (changed: {', '.join(changed)}); "
-            "run again with --no-resume to replace it, or set another [output] directory")
+        raise ParameterError("resume", f"{where} holds a run of a different study definition (changed: "
+                             f"{', '.join(changed)}); run again without resuming to replace it, or set "
+                             "another [output] directory")
 
 
 class Location:

@@ -6,8 +6,8 @@
   exists empty; a store's by exclusive create); a lock whose process is gone on this host
   is stale and taken over, a live one refuses the second run naming the first, and a lock
   from another host, or one that is not a lock uqdrape wrote, is refused, not guessed
-  about. Taken before anything in the location is touched, so ``--no-resume`` never
-  deletes what another live run is writing.
+  about. Taken before anything in the location is touched, so a run without resuming
+  never deletes what another live run is writing.
 """
 
 from __future__ import annotations
@@ -23,6 +23,8 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+
+from ..errors import naming
 
 
 #: The lock file in a run folder.
@@ -98,9 +100,10 @@ def hold_lock(where, kind: str, create, read, remove):
             raise RunLocked(errno.EBUSY, f"{LOCK} is not a lock uqdrape wrote; delete it if no run is writing "
                             f"to this {kind}", str(where)) from None
         if taken or not stale(owner):
-            raise RunLocked(errno.EBUSY, f"another run holds {LOCK} of this {kind} (pid {owner['pid']} on "
-                            f"{owner['host']}, started {owner['started']}); wait for it, or use another --out "
-                            f"(delete {LOCK} only if that run is certainly gone)", str(where)) from None
+            raise naming(RunLocked(errno.EBUSY, f"another run holds {LOCK} of this {kind} (pid {owner['pid']} "
+                                   f"on {owner['host']}, started {owner['started']}); wait for it, or write "
+                                   f"elsewhere (delete {LOCK} only if that run is certainly gone)", str(where)),
+                         "output_dir") from None
         with _takeover(where):
             try:
                 still = lock_owner(read()) == owner

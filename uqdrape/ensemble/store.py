@@ -23,6 +23,7 @@ from pathlib import Path
 
 import xarray as xr
 
+from ..errors import ParameterError, naming
 from ..conventions import cf_decode, cf_encode
 from ..files import write_text_atomic
 from ..schema import FORCE, REALIZATION
@@ -119,8 +120,9 @@ class Folder(Location):
                 path.unlink()
         elif old is None:
             if any(folder.glob("*.nc")):
-                raise ValueError(f"{folder} holds chunk files but {self.target} has no run manifest; "
-                                 "they cannot be checked against this study: run again with --no-resume")
+                raise ParameterError("resume", f"{folder} holds chunk files but {self.target} has no run "
+                                     "manifest; they cannot be checked against this study: run again without "
+                                     "resuming")
         else:
             check_same_study(self.target, old, manifest["study"])
         folder.mkdir(parents=True, exist_ok=True)
@@ -178,12 +180,12 @@ class Folder(Location):
                 except (OSError, RuntimeError, AttributeError, ValueError):
                     raise OSError(errno.EIO, f"a corrupt chunk file ({err}); delete it and run the study again "
                                   "to resume", str(path)) from None
-            raise OSError(errno.EIO, f"the chunk files do not combine into one ensemble ({err}); run the study "
-                          "again with --no-resume", str(self.target / CHUNKS)) from None
+            raise naming(OSError(errno.EIO, f"the chunk files do not combine into one ensemble ({err}); run the "
+                                 "study again without resuming", str(self.target / CHUNKS)), "resume") from None
         if FORCE not in files.dims:
             files.close()
-            raise ValueError(f"{self.target} was written by an older uqdrape (no {FORCE!r} dimension); "
-                             "run its study again with --no-resume")
+            raise ParameterError("resume", f"{self.target} was written by an older uqdrape (no {FORCE!r} "
+                                 "dimension); run its study again without resuming")
         ds = cf_decode(files)
         ds.set_close(files.close)  # closing the result closes the chunk files
         if len(paths) > 1:  # an extended run: the study as its last call ran it (the plan's last chunk)

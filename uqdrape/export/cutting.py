@@ -34,6 +34,7 @@ import numpy as np
 
 from ..drape import flat_positions
 from ..drape.net import net_quads
+from ..errors import ParameterError
 from ..files import csv_number, csv_rows, read_text, write_all
 from ..schema import REALIZATION
 from .fe import locate
@@ -89,8 +90,9 @@ def mould_outline(surface) -> np.ndarray:
     """The mould's own outline (K, 2) mm in plan, counter-clockwise; ValueError if it has none."""
     attr = OUTLINE_RADIUS.get(surface.name)
     if attr is None:
-        raise ValueError(f"the mould ({surface.name}) has no outline of its own; give the part's edge as a "
-                         f"trim curve (--trim CSV of x_mm,y_mm), moulds with one: {', '.join(OUTLINE_RADIUS)}")
+        raise ParameterError("trim", f"the mould ({surface.name}) has no outline of its own; give the part's "
+                             f"edge as a trim curve (a CSV of x_mm,y_mm), moulds with one: "
+                             f"{', '.join(OUTLINE_RADIUS)}")
     t = 2 * np.pi * np.arange(OUTLINE_VERTICES) / OUTLINE_VERTICES
     return getattr(surface, attr) * np.column_stack([np.cos(t), np.sin(t)])
 

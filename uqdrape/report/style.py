@@ -20,6 +20,8 @@ import matplotlib as mpl
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from ..errors import ParameterError
+
 #: CSS pixels per inch (CSS 2.1: 1 in = 96 px).
 CSS_PX_PER_IN = 96.0
 #: The browser window's width (px) a page is laid out for: the README's screenshots.
@@ -87,7 +89,8 @@ def check_formats(formats) -> tuple[str, ...]:
     formats = tuple(formats or ())
     bad = [f for f in formats if f not in VECTOR_FORMATS]
     if bad:
-        raise ValueError(f"--format: {bad[0]!r} is not one of {', '.join(VECTOR_FORMATS)} (the PNGs are always written)")
+        raise ParameterError("formats", f"{bad[0]!r} is not one of {', '.join(VECTOR_FORMATS)} (the PNGs are "
+                             "always written)")
     return formats
 
 

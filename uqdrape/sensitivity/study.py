@@ -23,6 +23,7 @@ from __future__ import annotations
 from scipy.special import ndtr
 from scipy.stats import qmc
 
+from ..errors import ParameterError
 from ..stochastic import check_base_samples, check_method, normal, uniform
 from .design import UNBOUNDED, sample
 from .indices import Design
@@ -63,8 +64,8 @@ def study_design(study, method: str | None = None) -> Design:
     study seed. Rows are evaluations (drapes); see :class:`Design`."""
     method = study.sensitivity.method if method is None else method
     if method == "none":
-        raise ValueError(f"study {study.name!r} has [sensitivity] method = \"none\"; run it with --method sobol "
-                         "or --method morris")
+        raise ParameterError("method", f"study {study.name!r} has [sensitivity] method = \"none\"; give the "
+                             "method sobol or morris")
     base = design_base_samples(study, method)
     problem = study_problem(study)
     if method == "sobol" and 2 * problem["num_vars"] > qmc.Sobol.MAXDIM:
