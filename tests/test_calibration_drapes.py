@@ -104,7 +104,7 @@ def test_calibrate_drapes_command_writes_the_study_the_sample_and_the_report(tmp
     (["--parameter", "process.nope=0:1"], "process.nope", "KEY=LOW:HIGH"),
     (["--parameter", f"{SD_KEY}=5:1"], SD_KEY, "LOW < HIGH"),
     (["--parameter", f"{SD_KEY}=-1:4"], SD_KEY, "sd_deg"),
-    ([], None, "--parameter KEY=LOW:HIGH"),
+    ([], None, "--parameter: a calibration from drapes needs at least one parameter KEY=LOW:HIGH"),
     (["--parameter", f"{SD_KEY}=1:4", "--posterior"], None, "--posterior belong(s) to a calibration from POINTS"),
     (["--parameter", "fabric.imbalance_Nm=2:50"], "fabric.imbalance_Nm", "set in the study file first"),
 ])

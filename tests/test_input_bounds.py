@@ -89,7 +89,7 @@ def test_a_measured_shear_of_1e300_is_refused_not_calibrated_from_the_prior(tmp_
 @pytest.mark.parametrize("flag, value, valid", [("--design", "1000000000", "from 3 to 1000"),
                                                 ("--realizations", "1000000000", "from 3 to 10000"),
                                                 ("--measurement-sd", "1e200", "from 0 to 90"),
-                                                ("--workers", "1000000", "--workers must be from 1 to")])
+                                                ("--workers", "1000000", "--workers: workers must be from 1 to")])
 def test_a_calibration_from_drapes_of_absurd_size_is_refused_before_any_drape(tmp_path, capsys, flag, value, valid):
     study = write_study(tmp_path, uncertainty={"zero_angle": {"sd_deg": 2.0}})
     assert main(["calibrate", "--drapes", str(_part(tmp_path / "part.csv")), "--study", str(study), "--parameter",

@@ -230,7 +230,9 @@ def cmd_examples(args) -> int:
     try:
         print(f"wrote {copy_example(args.name, args.dest, overwrite=args.overwrite)}")
     except FileExistsError as err:  # the user's own file in the way: a usage error, not an I/O failure
-        raise ValueError(str(err)) from None
+        usage = ValueError(str(err))
+        usage.names = getattr(err, "names", ())
+        raise usage from None
     return 0
 
 
@@ -560,7 +562,8 @@ def _no_warnings():
 
 
 #: Engine arguments whose option stores under another name.
-_DEST = {"resume": "no_resume", "output_dir": "out", "formats": "format"}
+_DEST = {"resume": "no_resume", "output_dir": "out", "formats": "format", "parameters": "parameter",
+         "timeout_s": "timeout"}
 
 
 def _flagged(parser: argparse.ArgumentParser, command: str, err: BaseException, text: str) -> str:

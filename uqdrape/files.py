@@ -17,7 +17,7 @@ Writing. :func:`write_atomic` has a callback write a temporary file beside the t
 renames it into place, so a target exists only complete; :func:`write_text_atomic` and
 :func:`write_all` (several files, all or nothing) are built on it.
 
-This module imports nothing from uqdrape: every other part may use it.
+This module imports only uqdrape.errors (which imports nothing): every other part may use it.
 """
 
 from __future__ import annotations
@@ -31,6 +31,8 @@ import stat
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
+
+from .errors import ParameterError
 
 #: Largest TOML file read (bytes): uqdrape's inputs are a few kB; anything this big is a mistake.
 MAX_TOML_BYTES = 10 * 1024 * 1024
@@ -105,12 +107,12 @@ def check_input_file(path, what: str, max_bytes: int, *, error: type[ValueError]
     return info.st_size
 
 
-def local_path(target, flag: str) -> Path:
-    """``target`` as a path on this machine; a URL raises ValueError naming ``flag``
-    (pathlib would fold ``http://host/x`` into the local folder ``http:/host``)."""
+def local_path(target, name: str) -> Path:
+    """``target`` as a path on this machine; a URL raises ParameterError naming the
+    argument ``name`` (pathlib would fold ``http://host/x`` into the local folder ``http:/host``)."""
     if isinstance(location(target), str):
-        raise ValueError(f"{flag} {target}: this command writes files on this machine; give a path (a store URL "
-                         "is written by run and design, and read by report and export)")
+        raise ParameterError(name, f"{target}: this command writes files on this machine; give a path (a store "
+                             "URL is written by run and design, and read by report and export)")
     return Path(target)
 
 

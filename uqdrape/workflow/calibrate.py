@@ -21,6 +21,7 @@ import xarray as xr
 from .._version import __version__
 from ..calibration import block_text, calibrate_points, read_points
 from ..calibration.block import sd_dof, unidentified
+from ..errors import ParameterError
 from ..calibration.drapes import DesignRuns, Parts, PartsLikelihood, predictive_bands, sample_posterior
 from ..calibration.emulator import Emulator, design_points
 from ..calibration.fit import Estimate
@@ -39,11 +40,11 @@ def _image_points(path: Path, mm_per_px, window_px: float, fibre_set: int):
 
     if path.suffix.lower() not in IMAGE_SUFFIXES:
         if mm_per_px is not None:
-            raise ValueError(f"--mm-per-px is the scale of an image ({', '.join(IMAGE_SUFFIXES)}); "
-                             f"{path} is read as a points CSV")
+            raise ParameterError("mm_per_px", f"mm_per_px is the scale of an image ({', '.join(IMAGE_SUFFIXES)}); "
+                                 f"{path} is read as a points CSV")
         return None
     if mm_per_px is None:
-        raise ValueError(f"{path} is an image: give its scale, --mm-per-px (mm per pixel, > 0)")
+        raise ParameterError("mm_per_px", f"{path} is an image: give its scale, mm_per_px (mm per pixel, > 0)")
     return image_points(read_image(path), mm_per_px, window_px=window_px, fibre_set=fibre_set, source=str(path))
 
 
@@ -57,11 +58,11 @@ def calibrate_fibre_angles(points_csv, out, plot=None, *, family: str = "auto", 
     sample too (its intervals in the comments, sd_dof from it). An image (a suffix of
     calibration.image.IMAGE_SUFFIXES) is read as tows of ``fibre_set`` at scale
     ``mm_per_px`` through the structure tensor (window ``window_px``). Returns the summary."""
-    out = local_path(out, "--out")
-    plot = local_path(plot, "--plot") if isinstance(plot, (str, Path)) else plot
-    report = None if report is None else local_path(report, "--report")
+    out = local_path(out, "out")
+    plot = local_path(plot, "plot") if isinstance(plot, (str, Path)) else plot
+    report = None if report is None else local_path(report, "report")
     if out.suffix.lower() != ".toml":
-        raise ValueError(f"--out must name the study block to write, a .toml path; got {str(out)!r}")
+        raise ParameterError("out", f"out must name the study block to write, a .toml path; got {str(out)!r}")
     points = _image_points(Path(points_csv), mm_per_px, window_px, fibre_set)
     calibration = calibrate_points(points if points is not None else read_points(points_csv), fibre1_deg=fibre1_deg, family=family,
                                    criterion=criterion, level=level, posterior=posterior)
@@ -117,7 +118,7 @@ def parse_parameters(texts, study) -> list[Parameter]:
         for name in key.split("."):
             value = value.get(name) if isinstance(value, dict) else None
         if not is_number(value):
-            raise ValueError(f"--parameter {text!r}: {key!r} is not a number of {study.path} (with defaults "
+            raise ParameterError("parameters", f"{text!r}: {key!r} is not a number of {study.path} (with defaults "
                              "filled); give a dotted study key such as process.friction or "
                              "uncertainty.zero_angle.sd_deg, as KEY=LOW:HIGH (a key without a default, "
                              "such as fabric.imbalance_Nm, must be set in the study file first)")
@@ -126,12 +127,13 @@ def parse_parameters(texts, study) -> list[Parameter]:
         except ValueError:
             lower = upper = math.nan
         if not (math.isfinite(lower) and math.isfinite(upper) and lower < upper):
-            raise ValueError(f"--parameter {text!r}: the prior box must be LOW:HIGH, two numbers with LOW < HIGH")
+            raise ParameterError("parameters", f"{text!r}: the prior box must be LOW:HIGH, two numbers with "
+                                 "LOW < HIGH")
         if key in (p.key for p in params):
-            raise ValueError(f"--parameter {key} is given twice")
+            raise ParameterError("parameters", f"{key} is given twice")
         params.append(Parameter(key, lower, upper))
     if not params:
-        raise ValueError("--drapes needs at least one --parameter KEY=LOW:HIGH to calibrate")
+        raise ParameterError("parameters", "a calibration from drapes needs at least one parameter KEY=LOW:HIGH")
     return params
 
 
@@ -141,7 +143,8 @@ def study_at(study_path, values: dict, seed: int | None = None, realizations: in
     try:
         study = load_study(study_path, {key: float(v) for key, v in values.items()})
     except ValueError as err:
-        raise ValueError(f"--parameter at {', '.join(f'{k} = {v:.6g}' for k, v in values.items())}: {err}") from None
+        raise ParameterError("parameters", f"at {', '.join(f'{k} = {v:.6g}' for k, v in values.items())}: "
+                             f"{err}") from None
     return dataclasses.replace(study, seed=study.seed if seed is None else int(seed),
                                realizations=study.realizations if realizations is None else int(realizations))
 
@@ -233,7 +236,7 @@ class DrapeCalibration:
                 lo, hi = self.interval(p)
                 out.append(f"{p.key} is not identified by the data: its posterior reaches the prior bound "
                            f"{' and '.join(f'{b:g}' for b in ends)} ({100 * self.level:g} % interval "
-                           f"[{lo:.4g}, {hi:.4g}] is the prior's, not the measurements'); widen --parameter or "
+                           f"[{lo:.4g}, {hi:.4g}] is the prior's, not the measurements'); widen its prior box or "
                            "measure more")
         return out
 
@@ -251,14 +254,14 @@ def calibrate_parts(study_path, parts, params, *, design: int | None = None, rea
         raise ValueError(f"{study.path}: a calibration from drapes needs one blank-holder force level "
                          f"(the study sweeps {list(study.force_levels)} N)")
     if not 0 <= measurement_sd <= 90:
-        raise ValueError(f"--measurement-sd must be from 0 to 90 (deg), got {measurement_sd!r}")
+        raise ParameterError("measurement_sd", f"measurement_sd must be from 0 to 90 (deg), got {measurement_sd!r}")
     distance, sign, index = _union(parts)
     n = DESIGN_PER_PARAMETER * len(params) if design is None else design
     r = study.realizations if realizations is None else realizations
-    for flag, value, least, most in (("--design", n, len(params) + 2, MAX_DESIGN),
-                                     ("--realizations", r, 3, MAX_REALIZATIONS)):
+    for name, value, least, most in (("design", n, len(params) + 2, MAX_DESIGN),
+                                     ("realizations", r, 3, MAX_REALIZATIONS)):
         if not (isinstance(value, int) and least <= value <= most):
-            raise ValueError(f"{flag} must be an integer from {least} to {most}, got {value!r}")
+            raise ParameterError(name, f"{name} must be an integer from {least} to {most}, got {value!r}")
     lower, upper = np.array([p.lower for p in params]), np.array([p.upper for p in params])
     keys = [p.key for p in params]
     for corner in itertools.product(*zip(lower, upper)):  # a box the study refuses, before any drape
@@ -338,10 +341,10 @@ def calibrate_drapes(parts_csv, study_path, parameters, out, *, report=None, des
     (``-posterior.nc``) and, with ``report`` (a folder), the calibration report. Returns
     the summary."""
     clock = time.perf_counter()
-    out = local_path(out, "--out")
-    report = None if report is None else local_path(report, "--report")
+    out = local_path(out, "out")
+    report = None if report is None else local_path(report, "report")
     if out.suffix.lower() != ".toml":
-        raise ValueError(f"--out must name the calibrated study to write, a .toml path; got {str(out)!r}")
+        raise ParameterError("out", f"out must name the calibrated study to write, a .toml path; got {str(out)!r}")
     study = load_study(study_path)
     params = parse_parameters(parameters, study)
     parts = [read_experimental(p) for p in parts_csv]
@@ -387,7 +390,7 @@ def _valid_at(tmp: Path, text: str, out: Path, study_path) -> bool:
     try:
         load_study(tmp)
     except ValueError as err:
-        raise ValueError(f"--out {out}: a study written there does not validate (it names its files relative to "
+        raise ParameterError("out", f"{out}: a study written there does not validate (it names its files relative to "
                          f"itself: write it beside {study_path}): {err}") from None
     return True
 

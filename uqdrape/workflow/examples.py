@@ -15,6 +15,8 @@ import shutil
 import tomllib
 from pathlib import Path
 
+from ..errors import naming
+
 
 def examples_dir() -> Path:
     """The folder of the shipped examples: ``uqdrape/examples`` in an installed package,
@@ -125,8 +127,8 @@ def copy_example(name: str, dest: str | os.PathLike = ".", *, overwrite: bool = 
     pairs = [(f, dest / f.resolve().relative_to(root.resolve())) for f in files]
     clash = [str(to) for f, to in pairs if to.exists() and to.read_bytes() != f.read_bytes()]
     if clash and not overwrite:
-        raise FileExistsError(f"{clash[0]} exists and differs from the example's; move it or overwrite it "
-                              "(overwrite=True; uqdrape examples --overwrite)")
+        raise naming(FileExistsError(f"{clash[0]} exists and differs from the example's; move it or overwrite "
+                                     "it"), "overwrite")
     for f, to in pairs:
         to.parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(f, to)

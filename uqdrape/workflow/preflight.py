@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..drape import placement_failures
+from ..errors import ParameterError
 from ..ensemble import drape_inputs, inputs_from_design, sampled_inputs
 from ..ensemble import at
 from ..study import load_study, study_error
@@ -41,8 +42,8 @@ def check_workers(workers: int | None) -> None:
     before any process is spawned."""
     most = WORKERS_PER_CORE * (os.cpu_count() or 1)
     if workers is not None and not 1 <= workers <= most:
-        raise ValueError(f"--workers must be from 1 to {most} ({WORKERS_PER_CORE} per core of this machine's "
-                         f"{os.cpu_count() or 1}), got {workers}; a cluster takes --scheduler ADDRESS")
+        raise ParameterError("workers", f"workers must be from 1 to {most} ({WORKERS_PER_CORE} per core of this "
+                             f"machine's {os.cpu_count() or 1}), got {workers}; a cluster takes a scheduler address")
 
 
 def memory_bytes() -> int:

@@ -41,6 +41,7 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 import numpy as np
 
 from ..ensemble import design_variables, drape_inputs, inputs_from_design
+from ..errors import ParameterError
 from ..schema import SOLVER_INPUTS
 from ..stats.qoi import check_qois, realization_qois
 
@@ -211,11 +212,11 @@ def serve_study(study, *, host: str = "127.0.0.1", port: int = 4242, qoi=None, m
     model."""
     qoi = check_qois(qoi if qoi else study.sensitivity.qoi)
     if max_requests is not None and max_requests < 1:
-        raise ValueError(f"--max-requests must be at least 1, got {max_requests}")
+        raise ParameterError("max_requests", f"max_requests must be at least 1, got {max_requests}")
     if timeout_s is not None and not 0 < timeout_s < math.inf:
-        raise ValueError(f"--timeout must be a positive finite number of seconds, got {timeout_s}")
+        raise ParameterError("timeout_s", f"timeout_s must be a positive finite number of seconds, got {timeout_s}")
     if not 0 <= port <= 65535:
-        raise ValueError(f"--port must be a TCP port, 0 to 65535 (0: any free one), got {port}")
+        raise ParameterError("port", f"port must be a TCP port, 0 to 65535 (0: any free one), got {port}")
     model = _Forward(study, qoi)
     server = _Server((host, port), _Handler)
     server.model, server.served, server.max_requests = model, 0, max_requests

@@ -34,7 +34,7 @@ def drape_to_files(geometry: str, params: dict, spacing: float, rings: int, out,
     the same physical ranges a study's are (``check_drape_inputs``), and the net against
     this machine's memory. ``command`` is recorded as the file's history."""
     check_drape_inputs(spacing, rings, options, material)
-    out = local_path(out, "--out")
+    out = local_path(out, "out")
     surface = build(geometry, **params)
     card = load_material(material) if material else None
     # a ring k/n counter: a bar on a terminal, elsewhere a line every PLAIN_EVERY s of a long drape
@@ -100,7 +100,7 @@ def material_list() -> list[tuple[str, str]]:
 def material_text(name: str, plot=None) -> str:
     """What a card says (locking angles, bending stiffness, note); ``plot``: also write its
     curves to that PNG."""
-    plot = local_path(plot, "--plot") if plot else plot
+    plot = local_path(plot, "plot") if plot else plot
     m = load_material(name)
     text = (f"{m.name}: {m.description}\nlocking angle +{m.locking_angle_deg} / -{m.locking_angle_neg_deg} deg, "
             f"bending stiffness {m.bending_stiffness} N m^2\n{m.note}")
@@ -113,7 +113,7 @@ def derive_material(source: str, out, plot=None) -> str:
     """Derive a card from architecture ``source`` (a TOML file or a shipped name) into
     ``out`` (.toml), with the thesis Fig 4.18 picture if ``plot`` (True: next to the
     card, or a PNG path); a card that would not load is not written. Returns the summary."""
-    out, plot = local_path(out, "--out"), local_path(plot, "--plot") if isinstance(plot, (str, Path)) else plot
+    out, plot = local_path(out, "out"), local_path(plot, "plot") if isinstance(plot, (str, Path)) else plot
     arch = load_architecture(source)
     terms = summed(arch)
     doc = derive_card(arch, name=out.stem, source=Path(source).name, terms=terms)
@@ -139,7 +139,7 @@ def fit_material(rig, out, plot=None) -> str:
     ``uqdrape.material.sheartest``) and write it to ``out`` (.toml), with the normalisation
     figure if ``plot`` (True: next to the card, or a PNG path); a card that would not load
     is not written. Returns the summary, warnings (kappa < 2) on lines of their own."""
-    out, plot = local_path(out, "--out"), local_path(plot, "--plot") if isinstance(plot, (str, Path)) else plot
+    out, plot = local_path(out, "out"), local_path(plot, "plot") if isinstance(plot, (str, Path)) else plot
     rig_file = read_rig(rig)
     result = fit_card(rig_file, rig_file.name or out.stem, Path(rig).name)
     text = card_text(result.doc, f"Material card fitted by `uqdrape materials fit {Path(rig).name}` from shear "
@@ -177,9 +177,9 @@ def export_result(result, to, *, out=None, mesh=None, tolerance=None, reference=
     if unknown or not to:
         raise ValueError(f"to must name some of {', '.join(EXPORT_FORMATS)}; got {list(to)!r}")
     if "fe" in to and not mesh:
-        raise ValueError("an fe export needs mesh, the part's surface mesh (--mesh FILE on the command line): a "
+        raise ParameterError("mesh", "an fe export needs mesh, the part's surface mesh: a "
                          "file meshio reads (.inp, .msh, .vtu, .stl, ...)")
-    out = local_path(out, "--out") if out else None
+    out = local_path(out, "out") if out else None
     ds, is_ensemble = open_result(result)
     name = at(result).name if is_ensemble else Path(result).stem
     options = dict(mesh=mesh, tolerance=tolerance, reference=reference, flavours=flavours, trim=trim,
