@@ -26,6 +26,8 @@ import hashlib
 import json
 import sys
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import xarray as xr
@@ -58,9 +60,10 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
     ``uqdrape.ensemble.run_ensemble``. A study with a [design] section runs its design
     (:func:`run_design`); ``method`` must then be None. A study with a ``[study] target``
     (and no sensitivity method) runs in rounds until it is met (``uqdrape.workflow.target``).
-    A hierarchical study (a zero-angle sd or length drawn per realisation) then drapes its
-    fixed-parameter twin into ``<output_dir>/fixed`` as many times, unless ``[report]
-    fixed_twin = false`` (``uqdrape.workflow.twin``).
+    Then each of :data:`AFTER_SAMPLE` runs, each doing nothing where its study does not ask
+    for it: a hierarchical study's fixed-parameter twin into ``<output_dir>/fixed``
+    (``uqdrape.workflow.twin``; ``[report] fixed_twin = false`` skips it), a sensitivity
+    run's indices, a ``[study] rare`` probability.
     """
     study = study if isinstance(study, Study) else load_study(study)
     if study.design is not None:
@@ -73,64 +76,85 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
     design = None if method == "none" else study_design(study, method)
     if design is not None:
         assert design.problem["names"] == design_variables(study), "problem and ensemble disagree on the variables"
-    out = study.output_dir
-    provenance = study.to_dict()
+    out, provenance, attrs = study.output_dir, study.to_dict(), {}
     if method != study.sensitivity.method:
         out = at(out).sibling(f"-{method}").target
         provenance["sensitivity"]["method"] = method
         provenance["sensitivity"].pop("base_samples", None)
-    attrs = {}
     if design is not None:
         provenance["sensitivity"]["base_samples"] = design.meta["base_samples"]
         attrs = dict(design_method=design.method, design_base_samples=design.meta["base_samples"],
                      design_evaluations=design.n_evaluations)
-    def run(sample, where, again):
+    rows = None if design is None else design.standard
+
+    def run(sample, where, again, **kwargs):
         return run_ensemble(sample, output_dir=where, scheduler=scheduler, workers=workers, chunk_size=chunk_size,
-                            resume=again, progress=progress, verbose=verbose,
-                            preflight=run_preflight(sample, where, chunk_size=chunk_size, quiet=not progress))
+                            resume=again, progress=progress, verbose=verbose, **kwargs,
+                            preflight=run_preflight(sample, where, chunk_size=chunk_size, quiet=not progress,
+                                                    design_rows=kwargs.get("design_rows")))
     if design is None and study.target is not None:
         out = run_to_target(study, lambda sample, again: run(sample, out, again),
                             chunk_size=chunk_size or study.chunk_size, resume=resume, progress=progress)
-        _twin(study, out, run, resume, progress)
-        return _rare(study, out, resume, progress)
-    out = run_ensemble(study, design_rows=None if design is None else design.standard, output_dir=out,
-                       provenance=provenance, attrs=attrs, scheduler=scheduler, workers=workers,
-                       chunk_size=chunk_size, resume=resume, progress=progress, verbose=verbose,
-                       preflight=run_preflight(study, out, chunk_size=chunk_size,
-                                               design_rows=None if design is None else design.standard,
-                                               quiet=not progress))
-    if design is None:
-        _twin(study, out, run, resume, progress)
-    if design is not None and resume and analysed(out):
-        if progress:
-            print(f"{study.name}: {design.method} indices already analysed in {out}", file=sys.stderr)
-    elif design is not None:
-        if progress:
-            print(f"{study.name}: analysing {design.method} indices of {design.n_evaluations} evaluations"
-                  + (f" at {len(study.force_levels)} force levels" if study.is_sweep else ""), file=sys.stderr)
-        write_sensitivity(out, design, qoi=study.sensitivity.qoi, seed=study.seed, progress=progress)
-    return _rare(study, out, resume, progress)
-
-
-def _twin(study, out, run, resume: bool, progress: bool) -> None:
-    """Drape the fixed-parameter twin of a hierarchical run in ``out`` with as many
-    realisations as the run holds (``uqdrape.workflow.twin``), by ``run(twin, where,
-    resume)``, if the study asks for it (``[report] fixed_twin``)."""
-    if not study.report.fixed_twin:
-        return
-    twin = fixed_twin(study, read_manifest(out)["study"]["study"]["realizations"], out)
-    if progress:
-        print(f"{study.name}: draping its fixed-parameter twin into {twin.output_dir}: the same {twin.realizations} "
-              "realisations with sd and lengths at their estimates, to measure the widening "
-              "(twice the drapes; [report] fixed_twin = false skips it)", file=sys.stderr)
-    run(twin, twin.output_dir, resume)
-
-
-def _rare(study, out: Path, resume: bool, progress: bool) -> Path:
-    """Estimate the study's ``[study] rare`` probability into the run folder ``out``, if it asks for one."""
-    if study.rare is not None:
-        rare_probabilities(study, out, resume=resume, progress=progress)
+    else:
+        out = run(study, out, resume, design_rows=rows, provenance=provenance, attrs=attrs)
+    done = Sampled(study, out, design, run, resume, progress)
+    for step in AFTER_SAMPLE:
+        step(done)
     return out
+
+
+@dataclass(frozen=True)
+class Sampled:
+    """A study's finished sample, as the steps after it see it: the study, its output
+    folder, its sensitivity design (None: a Monte Carlo run), ``run(sample, where,
+    resume)`` to drape another study the same way, and the run's resume and progress."""
+
+    study: Study
+    out: Path | str
+    design: object
+    run: Callable
+    resume: bool
+    progress: bool
+
+
+def _twin(done: Sampled) -> None:
+    """Drape the fixed-parameter twin of a hierarchical Monte Carlo run with as many
+    realisations as the run holds (``uqdrape.workflow.twin``), if the study asks for it
+    (``[report] fixed_twin``; ``fixed_twin`` is None for a study that is not hierarchical)."""
+    if done.design is not None or not done.study.report.fixed_twin:
+        return
+    twin = fixed_twin(done.study, read_manifest(done.out)["study"]["study"]["realizations"], done.out)
+    if done.progress:
+        print(f"{done.study.name}: draping its fixed-parameter twin into {twin.output_dir}: the same "
+              f"{twin.realizations} realisations with sd and lengths at their estimates, to measure the widening "
+              "(twice the drapes; [report] fixed_twin = false skips it)", file=sys.stderr)
+    done.run(twin, twin.output_dir, done.resume)
+
+
+def _indices(done: Sampled) -> None:
+    """A sensitivity run's indices and maps (:func:`write_sensitivity`), unless a resumed
+    run already holds them for the same drapes."""
+    design, name = done.design, done.study.name
+    if design is None:
+        return
+    if done.resume and analysed(done.out):
+        if done.progress:
+            print(f"{name}: {design.method} indices already analysed in {done.out}", file=sys.stderr)
+        return
+    if done.progress:
+        print(f"{name}: analysing {design.method} indices of {design.n_evaluations} evaluations"
+              + (f" at {len(done.study.force_levels)} force levels" if done.study.is_sweep else ""), file=sys.stderr)
+    write_sensitivity(done.out, design, qoi=done.study.sensitivity.qoi, seed=done.study.seed, progress=done.progress)
+
+
+def _rare(done: Sampled) -> None:
+    """The study's ``[study] rare`` probability into its run folder, if it asks for one."""
+    if done.study.rare is not None:
+        rare_probabilities(done.study, done.out, resume=done.resume, progress=done.progress)
+
+
+#: What follows a study's sample, in order; a feature that works on a finished run plugs in here.
+AFTER_SAMPLE = (_twin, _indices, _rare)
 
 
 def _run_key(output_dir) -> str:
