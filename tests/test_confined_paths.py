@@ -113,7 +113,7 @@ def test_an_experimental_csv_that_is_not_text_or_csv_is_one_line(tmp_path, data,
 
 
 @pytest.mark.parametrize("directory, ok", [
-    ("results/x", True), ("results/../x", True), ("{abs}", True),
+    ("results/x", True), ("results/../x", True), ("{abs}", True), ("file://results/x", True),
     ("../x", False), ("results/../../x", False), ("../../../../../escaped", False), ("a\0b", False),
 ])
 def test_a_relative_output_folder_stays_in_the_current_folder(tmp_path, monkeypatch, directory, ok):

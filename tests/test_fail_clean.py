@@ -388,3 +388,35 @@ def subprocess_free_validate(path: Path) -> str:
         code = cli(["validate", str(path)])
     assert code in (0, 2), (code, buffer.getvalue())
     return buffer.getvalue()
+
+
+@pytest.fixture()
+def bad_request_store():
+    """The URL of an HTTP server on 127.0.0.1 that answers every request 400 Bad Request."""
+    import http.server
+    import threading
+
+    class Refuse(http.server.BaseHTTPRequestHandler):
+        def refuse(self):
+            self.send_response(400)
+            self.send_header("Content-Length", "0")
+            self.end_headers()
+
+        do_GET = do_HEAD = do_PUT = do_POST = do_DELETE = refuse
+
+        def log_message(self, *args):
+            pass
+
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Refuse)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    yield f"http://127.0.0.1:{server.server_address[1]}/x"
+    server.shutdown()
+    server.server_close()
+
+
+@pytest.mark.parametrize("command", ["report", "run"])
+def test_a_store_answering_http_400_is_one_line_exit_3(tmp_path, capsys, bad_request_store, command):
+    args = [bad_request_store] if command == "report" else [str(write_study(tmp_path, **_tiny())), "--out",
+                                                             bad_request_store, "-q"]
+    assert cli([command, *args]) == 3
+    assert_one_line_error(capsys.readouterr().err, file=bad_request_store, valid=["HTTP 400"])

@@ -141,3 +141,14 @@ def test_a_url_where_a_command_writes_local_files_is_refused_not_folded_into_a_f
     assert main([points if a == "POINTS" else a for a in argv]) == 2
     assert_one_line_error(capsys.readouterr().err, valid=[flag, "://", "give a path"])
     assert sorted(p.name for p in tmp_path.iterdir()) == ["p.csv"]  # no http: or s3: folder
+
+
+def test_points_spread_over_a_micrometre_fraction_are_refused_before_the_figure(tmp_path, capsys):
+    """Coordinates in the wrong unit: the figure's axes overflowed FreeType (a traceback)."""
+    path = _points_csv(tmp_path / "p.csv", 30)
+    lines = path.read_text().splitlines()
+    rows = [line.split(",") for line in lines[1:]]
+    path.write_text(lines[0] + "\n" + "".join(f"{float(x) * 1e-7},{float(y) * 1e-7},{a},{s}\n" for x, y, a, s in rows))
+    assert _calibrate(tmp_path, path, "--plot") == 2
+    assert_one_line_error(capsys.readouterr().err, file=path, valid=["mm of each other", "0.001 mm"])
+    assert not any(p.name.startswith("block") for p in tmp_path.iterdir())

@@ -105,7 +105,7 @@ def test_cli_run_out_url_writes_and_resumes_the_store(tmp_path, folder30, capsys
 
 
 def test_study_output_directory_url_is_kept_and_validated(tmp_path, capsys):
-    url = "memory://store-run-validate/a//b"  # a Path would fold the '//'
+    url = f"file://{tmp_path}/store-run-validate/a//b"  # a Path would fold the '//'
     study = load_study(sweep_file(tmp_path / "s", 20, url))
     assert study.output_dir == url and study.to_dict()["output"]["directory"] == url
     assert main(["validate", str(study.path)]) == 0

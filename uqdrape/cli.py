@@ -534,6 +534,15 @@ def _os_error(err: OSError) -> str:
     return f"{where}: {cause}" if where else cause
 
 
+def _http_refusal(err: Exception) -> OSError | None:
+    """An HTTP store's answer that fsspec raises as aiohttp's ClientResponseError (e.g. 400,
+    which is not an OSError) as an OSError naming the URL, else None."""
+    aiohttp = sys.modules.get("aiohttp")  # not imported: the error is not aiohttp's
+    if aiohttp is None or not isinstance(err, aiohttp.ClientResponseError):
+        return None
+    return OSError(errno.EIO, f"the store answered HTTP {err.status} {err.message}", str(err.request_info.real_url))
+
+
 def _terminated(signum, frame):
     raise KeyboardInterrupt
 
@@ -595,8 +604,13 @@ def main(argv=None) -> int:
     except BrokenPipeError:  # output piped into e.g. `head`, which closed early
         sys.stderr.close()
         return 0
-    except OSError as err:  # reading or writing files (a missing input is a user error above; a closed pipe before)
-        print(f"uqdrape {args.command}: error: {_flagged(parser, args.command, err, _os_error(err))}", file=sys.stderr)
+    except Exception as err:  # reading or writing files (a missing input is a user error above; a closed pipe
+        # before), or an HTTP store's refusal
+        failure = err if isinstance(err, OSError) else _http_refusal(err)
+        if failure is None:
+            raise
+        print(f"uqdrape {args.command}: error: {_flagged(parser, args.command, err, _os_error(failure))}",
+              file=sys.stderr)
         return 3
     except KeyboardInterrupt:
         print(f"uqdrape {args.command}: interrupted; finished chunks are kept, run again to resume",

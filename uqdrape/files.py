@@ -22,6 +22,7 @@ This module imports only uqdrape.errors (which imports nothing): every other par
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import math
@@ -196,6 +197,15 @@ def location(target) -> Path | str:
     anything else is a Path. The one place a URL is told from a path: the run's storage
     is chosen by it (``uqdrape.ensemble.storage.at``)."""
     return target if isinstance(target, str) and "://" in target else Path(target)
+
+
+def url_problem(url: str) -> str | None:
+    """Why the store URL ``url`` cannot be written, or None: nothing after ``scheme://``
+    (``file://`` would put the manifest in the current folder and the data at /data)."""
+    if not url.split("://", 1)[1].strip("/"):
+        return (f"a store URL needs a path after {url.split('://', 1)[0]}://, e.g. file:///abs/path or "
+                "s3://bucket/prefix")
+    return None
 
 
 def fmt(value) -> str:
@@ -394,15 +404,26 @@ def temporary_path(path, *, keep_suffix: bool = True) -> Path:
     return path.with_name(f"{path.stem}.part{path.suffix}" if keep_suffix else f"{path.name}.part")
 
 
+def claim(tmp) -> None:
+    """Make the temporary path ``tmp`` a new empty file of this writer: whatever is there
+    (a killed writer's file, or a symbolic link planted to redirect the write outside the
+    folder) is removed, never followed, and the file is created with O_EXCL|O_NOFOLLOW.
+    The rename that follows replaces a link at the target, not the file it points to."""
+    with contextlib.suppress(FileNotFoundError):
+        os.unlink(tmp)
+    os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o666))
+
+
 def write_atomic(path, write: Callable[[Path], object], *, keep_suffix: bool = True) -> Path | None:
     """Have ``write(tmp)`` write the file to a temporary path beside ``path`` (see
-    temporary_path), then rename it into place, so ``path`` exists only complete and an
-    old ``path`` stays until the new one is whole. Any failure (an interrupt too) removes
+    temporary_path; made by claim), then rename it into place, so ``path`` exists only
+    complete and an old ``path`` stays until the new one is whole. Any failure (an interrupt too) removes
     the temporary file and is re-raised. ``write`` returning False (exactly) drops the
     finished file and returns None; else returns ``path``. Creates the parent folder."""
     path = Path(path)
     tmp = temporary_path(path, keep_suffix=keep_suffix)
     path.parent.mkdir(parents=True, exist_ok=True)
+    claim(tmp)
     try:
         if write(tmp) is False:
             tmp.unlink(missing_ok=True)
@@ -430,6 +451,7 @@ def write_all(writers: dict[Path, Callable[[Path], None]]) -> list[Path]:
             target = Path(target)
             target.parent.mkdir(parents=True, exist_ok=True)
             tmp = temporary_path(target)
+            claim(tmp)
             done.append((tmp, target))
             writer(tmp)
     except BaseException:

@@ -39,7 +39,7 @@ from .block import block_text, study_block
 from .fit import CRITERIA, Estimate, FieldFit, fit_field
 from .likelihood import FAMILIES
 from .mapping import fibre_coordinates, zero_angle_deg
-from .points import AnglePoints, PointsError, check_point_count, read_points
+from .points import AnglePoints, PointsError, check_point_count, check_spread, read_points
 from .synthetic import synthetic_set
 
 __all__ = ["CRITERIA", "FAMILIES", "AnglePoints", "Estimate", "FieldFit", "PointsCalibration", "PointsError",
@@ -69,6 +69,7 @@ def calibrate_points(points: AnglePoints, *, fibre1_deg: float = 45.0, family: s
                              f"{fibre1_deg!r}")
     check_point_count(len(points), points.source, "thin them, or for an image give a larger window_px (samples "
                                                   "lie two windows apart)")
+    check_spread(points)
     gamma0 = zero_angle_deg(points, fibre1_deg)
     a, b = fibre_coordinates(points.x_mm, points.y_mm, fibre1_deg)
     fit = fit_field(a, b, gamma0, points.sd_deg, family=family, criterion=criterion, level=level)

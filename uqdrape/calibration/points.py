@@ -47,6 +47,21 @@ def check_point_count(n: int, source: str, hint: str) -> None:
                           f"at most {MAX_POINTS} are fitted: {hint}", source)
 
 
+#: Least spread (mm) of points not all at one spot: a fibre angle is told over a tow, not a
+#: micrometre, so a smaller spread is coordinates in the wrong unit (and its figure's axes
+#: overflow FreeType's rasteriser).
+MIN_SPREAD_MM = 1e-3
+
+
+def check_spread(points) -> None:
+    """Refuse points spread over less than MIN_SPREAD_MM but not all at one spot."""
+    spread = max(np.ptp(points.x_mm), np.ptp(points.y_mm)) if len(points) else 0.0
+    if 0 < spread < MIN_SPREAD_MM:
+        raise PointsError(f"{points.source}: the points lie within {spread:.3g} mm of each other; points not at one "
+                          f"spot must spread over at least {MIN_SPREAD_MM:g} mm: are x_mm and y_mm in mm?",
+                          points.source)
+
+
 class PointsError(FileFormatError):
     """A problem in a fibre-angle CSV; ``key`` is the column at fault (None: the file)."""
 

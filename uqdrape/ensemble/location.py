@@ -162,6 +162,10 @@ class Location:
         """The location beside this one, its name with ``suffix`` appended (another method's run)."""
         return type(self)(str(self.target).rstrip("/") + suffix)
 
+    def refused_with(self, scheduler) -> str | None:
+        """Why a run here cannot use ``scheduler`` (as ``run_ensemble`` takes it), or None."""
+        return None
+
     def path_of(self, name: str) -> Path | str:
         """Where the file or folder ``name`` of the run lives: a path, or a URL in a store."""
         raise NotImplementedError

@@ -155,6 +155,8 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
         if scheduler is not None and scheduler not in LOCAL_SCHEDULERS:
             raise ValueError(f"workers={workers} sets local processes; the cluster at {scheduler} has its own workers")
     where = at(study.output_dir if output_dir is None else output_dir).absolute()
+    if where.refused_with(scheduler):
+        raise ValueError(f"{where}: {where.refused_with(scheduler)}")
     provenance = study.to_dict() if provenance is None else provenance
     n = study.realizations if design_rows is None else len(design_rows)
     chunks, done = where.plan(study, provenance, chunk_size, n, resume)

@@ -38,6 +38,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import json
+import os
 import tempfile
 from pathlib import Path
 
@@ -46,6 +47,7 @@ import numpy as np
 import xarray as xr
 
 from ..conventions import cf_decode, cf_encode
+from ..files import claim, url_problem
 from ..schema import FORCE, REALIZATION
 from .chunk import drape_chunk
 from .lock import hold_lock
@@ -67,8 +69,24 @@ class ZarrStore(Location):
 
     parts = "regions"
 
+    def __init__(self, target: str):
+        why = url_problem(target)
+        if why:
+            raise ValueError(f"{target}: {why}")
+        super().__init__(target)
+
     def absolute(self) -> ZarrStore:
         return self
+
+    def refused_with(self, scheduler) -> str | None:
+        """A memory:// store lives in one process. Decided: only scheduler "synchronous" (this
+        process, as the Python API's tests run) writes one; any other scheduler's worker
+        processes would each see an empty store of their own (zarr's GroupNotFoundError at
+        the first chunk), and a command's store would be gone when it exits anyway."""
+        if self.target.startswith("memory://") and scheduler != "synchronous":
+            return ("a memory:// store lives in one process, where the run's worker processes cannot write it; use "
+                    "file:///abs/path or s3://bucket/prefix (in Python, scheduler='synchronous' can use memory://)")
+        return None
 
     def path_of(self, name: str) -> str:
         return f"{self.target.rstrip('/')}/{name}"
@@ -102,16 +120,25 @@ class ZarrStore(Location):
         """Put ``data`` (bytes, or a local file's path) as the store's object ``name``, whole:
         uploaded as ``name.part``, then moved (a rename on a local disk, a server-side copy
         on S3), so a reader never sees it half-written and a failed or killed upload leaves
-        the old object; a failure that returns removes the part."""
+        the old object; a failure that returns removes the part. On a local disk the part is
+        made by ``files.claim`` and renamed by os.replace, so a symbolic link planted at
+        either name is replaced, never written through."""
         fs, root = _fs(self.target)
-        part = f"{root}/{name}.part"
+        part, final = f"{root}/{name}.part", f"{root}/{name}"
+        local = "file" in (fs.protocol if isinstance(fs.protocol, tuple) else (fs.protocol,))
+        if local:
+            fs.makedirs(fs._parent(part), exist_ok=True)
+            claim(part)
         try:
             fs.pipe_file(part, data) if isinstance(data, bytes) else fs.put_file(str(data), part)
         except BaseException:
             with contextlib.suppress(OSError):
                 fs.rm(part)
             raise
-        fs.mv(part, f"{root}/{name}")
+        if local:
+            os.replace(part, final)
+        else:
+            fs.mv(part, final)
 
     def local_folder(self) -> Path | None:
         """The local folder of a file:// store (its disk the run fills), else None."""

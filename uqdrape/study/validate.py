@@ -21,7 +21,8 @@ a relative one must stay inside it ('..' climbing out is refused); an absolute d
 taken as written and shown by ``uqdrape validate``; ``--out DIR`` on the command line
 replaces it and may be anywhere. A directory with ``://`` is an fsspec URL
 (``s3://bucket/prefix``, ``file:///abs/path``): the run writes one zarr store there
-(``uqdrape.ensemble.zarrstore``).
+(``uqdrape.ensemble.zarrstore``). A ``file://`` URL's path is held to the rule of a path
+(``file://../x`` is refused as ``../x`` is), and a URL must name something after ``://``.
 
 Errors. Every problem raises :class:`StudyError` naming the file, the dotted key, the
 bad value and what is valid, in one line, e.g. ``studies/x.toml:
@@ -53,7 +54,8 @@ from .. import geometry as _geometry
 from .. import material as _material
 from .. import stochastic as _stochastic
 from ..experimental import read_experimental
-from ..files import REQUIRED, Document, FileFormatError, Table, fmt, inside, is_int, is_number, location
+from ..files import (REQUIRED, Document, FileFormatError, Table, fmt, inside, is_int, is_number, location,
+                     url_problem)
 from ..stochastic.sampling import EXTENDABLE_PLANS, RQMC, STUDY_PLANS, rqmc_points
 from ..schema import (BLANKHOLDER_MODELS, MAX_RINGS, MAX_TOLERANCE_DEG, MODES, QOI_ATTRS, SENSITIVITY_QOIS,
                       SOLVER_INPUTS, SPACING_RANGE_MM)
@@ -684,7 +686,12 @@ def _output(src: _Source, doc: dict, name: str) -> tuple[Path | str, bool]:
     t = Table(src, "output", doc.get("output", {}), KEYS["output"])
     directory = t.string("directory", f"results/{name}", hint="directory must be a non-empty path without NUL",
                          valid=lambda d: bool(d) and "\0" not in d)
-    if isinstance(location(directory), Path) and not Path(directory).is_absolute() and not inside(directory):
+    place = location(directory)
+    if isinstance(place, str) and url_problem(place):
+        t.invalid("directory", url_problem(place))
+    local = isinstance(place, Path) or place.startswith("file://")
+    path = directory.removeprefix("file://")  # file://../x is the path ../x
+    if local and not Path(path).is_absolute() and not inside(path):
         t.invalid("directory", "a relative directory is taken from the current folder and must stay in it "
                                "('..' climbing out is refused); write the absolute path")
     float32 = t.raw("float32", False, "float32 must be true or false")

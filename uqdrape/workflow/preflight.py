@@ -154,6 +154,9 @@ def validate_study(path):
     its first realisation (a run to a target: for its budget, ``max_realizations``; twice
     with a fixed twin). Returns the Study; raises StudyError naming file and key."""
     study = load_study(path)
+    why = at(study.output_dir).refused_with(None)  # as `uqdrape run` runs it: local worker processes
+    if why:
+        raise study_error(study.path, "output.directory", str(study.output_dir), why)
     drapes = budget(study)[1] * len(study.force_levels) * (2 if study.report.fixed_twin else 1)
     check_resources(study, study.output_dir, 0 if study.design is not None else drapes)
     check_placement(study)
