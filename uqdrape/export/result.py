@@ -15,7 +15,7 @@ import xarray as xr
 
 from ..conventions import cf_decode, cf_encode
 from ..geometry import Surface, build
-from ..schema import FORCE
+from ..schema import FORCE, REALIZATION
 
 #: Quantiles of the node shear exported for an ensemble.
 QUANTILES = (0.05, 0.5, 0.95)
@@ -107,13 +107,13 @@ def _ensemble_level(ds: xr.Dataset, label: str) -> Level:
 
     st = node_statistics(ds, "shear", quantiles=QUANTILES)
     placed = (ds.status == 0)
-    P = np.stack([ds[c].where(placed).mean("realization").values for c in ("x", "y", "z")], axis=-1)
+    P = np.stack([ds[c].where(placed).mean(REALIZATION).values for c in ("x", "y", "z")], axis=-1)
     fields = {"shear_mean": st["mean"].values, "shear_sd": st["sd"].values}
     for q in QUANTILES:
         fields[f"shear_q{round(100 * q):02d}"] = st["quantile_value"].sel(quantile=q).values
     if "locked" in ds:
-        fields["p_locked"] = ds.locked.mean("realization", skipna=True).values
-    fields["p_valid"] = placed.mean("realization").values.astype(float)
+        fields["p_locked"] = ds.locked.mean(REALIZATION, skipna=True).values
+    fields["p_valid"] = placed.mean(REALIZATION).values.astype(float)
     return Level(label, P, fields["shear_mean"], fields, float(ds.orientation.mean()), ds)
 
 
@@ -123,7 +123,7 @@ def levels(ds: xr.Dataset, is_ensemble: bool) -> list[Level]:
     if is_ensemble:
         named = ds.sizes[FORCE] > 1
         return [_ensemble_level(ds.sel({FORCE: f}), f"{float(f):g}N" if named else "") for f in ds[FORCE].values]
-    R = ds.sizes["realization"]
+    R = ds.sizes[REALIZATION]
     if R == 1:
         return [_drape_level(ds, "")]
     forces = ds[FORCE].values
