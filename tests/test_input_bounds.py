@@ -115,6 +115,15 @@ def test_design_sectors_beyond_the_limit_are_refused_by_validate(tmp_path, capsy
     assert_one_line_error(capsys.readouterr().err, file=study, key="design.sectors", valid=["37"])
 
 
+@pytest.mark.parametrize("key, limit", [("max_evaluations", "10001"), ("validation_realizations", "1000001")])
+def test_design_sizes_beyond_their_limits_are_refused_by_validate(tmp_path, capsys, key, limit):
+    study = write_study(tmp_path)
+    study.write_text(study.read_text() + f'\n[design]\nvariables = "force"\nforce_bounds_N = [0.0, 500.0]\n'
+                                         f'objective = "p_locked"\n{key} = 1000000000\n', encoding="utf-8")
+    assert main(["validate", str(study)]) == 2
+    assert_one_line_error(capsys.readouterr().err, file=study, key=f"design.{key}", valid=[limit])
+
+
 @pytest.mark.parametrize("units", ["[]", "{}", "1"])
 def test_mesh_units_of_the_wrong_type_are_one_line(tmp_path, capsys, units):
     import shutil

@@ -114,6 +114,11 @@ MAX_LENGTH_LOG_SD = 1.0
 #: Most blank-holder sectors a [design] optimises: one force each, every candidate a
 #: whole ensemble of drapes (36: 10 degrees of the rim a sector).
 MAX_DESIGN_SECTORS = 36
+#: Most candidate designs a [design] may evaluate, each a whole ensemble of drapes (the
+#: shipped designs take 40-52), and most realisations of its validation ensembles (the
+#: largest ensemble run into one store, 10^6).
+MAX_DESIGN_EVALUATIONS = 10_000
+MAX_VALIDATION_REALIZATIONS = 1_000_000
 
 
 class _Source(Document):
@@ -615,9 +620,9 @@ def _design(src: _Source, doc: dict, process: Process, uncertainty: Uncertainty,
     statistic = t.string("statistic", "upper", choices=DESIGN_STATISTICS)
     target = t.number("target", None, ge=0)
     confidence = t.number("confidence", 0.95, gt=0, lt=1)
-    evaluations = t.number("max_evaluations", 40, integer=True, ge=4)
+    evaluations = t.number("max_evaluations", 40, integer=True, ge=4, lt=MAX_DESIGN_EVALUATIONS + 1)
     tolerance = t.number("tolerance_N", 5.0, gt=0)
-    validation = t.number("validation_realizations", None, integer=True, ge=2)
+    validation = t.number("validation_realizations", None, integer=True, ge=2, lt=MAX_VALIDATION_REALIZATIONS + 1)
     draw_in = t.number("max_draw_in_mm", None, gt=0)
     rare = None
     if t.has("rare"):
