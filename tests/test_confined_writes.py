@@ -95,3 +95,26 @@ def test_validate_refuses_a_memory_store_in_one_line(tmp_path, capsys):
     study = write_study(tmp_path, output={"directory": "memory://runs/x"})
     assert main(["validate", str(study)]) == 2
     assert_one_line_error(capsys.readouterr().err, file=study, key="output.directory", valid=["memory://"])
+
+
+@pytest.mark.parametrize("backend, folder, command", [
+    ("folder", "chunks", "run"), ("folder", "report", "report"), ("folder", "export", "export"),
+    ("file", "report", "report"), ("file", "done", "run"),
+])
+def test_a_folder_of_a_run_that_is_a_link_is_refused_and_nothing_is_written_through_it(tmp_path, capsys, backend,
+                                                                                      folder, command):
+    study = write_study(tmp_path, study={"realizations": 2}, solver={"mode": "geodesic", "rings": 4})
+    out = tmp_path / "tiny" if backend == "folder" else f"file://{tmp_path}/store"
+    assert main(["run", str(study), "--out", str(out), "--scheduler", "synchronous", "-q", "--no-report"]) == 0
+    local = Path(str(out).removeprefix("file://"))
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    if (local / folder).exists():
+        os.rename(local / folder, elsewhere / "kept")
+    plant(local / folder, elsewhere)
+    before = sorted(p.relative_to(elsewhere) for p in elsewhere.rglob("*"))
+    argv = {"run": ["run", str(study), "--out", str(out), "--scheduler", "synchronous", "-q", "--no-resume"],
+            "report": ["report", str(out)], "export": ["export", str(out), "--to", "netcdf"]}[command]
+    assert main(argv) == 3
+    assert_one_line_error(capsys.readouterr().err, file=local / folder, valid=["a symbolic link to a folder"])
+    assert sorted(p.relative_to(elsewhere) for p in elsewhere.rglob("*")) == before

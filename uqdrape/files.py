@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import errno
 import json
 import math
 import numbers
@@ -412,6 +413,20 @@ def claim(tmp) -> None:
     with contextlib.suppress(FileNotFoundError):
         os.unlink(tmp)
     os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o666))
+
+
+def check_unlinked(root, name: str) -> None:
+    """OSError naming the first folder on the way from the run folder ``root`` to its file or
+    folder ``name`` (``name`` included) that is a symbolic link: a run's own folders are
+    written in place, and a link planted in a run (folders are copied and resumed) would
+    send its files elsewhere. A link at a file's own name is harmless: the rename that
+    puts the file in place replaces the link."""
+    path = Path(root)
+    for part in Path(name).parts:
+        path = path / part
+        if path.is_symlink() and path.is_dir():
+            raise OSError(errno.ELOOP, "a symbolic link to a folder inside the run: a run's own folders are written "
+                                       "in place, never through a link; remove the link", str(path))
 
 
 def write_atomic(path, write: Callable[[Path], object], *, keep_suffix: bool = True) -> Path | None:
