@@ -2,7 +2,7 @@
 store carries a SHA-256 of its content, the run's checksum key and its name, recorded when
 it is written. A chunk edited in place (shear + 1e6 deg, its attributes kept), two chunks
 swapped with their checksums, a chunk copied in from another run of the same study, or a
-store object overwritten or cut short is named in one line by ``report`` and ``export``
+store object overwritten, cut short or removed is named in one line by ``report`` and ``export``
 (exit 3) and drawn again by a resumed run, which then equals the untouched run."""
 
 from __future__ import annotations
@@ -71,7 +71,10 @@ def _edit_store(out: str, damage: str) -> str:
     objects = sorted(p for p in fs.find(f"{root}/data/shear") if "/c/" in p)
     victim = next(p for p in objects if p.split("/c/")[1].split("/")[:2] == ["0", "1"])
     data = fs.cat_file(victim)
-    fs.pipe_file(victim, data[:len(data) // 2] if damage == "cut" else bytes(b ^ 0x5A for b in data))
+    if damage == "remove":  # zarr reads a missing object as the fill value
+        fs.rm(victim)
+    else:
+        fs.pipe_file(victim, data[:len(data) // 2] if damage == "cut" else bytes(b ^ 0x5A for b in data))
     return json.loads(fs.cat_file(f"{root}/run.json"))["chunks"][1]
 
 
@@ -93,7 +96,7 @@ def test_a_damaged_chunk_is_named_by_report_and_export_and_drawn_again_on_resume
         xr.testing.assert_identical(ds.load().drop_attrs(), expected.drop_attrs())
 
 
-@pytest.mark.parametrize("backend, damage", [("file", "flip"), ("file", "cut"), ("s3", "flip")])
+@pytest.mark.parametrize("backend, damage", [("file", "flip"), ("file", "cut"), ("file", "remove"), ("s3", "flip")])
 def test_a_damaged_store_region_is_named_by_report_and_export_and_drawn_again_on_resume(reference, tmp_path, capsys,
                                                                                        request, backend, damage):
     study, expected = reference

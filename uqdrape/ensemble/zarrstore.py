@@ -39,10 +39,10 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import itertools
 import json
 import os
 import tempfile
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import dask.array
@@ -65,8 +65,9 @@ DONE = "done"
 ZARR_FORMAT = 3
 #: encoding keys of ``cf_encode`` that mean the same in zarr (netCDF's zlib/complevel do not).
 _KEPT = ("dtype", "_FillValue", "units", "calendar")
-#: regions checked at once when a store is opened (each a few reads from the store)
-CHECK_THREADS = 8
+#: regions checked at once when a store is opened: their objects are read in one call
+#: (concurrent on an object store) and held in memory together
+CHECK_BATCH = 16
 
 
 class ZarrStore(Location):
@@ -273,56 +274,64 @@ class ZarrStore(Location):
             ds.to_zarr(f"{self.target}/{DATA}", region=region, mode="r+", zarr_format=ZARR_FORMAT,
                        consolidated=False, storage_options=_options(self.target))
             # after the data: a marker means the region is whole
-            mark = self._digest(self._group(), chunk.name, key) if key else "done"
+            mark = self._digests(self._layout(), [chunk.name], key)[0] if key else "done"
             self._put(f"{DONE}/{chunk.name}", f"{mark}\n".encode())
         return chunk.name
 
-    def _group(self):
-        """The store's zarr group, read-only."""
+    def _layout(self) -> list[tuple]:
+        """(name, dims, shape, chunk shape, chunk-key encoder) of each array a region writes:
+        all with a realisation or force dimension but the index coordinates (the run's,
+        written whole with the template). OSError naming the store if its data cannot be
+        opened (damaged metadata)."""
         import zarr
 
-        return zarr.open_group(f"{self.target}/{DATA}", mode="r", zarr_format=ZARR_FORMAT,
-                               storage_options=_options(self.target) or None)
+        try:
+            group = zarr.open_group(f"{self.target}/{DATA}", mode="r", zarr_format=ZARR_FORMAT,
+                                    storage_options=_options(self.target) or None)
+            arrays = sorted(group.arrays(), key=lambda item: item[0])
+            return [(var, list(a.metadata.dimension_names or ()), a.shape, a.chunks, a.metadata.encode_chunk_key)
+                    for var, a in arrays if var not in (FORCE, REALIZATION)
+                    and {FORCE, REALIZATION} & set(a.metadata.dimension_names or ())]
+        except Exception as err:  # zarr's, JSON's or the filesystem's error, whichever damaged metadata raises
+            raise OSError(errno.EIO, f"the store's data cannot be opened ({type(err).__name__}: {err}); run the "
+                          "study again without resuming", self.path_of(DATA)) from None
 
-    def _digest(self, group, name: str, key: str) -> str:
-        """``location.digest`` of region ``name``: every stored array with a realisation or
-        force dimension, by name, its bytes in the region as stored (before CF decoding)."""
+    @staticmethod
+    def _objects(layout, name: str) -> list[str]:
+        """The keys (under ``data/``) of the stored objects region ``name`` writes."""
         level, start, stop = region_of(name)
+        keys = []
+        for var, dims, shape, chunks, encode in layout:
+            ranges = [range(level // c, level // c + 1) if d == FORCE else range(start // c, (stop - 1) // c + 1)
+                      if d == REALIZATION else range(-(-size // c)) for d, size, c in zip(dims, shape, chunks)]
+            keys += [f"{var}/{encode(index)}" for index in itertools.product(*ranges)]
+        return keys
 
-        def parts():
-            for var, array in sorted(group.arrays(), key=lambda item: item[0]):
-                dims = list(array.metadata.dimension_names or ())
-                if {FORCE, REALIZATION} & set(dims):
-                    index = tuple(slice(level, level + 1) if d == FORCE else slice(start, stop) if d == REALIZATION
-                                  else slice(None) for d in dims)
-                    yield var.encode() + b"\0"
-                    yield np.ascontiguousarray(array[index]).tobytes()
-
-        return digest(key, name, parts())
+    def _digests(self, layout, names, key: str) -> list[str]:
+        """``location.digest`` of each region in ``names``: the stored objects it writes, by
+        key, their bytes as stored (compressed; none for one zarr left unwritten or that
+        cannot be read)."""
+        fs, root = _fs(self.target)
+        keys = [self._objects(layout, name) for name in names]
+        objects = fs.cat([f"{root}/{DATA}/{k}" for ks in keys for k in ks], on_error="return")
+        return [digest(key, name, (part for k in ks for part in (k.encode() + b"\0",
+                                                                 _bytes(objects, f"{root}/{DATA}/{k}"))))
+                for name, ks in zip(names, keys)]
 
     def damaged(self, names, key: str | None) -> list[str]:
-        """The regions among ``names`` (marked done) whose stored bytes are not those their
-        marker's checksum was taken of, or cannot be read (a damaged object); none without
+        """The regions among ``names`` (marked done) whose stored objects are not those their
+        marker's checksum was taken of (edited, swapped, cut short, removed); none without
         a ``key``. OSError naming the store if its data cannot be opened at all."""
         if not key or not names:
             return []
         fs, root = _fs(self.target)
-        marks = fs.cat([f"{root}/{DONE}/{name}" for name in names], on_error="return")
-        try:
-            group = self._group()
-        except Exception as err:  # zarr's or the codec's error for damaged metadata, whichever it is
-            raise OSError(errno.EIO, f"the store's data cannot be opened ({type(err).__name__}: {err}); run the "
-                          "study again without resuming", self.path_of(DATA)) from None
-
-        def bad(name):
-            mark = marks.get(f"{root}/{DONE}/{name}")
-            try:
-                return not isinstance(mark, bytes) or mark.decode().strip() != self._digest(group, name, key)
-            except Exception:  # a damaged object: whatever its codec raises reading it
-                return True
-
-        with ThreadPoolExecutor(CHECK_THREADS) as pool:
-            return [name for name, flag in zip(names, pool.map(bad, names)) if flag]
+        layout, bad = self._layout(), []
+        for at in range(0, len(names), CHECK_BATCH):
+            batch = list(names[at:at + CHECK_BATCH])
+            marks = fs.cat([f"{root}/{DONE}/{name}" for name in batch], on_error="return")
+            bad += [name for name, sha in zip(batch, self._digests(layout, batch, key))
+                    if _bytes(marks, f"{root}/{DONE}/{name}").strip() != sha.encode()]
+        return bad
 
     def finish(self) -> None:
         """Nothing to clear: a region without its marker is drawn again by the next run."""
@@ -343,6 +352,12 @@ class ZarrStore(Location):
         raw = xr.open_zarr(f"{self.target}/{DATA}", consolidated=False, zarr_format=ZARR_FORMAT,
                            storage_options=_options(self.target))
         return cf_decode(raw)
+
+
+def _bytes(objects: dict, path: str) -> bytes:
+    """The object ``path`` from ``fs.cat``'s answer: its bytes, none if it could not be read."""
+    data = objects.get(path)
+    return data if isinstance(data, bytes) else b""
 
 
 def _fs(url: str):
