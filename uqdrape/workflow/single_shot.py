@@ -11,7 +11,7 @@ import numpy as np
 
 from ..conventions import cf_encode
 from ..drape import drape
-from ..ensemble import Progress, at, write_netcdf
+from ..ensemble import at, ring_progress, write_netcdf
 from ..export import cut_files, fe_files, flat_files, levels, netcdf_file, open_result, vtk_files
 from ..files import local_path, write_all, write_text_atomic
 from ..errors import ParameterError
@@ -37,13 +37,13 @@ def drape_to_files(geometry: str, params: dict, spacing: float, rings: int, out,
     out = local_path(out, "out")
     surface = build(geometry, **params)
     card = load_material(material) if material else None
+    mode = options.get("mode", "geodesic")
     # a ring k/n counter: a bar on a terminal, elsewhere a line every PLAIN_EVERY s of a long drape
-    bar = Progress(rings, enabled=progress, desc="ring", unit="ring", last_line=False)
+    bar = ring_progress(rings, mode, progress)
     try:
         ds = drape(surface, spacing, rings, material=card, progress=lambda k: bar.update(k - bar.n), **options)
     finally:
         bar.close()
-    mode = options.get("mode", "geodesic")
     encoded, encoding = cf_encode(ds, title=f"uqdrape {mode} drape of {surface.describe()}", history=command)
     nc = out.with_suffix(".nc")
     written = write_all({
