@@ -144,7 +144,8 @@ def test_both_sets_turning_together_at_the_same_spots_is_refused_as_misalignment
     assert err.value.key == "fibre_set"
     csv = tmp_path / "both.csv"
     csv.write_text("x_mm,y_mm,angle_deg,fibre_set,sd_deg\n" + "".join(
-        f"{x:g},{y:g},{a:.17g},{k},0.5\n" for x, y, a, k in zip(rigid.x_mm, rigid.y_mm, rigid.angle_deg, rigid.fibre_set)))
+        f"{x:g},{y:g},{a:.17g},{k},0.5\n"
+        for x, y, a, k in zip(rigid.x_mm, rigid.y_mm, rigid.angle_deg, rigid.fibre_set)))
     assert main(["calibrate", str(csv), "--out", str(tmp_path / "b.toml")]) == 2
     assert_one_line_error(capsys.readouterr().err, file=csv, valid=["misalignment"])
     assert not (tmp_path / "b.toml").exists()

@@ -45,7 +45,8 @@ MANIFEST = {"study": {"study": {"name": "tiny", "seed": 1}, "geometry": {"kind":
             "uqdrape": "0.0"}
 
 _JSON = st.recursive(st.none() | st.booleans() | st.integers(-10**30, 10**30) | st.floats() | st.text(max_size=8),
-                     lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=8), inner, max_size=3),
+                     lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=8), inner,
+                                                                                 max_size=3),
                      max_leaves=8)
 
 

@@ -402,7 +402,8 @@ def test_drape_refuses_the_meshes_validate_refuses(tmp_path, capsys, monkeypatch
     from uqdrape.cli import main
 
     monkeypatch.setattr("uqdrape.ensemble.progress.compile_pending", lambda mode: False)
-    wall = trimesh.Trimesh([[-50.0, 0, 0], [50, 0, 0], [50, 0, 50], [-50, 0, 50]], [[0, 1, 2], [0, 2, 3]], process=False)
+    wall = trimesh.Trimesh([[-50.0, 0, 0], [50, 0, 0], [50, 0, 50], [-50, 0, 50]], [[0, 1, 2], [0, 2, 3]],
+                           process=False)
     cases = [("wall.stl", wall, ["--crossover", "the crossover must lie inside the mould's domain", "y in [0, 0]"]),
              ("small.stl", _grid_sheet([-20.0, 20.0], [-20.0, 20.0], lambda X, Y: 0 * X),
               ["--rings", "82% of the nodes", "cannot be placed", "off_mould"])]
