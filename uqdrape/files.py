@@ -200,12 +200,25 @@ def location(target) -> Path | str:
     return target if isinstance(target, str) and "://" in target else Path(target)
 
 
+#: fsspec's names of this machine's disk (``LocalFileSystem.protocol``; a test holds them equal).
+LOCAL_PROTOCOLS = ("file", "local")
+
+
 def url_problem(url: str) -> str | None:
     """Why the store URL ``url`` cannot be written, or None: nothing after ``scheme://``
-    (``file://`` would put the manifest in the current folder and the data at /data)."""
-    if not url.split("://", 1)[1].strip("/"):
-        return (f"a store URL needs a path after {url.split('://', 1)[0]}://, e.g. file:///abs/path or "
-                "s3://bucket/prefix")
+    (``file://`` would put the manifest in the current folder and the data at /data); a
+    local disk spelt other than ``file://`` (``local://``, ``FILE://``) or a chained URL
+    (``simplecache::file://../x``). A ``file://`` path is held to the rule of a plain path
+    (``study.validate``); the other spellings are refused rather than aliased, so that no
+    spelling reaches a folder that rule has not checked."""
+    scheme, rest = url.split("://", 1)
+    valid = "give a plain path, file:///abs/path or s3://bucket/prefix"
+    if "::" in url:
+        return f"a chained fsspec URL (protocol::URL) is not a store uqdrape writes; {valid}"
+    if scheme.lower() in LOCAL_PROTOCOLS and scheme != "file":
+        return f"{scheme}:// names this machine's disk; {valid}"
+    if not rest.strip("/"):
+        return f"a store URL needs a path after {scheme}://, e.g. file:///abs/path or s3://bucket/prefix"
     return None
 
 

@@ -14,11 +14,11 @@ dask tasks on the same schedulers (e.g. the candidate designs of ``uqdrape.desig
 from .chunk import drape_inputs, study_mould, write_atomic, write_netcdf
 from .inputs import design_variables, inputs_from_design, sampled_inputs
 from ..pool import local_pool
-from .progress import Progress
+from .progress import Progress, ring_progress
 from .run import compute_tasks, reach_scheduler, run_ensemble
 from .storage import at, open_ensemble, read_manifest
 
 
 __all__ = ["run_ensemble", "open_ensemble", "sampled_inputs", "inputs_from_design", "design_variables",
            "drape_inputs", "study_mould", "write_atomic", "write_netcdf", "read_manifest",
-           "compute_tasks", "reach_scheduler", "Progress", "local_pool", "at"]
+           "compute_tasks", "reach_scheduler", "Progress", "ring_progress", "local_pool", "at"]
