@@ -144,6 +144,21 @@ def test_a_drape_says_when_it_must_compile_its_kernels_first(tmp_path, capsys, m
     assert seen == ([] if quiet else ["geodesic"])
 
 
+@pytest.mark.parametrize("quiet", [False, True])
+def test_a_run_says_when_its_workers_must_compile_the_kernels_first(tmp_path, capsys, monkeypatch, quiet):
+    """A run on a cold numba cache (a fresh clone) says so before its workers start: its
+    first chunk carries the compiling. A run with nothing left to drape says nothing."""
+    from conftest import write_study
+
+    monkeypatch.setattr("uqdrape.ensemble.progress.compile_pending", lambda mode: mode == "geodesic")
+    study = write_study(tmp_path, study={"realizations": 2}, solver={"mode": "geodesic", "rings": 3})
+    argv = ["run", str(study), "--scheduler", "synchronous", "--no-report"] + (["-q"] if quiet else [])
+    for again in (False, True):
+        assert main(argv) == 0
+        said = "tiny: compiling the drape kernels (once, about 15 s)" in capsys.readouterr().err
+        assert said == (not quiet and not again)
+
+
 @pytest.mark.parametrize("terminal", [False, True])
 def test_the_eta_comes_from_finished_work_after_the_first_ring(monkeypatch, terminal):
     """A cold drape's first ring carries ~30 s of compiling and the 29 after it take 0.3 s

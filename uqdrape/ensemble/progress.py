@@ -85,12 +85,21 @@ class Progress:
         self.bar.close()
 
 
+def announce_compiling(mode: str, enabled: bool = True, file=None, prefix: str = "") -> None:
+    """Say on ``file`` (stderr) that drapes in ``mode`` will first compile their kernels,
+    and about how long it takes, while they are still to be compiled
+    (``drape.solver.compile_pending``: not in this process, not in numba's disk cache,
+    which a run's local workers share)."""
+    if enabled and compile_pending(mode):
+        print(f"{prefix}compiling the drape kernels (once, about {COMPILE_S[mode]} s)", file=file or sys.stderr,
+              flush=True)
+
+
 def ring_progress(rings: int, mode: str, enabled: bool = True, file=None) -> Progress:
     """The ring counter of a single drape in ``mode`` (a ``Progress`` of ``rings``, its rate
     from the first ring on), announced, while that mode's kernels are still to be compiled
     (``drape.solver.compile_pending``), by a line saying so and about how long it takes:
     otherwise the counter stands at ring 0 for that long with nothing said."""
     file = file or sys.stderr
-    if enabled and compile_pending(mode):
-        print(f"compiling the drape kernels (once, about {COMPILE_S[mode]} s)", file=file, flush=True)
+    announce_compiling(mode, enabled, file)
     return Progress(rings, enabled=enabled, desc="ring", unit="ring", last_line=False, startup=True, file=file)

@@ -47,7 +47,7 @@ from ..study import Study
 from ..stochastic.inputs import positive_int
 from .chunk import drape_chunk
 from ..pool import local_pool
-from .progress import Progress
+from .progress import Progress, announce_compiling
 from .storage import at
 
 #: dask schedulers in this process: a pool of local processes (default) or no
@@ -178,6 +178,7 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
         if progress and len(todo) < len(chunks):
             print(f"{study.name}: {len(chunks) - len(todo)} of {len(chunks)} {where.parts} already done in {where}",
                   file=sys.stderr)
+        announce_compiling(study.solver.mode, progress and bool(todo), prefix=f"{study.name}: ")
         levels = list(study.force_levels)
         run = dask.delayed(_run_chunk, pure=False)
         sizes = [c.stop - c.start for c in todo]
