@@ -7,10 +7,13 @@ import json
 import multiprocessing
 import numbers
 import threading
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
-import xarray as xr
+
+if TYPE_CHECKING:  # annotations only: xarray is imported where a Dataset is made or read
+    import xarray as xr
 
 from .._version import __version__
 from .._jit import on_threads
@@ -107,6 +110,8 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     Nodes that cannot be placed are NaN with a ``status`` code (``Status``); the call
     does not raise for them. Impossible arguments raise ValueError naming the argument.
     """
+    import xarray as xr
+
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     if not isinstance(spacing, numbers.Real) or not np.isfinite(spacing) or spacing <= 0:
@@ -218,6 +223,8 @@ def node_mean(cells, threads=1):
 def _coords(R, n):
     """The coordinates of a drape Dataset of R realisations of an n-ring net, with their
     indexes built once per shape (building them was most of a single drape's time)."""
+    import xarray as xr
+
     return xr.Coordinates({REALIZATION: np.arange(R), "i": np.arange(-n, n + 1), "j": np.arange(-n, n + 1),
                            "cell_i": np.arange(-n, n) + 0.5, "cell_j": np.arange(-n, n) + 0.5,
                            "ring": np.arange(1, n + 1), "arm": ["+i", "+j", "-i", "-j"], "quadrant": list(QUADRANTS)})
@@ -241,6 +248,8 @@ def _material_list(material):
 
 def _dataset(prob, P, status, turns, bending, iterations, converged, mode, factors, gamma0_deg, threads):
     """The drape Dataset of one block; ``gamma0_deg`` is the caller's zero-energy angles (deg)."""
+    import xarray as xr
+
     n = prob.n
     gamma = cell_shear(P, threads)
     material = prob.material

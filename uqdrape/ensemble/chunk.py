@@ -17,9 +17,12 @@ import json
 import shutil
 import threading
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import xarray as xr
+
+if TYPE_CHECKING:  # annotations only: xarray is imported where a Dataset is made or read
+    import xarray as xr
 
 from .. import files
 from .. import geometry as _geometry
