@@ -112,6 +112,35 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     """
     import xarray as xr
 
+    blocks = [_dataset(prob, *solved, mode, stored, gamma0, threads)
+              for prob, solved, stored, gamma0, threads in _solved(
+                  surface, spacing, rings, orientation=orientation, pre_shear=pre_shear, skew=skew,
+                  crossover=crossover, seg_i=seg_i, seg_j=seg_j, gamma0=gamma0, mode=mode, material=material,
+                  blankholder_force=blankholder_force, friction=friction, sectors=sectors,
+                  blankholder_model=blankholder_model, tolerance=tolerance, max_iterations=max_iterations,
+                  max_turn=max_turn, factors=factors, progress=progress, threads=threads)]
+    if len(blocks) == 1:
+        return blocks[0]
+    ds = xr.concat(blocks, dim=REALIZATION, data_vars="minimal", coords="minimal", compat="override",
+                   join="override")
+    return ds.assign_coords(realization=np.arange(sum(block.sizes[REALIZATION] for block in blocks)))
+
+
+def drape_status(surface, spacing, rings, **options) -> np.ndarray:
+    """The node status (R, 2n + 1, 2n + 1) of the drapes ``drape(surface, spacing, rings,
+    **options)`` makes (the same arguments, checks and solve), without their Dataset:
+    none of the per-cell and energy post-processing or its kernels, and no xarray. The
+    placement check of ``uqdrape validate`` and of a run's preflight."""
+    return np.concatenate([solved[1] for _, solved, _, _, _ in _solved(surface, spacing, rings, **options)])
+
+
+def _solved(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0, crossover=(0.0, 0.0),
+            seg_i=None, seg_j=None, gamma0=None, mode="geodesic", material=None, blankholder_force=0.0,
+            friction=0.2, sectors=None, blankholder_model="slip", tolerance=1e-3, max_iterations=30,
+            max_turn=10.0, factors=None, progress=None, threads=None):
+    """``drape``'s arguments checked and broadcast, then its blocks of BLOCK realisations
+    solved one after another: yields (problem, (P, status, turns, bending, iterations,
+    converged), the block's stored inputs, its zero-energy angles in degrees, threads)."""
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     if not isinstance(spacing, numbers.Real) or not np.isfinite(spacing) or spacing <= 0:
@@ -173,7 +202,6 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     stored = dict(orientation=orientation, pre_shear=pre_shear, skew=skew, crossover_x=crossover[:, 0],
                   crossover_y=crossover[:, 1], blankholder_force=force, friction=mu,
                   **{k: np.broadcast_to(np.asarray(v, dtype=float), (R,)) for k, v in (factors or {}).items()})
-    blocks = []
     for start in range(0, R, BLOCK):
         b = slice(start, start + BLOCK)
         prob = NetProblem(surface, float(spacing), n, crossover[b], arm_angles[b], seg_i[b], seg_j[b],
@@ -188,12 +216,7 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
         else:
             solved = EnergyRings(prob, prob.material.bending_stiffness, np.deg2rad(tolerance),
                                  int(max_iterations), np.deg2rad(max_turn), threads).run(progress)
-        blocks.append(_dataset(prob, *solved, mode, {k: v[b] for k, v in stored.items()}, gamma0[b], threads))
-    if len(blocks) == 1:
-        return blocks[0]
-    ds = xr.concat(blocks, dim=REALIZATION, data_vars="minimal", coords="minimal", compat="override",
-                   join="override")
-    return ds.assign_coords(realization=np.arange(R))
+        yield prob, solved, {k: v[b] for k, v in stored.items()}, gamma0[b], threads
 
 
 def cell_shear(P, threads=1):

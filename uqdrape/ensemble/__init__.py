@@ -20,7 +20,7 @@ from __future__ import annotations
 import importlib
 
 _EXPORTS = {
-    "chunk": ("drape_inputs", "study_mould", "write_atomic", "write_netcdf"),
+    "chunk": ("drape_inputs", "placement_status", "study_mould", "write_atomic", "write_netcdf"),
     "inputs": ("design_variables", "inputs_from_design", "sampled_inputs"),
     "progress": ("Progress",),
     "run": ("compute_tasks", "reach_scheduler", "run_ensemble"),
@@ -29,7 +29,7 @@ _EXPORTS = {
 _MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
 
 __all__ = ["run_ensemble", "open_ensemble", "sampled_inputs", "inputs_from_design", "design_variables",
-           "drape_inputs", "study_mould", "write_atomic", "write_netcdf", "read_manifest",
+           "drape_inputs", "placement_status", "study_mould", "write_atomic", "write_netcdf", "read_manifest",
            "compute_tasks", "reach_scheduler", "Progress", "local_pool", "at"]
 
 

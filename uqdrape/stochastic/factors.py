@@ -1,10 +1,11 @@
 """Scalar process factors: a distribution that maps a standard uniform u to a value.
 
 Each factor is a deterministic function of u ∈ [0, 1] (the inverse CDF, via scipy.stats,
-imported when a factor is first evaluated: reading a study imports none of it), so Monte Carlo, Latin hypercube, Sobol and SALib designs all drive it the same way.
-Values carry the factor's own units (blank-holder force N, friction -, angles degree,
-offsets mm). u is clipped to [1e-12, 1 − 1e-12] so the ends of a design stay finite
-(about ±7 sd for a normal).
+imported when a factor is first evaluated: reading a study imports none of it), so Monte
+Carlo, Latin hypercube, Sobol and SALib designs all drive it the same way. Values carry
+the factor's own units (blank-holder force N, friction -, angles degree, offsets mm). u
+is clipped to [1e-12, 1 − 1e-12] so the ends of a design stay finite (about ±7 sd for a
+normal).
 
 Parametrisations:
 - ``normal(mean, sd)``;
