@@ -121,6 +121,47 @@ def test_a_fibre_below_nominal_is_a_negative_rest_shear_whichever_set():
     assert a == pytest.approx([math.sqrt(2), 0.0], abs=1e-15) and b == pytest.approx([0.0, math.sqrt(2)], abs=1e-15)
 
 
+def _both_sets(d1, d2, offset_mm=0.0):
+    """Points of both fibre sets at 36 spots 10 mm apart (set 2's moved ``offset_mm`` along
+    x), deviating d1 and d2 (deg) from their nominal 45 and 135 deg, each read to 0.5 deg."""
+    x, y = 10.0 * (np.arange(36) % 6), 10.0 * (np.arange(36) // 6)
+    return AnglePoints(np.r_[x, x + offset_mm], np.r_[y, y], np.r_[45.0 + d1, 135.0 + d2], np.repeat([1, 2], 36),
+                       np.full(72, 0.5), np.arange(2, 74), "both.csv")
+
+
+def test_both_sets_turning_together_at_the_same_spots_is_refused_as_misalignment(tmp_path, capsys):
+    """Issue 40: both sets measured at 36 spots, turned together by 2 deg of scatter (a rigid
+    rotation, 0.1 deg apart), were read as gamma0 = +d and -d at one spot and calibrated to
+    sd_deg = 0.0019: refused in one line that says what the data show and what to do."""
+    rng = np.random.default_rng(4)
+    d = rng.normal(0.0, 2.0, 36)
+    rigid = _both_sets(d, d + rng.normal(0.0, 0.1, 36))
+    with pytest.raises(PointsError) as err:
+        calibrate_points(rigid)
+    assert_one_line_error(str(err.value), file="both.csv", valid=[
+        "36 spots", "within 1 mm", f"sd {np.std(d + rigid.angle_deg[36:] - 135.0, ddof=1) / 2:.3g} deg",
+        "misalignment", "[uncertainty.orientation]", "one fibre set"])
+    assert err.value.key == "fibre_set"
+    csv = tmp_path / "both.csv"
+    csv.write_text("x_mm,y_mm,angle_deg,fibre_set,sd_deg\n" + "".join(
+        f"{x:g},{y:g},{a:.17g},{k},0.5\n"
+        for x, y, a, k in zip(rigid.x_mm, rigid.y_mm, rigid.angle_deg, rigid.fibre_set)))
+    assert main(["calibrate", str(csv), "--out", str(tmp_path / "b.toml")]) == 2
+    assert_one_line_error(capsys.readouterr().err, file=csv, valid=["misalignment"])
+    assert not (tmp_path / "b.toml").exists()
+
+
+def test_both_sets_at_the_same_spots_read_as_shear_or_apart_are_kept():
+    """What the reading of one set's angles holds is kept: one set turning against the
+    other (d2 = 0, d1 the spot's gamma0), the sets turning oppositely, and sets turning
+    together at spots 2 mm apart (not one spot: SAME_SPOT_MM is 1 mm)."""
+    rng = np.random.default_rng(5)
+    d, noise = rng.normal(0.0, 2.0, 36), rng.normal(0.0, 0.1, 36)
+    for d1, d2, offset in ((d, noise, 0.0), (d / 2, -d / 2 + noise, 0.0), (d, d + noise, 2.0)):
+        gamma0 = zero_angle_deg(_both_sets(d1, d2, offset))
+        assert gamma0 == pytest.approx(np.r_[d1, -d2], abs=1e-9)
+
+
 def test_a_fibre_far_from_its_nominal_direction_is_refused_by_row(tmp_path):
     """Set 2 written as its acute angle from the weft (42.7 for 137.3) is 87.7° off: a
     convention mistake, refused naming the row, not fitted as scatter."""

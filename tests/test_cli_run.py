@@ -103,6 +103,7 @@ def test_single_drape_counts_its_rings_on_stderr(tmp_path, capsys, monkeypatch, 
     import uqdrape.ensemble.progress
 
     monkeypatch.setattr(uqdrape.ensemble.progress, "PLAIN_EVERY", 0.0)
+    monkeypatch.setattr(uqdrape.ensemble.progress, "compile_pending", lambda mode: False)  # its line: below
     tty = Terminal()
     if terminal:
         monkeypatch.setattr("sys.stderr", tty)
@@ -121,11 +122,62 @@ def test_single_drape_counts_its_rings_on_stderr(tmp_path, capsys, monkeypatch, 
         assert all(line.startswith("ring: ") for line in err.splitlines()) and "\r" not in err
 
 
-def test_a_short_drape_off_a_terminal_leaves_stderr_to_errors(tmp_path, capsys):
+def test_a_short_drape_off_a_terminal_leaves_stderr_to_errors(tmp_path, capsys, monkeypatch):
     """Off a terminal a drape shorter than PLAIN_EVERY writes no counter line, so a failure
     after the drape is still one line on stderr."""
+    monkeypatch.setattr("uqdrape.ensemble.progress.compile_pending", lambda mode: False)
     assert main(["drape", "--rings", "3", "--out", str(tmp_path / "d")]) == 0
     assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize("pending", [False, True])
+@pytest.mark.parametrize("quiet", [False, True])
+def test_a_drape_says_when_it_must_compile_its_kernels_first(tmp_path, capsys, monkeypatch, pending, quiet):
+    """While numba's cache lacks the kernels (issue 40: a fresh clone's first drape stood
+    at ring 0/30 for ~22 s), the drape says so before its first ring; -q keeps it quiet."""
+    seen = []
+    monkeypatch.setattr("uqdrape.ensemble.progress.compile_pending", lambda mode: seen.append(mode) or pending)
+    argv = ["drape", "--rings", "3", "--out", str(tmp_path / "d")]
+    assert main(argv + ["-q"] if quiet else argv) == 0
+    err = capsys.readouterr().err
+    assert err == ("compiling the drape kernels (once, about 15 s)\n" if pending and not quiet else "")
+    assert seen == ([] if quiet else ["geodesic"])
+
+
+@pytest.mark.parametrize("quiet", [False, True])
+def test_a_run_says_when_its_workers_must_compile_the_kernels_first(tmp_path, capsys, monkeypatch, quiet):
+    """A run on a cold numba cache (a fresh clone) says so before its workers start: its
+    first chunk carries the compiling. A run with nothing left to drape says nothing."""
+    from conftest import write_study
+
+    monkeypatch.setattr("uqdrape.ensemble.progress.compile_pending", lambda mode: mode == "geodesic")
+    study = write_study(tmp_path, study={"realizations": 2}, solver={"mode": "geodesic", "rings": 3})
+    argv = ["run", str(study), "--scheduler", "synchronous", "--no-report"] + (["-q"] if quiet else [])
+    for again in (False, True):
+        assert main(argv) == 0
+        said = "tiny: compiling the drape kernels (once, about 15 s)" in capsys.readouterr().err
+        assert said == (not quiet and not again)
+
+
+@pytest.mark.parametrize("terminal", [False, True])
+def test_the_eta_comes_from_finished_work_after_the_first_ring(monkeypatch, terminal):
+    """A cold drape's first ring carries ~30 s of compiling and the 29 after it take 0.3 s
+    each: no ETA until the second ring, then 29 x 0.3 s, not 29 x 32 s (issue 40: an
+    11-minute ETA)."""
+    import uqdrape.ensemble.progress as progress
+
+    now = [0.0]
+    monkeypatch.setattr(progress.time, "monotonic", lambda: now[0])
+    monkeypatch.setattr(progress, "PLAIN_EVERY", 0.0)
+    monkeypatch.setattr(progress, "compile_pending", lambda mode: False)
+    out = Terminal() if terminal else io.StringIO()
+    bar = progress.ring_progress(30, "energy", file=out)
+    lines = []
+    for now[0] in (32.0, 32.3):
+        bar.update(1)
+        lines.append(str(bar.bar) if terminal else out.getvalue().splitlines()[-1])  # tqdm's line, not its timing
+    assert "1/30" in lines[0] and "<?," in lines[0] and "?ring/s" in lines[0], lines
+    assert "2/30" in lines[1] and "<00:08," in lines[1] and "3.33ring/s" in lines[1], lines
 
 
 def test_a_resumed_run_says_what_it_kept_and_a_log_sees_the_start(study, tmp_path, capsys):

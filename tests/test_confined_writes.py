@@ -1,6 +1,7 @@
 """Writes stay in the output (issue 40): a symbolic link planted at a temporary name in a
 run folder or a file:// store is replaced, never written through; a study's
-``file://`` directory is held to the rule of a path; a store URL with nothing after
+``file://`` directory is held to the rule of a path, and fsspec's other spellings of the
+local disk (``local://``, chained URLs) are refused; a store URL with nothing after
 ``://`` and a memory:// store that the run's worker processes cannot write are refused
 in one line, before anything is written."""
 
@@ -13,7 +14,7 @@ import pytest
 
 from uqdrape.cli import main
 from uqdrape.ensemble.zarrstore import ZarrStore
-from uqdrape.files import write_all, write_text_atomic
+from uqdrape.files import LOCAL_PROTOCOLS, write_all, write_text_atomic
 from uqdrape.study import StudyError, load_study
 from uqdrape.workflow import run_report, run_study
 
@@ -80,18 +81,62 @@ def test_a_file_url_is_held_to_the_rule_of_a_path(tmp_path, monkeypatch, directo
     assert_one_line_error(str(err.value), file=path, key="output.directory")
 
 
-@pytest.mark.parametrize("out", ["file://", "file:///", "memory://runs/x"])
+@pytest.mark.parametrize("directory", ["local://../x", "local://results/x", "FILE://../x", "simplecache::file://../x",
+                                       "dir::file://../x"])
+def test_other_spellings_of_the_local_disk_are_refused(tmp_path, monkeypatch, directory):
+    """Issue 40: ``local://../x`` (fsspec's alias of file://) escaped the folder that
+    ``file://../x`` and ``../x`` are held to, as did a chained URL; each is refused naming
+    the valid forms, even where its path would stay inside."""
+    monkeypatch.chdir(tmp_path)
+    path = write_study(tmp_path, output={"directory": directory})
+    with pytest.raises(StudyError) as err:
+        load_study(path)
+    assert_one_line_error(str(err.value), file=path, key="output.directory", valid=["file:///abs/path"])
+
+
+def test_the_local_spellings_refused_are_fsspec_s():
+    from fsspec.implementations.local import LocalFileSystem
+
+    assert set(LOCAL_PROTOCOLS) == set(LocalFileSystem.protocol)
+
+
+@pytest.mark.parametrize("out", ["file://", "file:///", "memory://runs/x", "local://{tmp}/store",
+                                 "simplecache::file://{tmp}/store"])
 def test_run_refuses_a_store_it_cannot_write_in_one_line(tmp_path, monkeypatch, capsys, out):
     work = tmp_path / "work"
     work.mkdir()
     monkeypatch.chdir(work)
     study = write_study(tmp_path, study={"realizations": 2}, solver={"mode": "geodesic", "rings": 4})
+    out = out.format(tmp=tmp_path)
     assert main(["run", str(study), "--out", out, "--workers", "1", "-q"]) == 2
     assert_one_line_error(capsys.readouterr().err, file=out)
-    assert not os.listdir(work) and not (tmp_path / "tiny").exists()
+    assert not os.listdir(work) and not (tmp_path / "tiny").exists() and not (tmp_path / "store").exists()
 
 
 def test_validate_refuses_a_memory_store_in_one_line(tmp_path, capsys):
     study = write_study(tmp_path, output={"directory": "memory://runs/x"})
     assert main(["validate", str(study)]) == 2
     assert_one_line_error(capsys.readouterr().err, file=study, key="output.directory", valid=["memory://"])
+
+
+@pytest.mark.parametrize("backend, folder, command", [
+    ("folder", "chunks", "run"), ("folder", "report", "report"), ("folder", "export", "export"),
+    ("file", "report", "report"), ("file", "done", "run"),
+])
+def test_a_folder_of_a_run_that_is_a_link_is_refused_and_nothing_is_written_through_it(tmp_path, capsys, backend,
+                                                                                      folder, command):
+    study = write_study(tmp_path, study={"realizations": 2}, solver={"mode": "geodesic", "rings": 4})
+    out = tmp_path / "tiny" if backend == "folder" else f"file://{tmp_path}/store"
+    assert main(["run", str(study), "--out", str(out), "--scheduler", "synchronous", "-q", "--no-report"]) == 0
+    local = Path(str(out).removeprefix("file://"))
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    if (local / folder).exists():
+        os.rename(local / folder, elsewhere / "kept")
+    plant(local / folder, elsewhere)
+    before = sorted(p.relative_to(elsewhere) for p in elsewhere.rglob("*"))
+    argv = {"run": ["run", str(study), "--out", str(out), "--scheduler", "synchronous", "-q", "--no-resume"],
+            "report": ["report", str(out)], "export": ["export", str(out), "--to", "netcdf"]}[command]
+    assert main(argv) == 3
+    assert_one_line_error(capsys.readouterr().err, file=local / folder, valid=["a symbolic link to a folder"])
+    assert sorted(p.relative_to(elsewhere) for p in elsewhere.rglob("*")) == before

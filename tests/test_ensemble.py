@@ -205,8 +205,9 @@ def test_ensemble_holds_inputs_provenance_and_units(reference):
 def test_chunk_file_opens_with_plain_xarray(tmp_path, reference):
     study, ref = reference
     out = run_study(moved(study, tmp_path), scheduler="synchronous", progress=False)  # chunks of 7
-    names = sorted(p.name for p in (out / "chunks").iterdir())
+    names = sorted(p.name for p in (out / "chunks").glob("*.nc"))
     assert names == ["r0000000-0000006.nc", "r0000007-0000013.nc", "r0000014-0000019.nc"]
+    assert sorted(p.name for p in (out / "chunks").iterdir()) == sorted(names + [f"{n}.sha256" for n in names])
     with xr.open_dataset(out / "chunks" / names[1]) as ds:
         np.testing.assert_array_equal(ds.realization, np.arange(7, 14))
         units = {v: ds[v].attrs.get("units") for v in ("x", "z", "shear", "cell_shear", "energy_total",
@@ -239,7 +240,7 @@ def test_energy_sweep_uses_common_random_numbers(tmp_path):
     path = study_file(tmp_path, name="sweep", mode="energy", rings=4, realizations=6, chunk_size=4,
                       force=[0.0, 300.0])
     out = run_study(path, scheduler="synchronous", progress=False)
-    assert sorted(p.name for p in (out / "chunks").iterdir()) == [
+    assert sorted(p.name for p in (out / "chunks").glob("*.nc")) == [
         "f000-r0000000-0000003.nc", "f000-r0000004-0000005.nc",
         "f001-r0000000-0000003.nc", "f001-r0000004-0000005.nc"]
     with open_ensemble(out) as ds:

@@ -110,7 +110,7 @@ def test_a_corrupt_chunk_is_named_with_what_to_do(tmp_path, capsys):
     victim.write_bytes(victim.read_bytes()[:200])
     assert cli(["report", str(out)]) == 3
     err = capsys.readouterr().err
-    assert_one_line_error(err, file=victim, valid=["delete it and run the study again"])
+    assert_one_line_error(err, file=victim, valid=["is not what the run wrote", "run the study again"])
 
 
 def test_an_unreachable_scheduler_is_one_line_within_its_timeout(tmp_path, capsys, monkeypatch):

@@ -55,15 +55,20 @@ def package(tmp_path):
     return pkg
 
 
-def run(pkg: Path) -> tuple[float, int]:
-    """caller(1.0) and the number of cache hits, in a new process importing ``pkg``, with
-    the cache in ``pkg``'s ``__pycache__`` (no NUMBA_CACHE_DIR)."""
+def python(pkg: Path, code: str) -> str:
+    """What ``code`` prints in a new process importing ``pkg``, with the cache in ``pkg``'s
+    ``__pycache__`` (no NUMBA_CACHE_DIR)."""
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
     env["PYTHONPATH"] = str(pkg.parent)
-    out = subprocess.run([sys.executable, "-c", RUN], env=env, cwd=pkg.parent, capture_output=True, text=True,
+    out = subprocess.run([sys.executable, "-c", code], env=env, cwd=pkg.parent, capture_output=True, text=True,
                          timeout=120)
     assert out.returncode == 0, out.stderr
-    source, value, hits = out.stdout.split()
+    return out.stdout
+
+
+def run(pkg: Path) -> tuple[float, int]:
+    """caller(1.0) and the number of cache hits, in a new process (``python``)."""
+    source, value, hits = python(pkg, RUN).split()
     assert Path(source).parent == pkg
     return float(value), int(hits)
 
@@ -74,6 +79,16 @@ def test_an_edit_of_a_called_kernel_module_is_compiled_not_loaded_stale(package)
     # The same size (numba's stamp of a file is its contents, or mtime and size by version).
     (package / "_probe_callee.py").write_text(CALLEE.format(scale=3.0))
     assert run(package) == (4.0, 0)
+
+
+def test_compiled_tells_whether_a_kernel_must_compile_before_it_runs(package):
+    """``_jit.compiled``, which decides a drape's "compiling the drape kernels" line: False
+    in a process whose cache is empty, True once the kernel ran there, and True before the
+    first call of the next process, which loads the machine code from the cache."""
+    probe = ("from uqdrape._jit import compiled; from uqdrape._probe_caller import caller; "
+             "before = compiled(caller); caller(1.0); print(before, compiled(caller))")
+    assert python(package, probe).split() == ["False", "True"]
+    assert python(package, probe).split() == ["True", "True"]
 
 
 def test_folders_of_other_sources_are_removed_past_the_last_used(package):

@@ -15,6 +15,8 @@ from uqdrape.drape import kernels
 from uqdrape.geometry import MeshSurface
 from uqdrape.geometry.compiled import new_memo
 
+from conftest import assert_one_line_error
+
 
 def _save(mesh: trimesh.Trimesh, path) -> str:
     mesh.export(path)
@@ -390,6 +392,31 @@ def test_bad_mesh_files_give_one_line_and_exit_2(tmp_path, capsys):
         err = capsys.readouterr().err.strip()
         words = "file not found" if label == "missing" else words  # the validator's own check
         assert rc == 2 and len(err.splitlines()) == 1 and words in err and "geometry.path" in err, (label, err)
+
+
+def test_drape_refuses_the_meshes_validate_refuses(tmp_path, capsys, monkeypatch):
+    """Issue 40: ``uqdrape drape`` draped what ``validate`` refuses. A wall sheet seen edge-on
+    from the press (no plan area, so no crossover in its domain) is refused before draping;
+    a 40 mm sheet under a 100 mm net (82 % of the nodes off it) after draping, with nothing
+    written. Each is one line, exit 2, with the words validate uses."""
+    from uqdrape.cli import main
+
+    monkeypatch.setattr("uqdrape.ensemble.progress.compile_pending", lambda mode: False)
+    wall = trimesh.Trimesh([[-50.0, 0, 0], [50, 0, 0], [50, 0, 50], [-50, 0, 50]], [[0, 1, 2], [0, 2, 3]],
+                           process=False)
+    cases = [("wall.stl", wall, ["--crossover", "the crossover must lie inside the mould's domain", "y in [0, 0]"]),
+             ("small.stl", _grid_sheet([-20.0, 20.0], [-20.0, 20.0], lambda X, Y: 0 * X),
+              ["--rings", "82% of the nodes", "cannot be placed", "off_mould"])]
+    for name, mesh, words in cases:
+        _save(mesh, tmp_path / name)
+        out = tmp_path / "out" / name
+        assert main(["drape", "--geometry", "mesh", "--param", f"path={tmp_path / name}", "--rings", "10",
+                     "--out", str(out)]) == 2
+        assert_one_line_error(capsys.readouterr().err, valid=words)
+        assert not out.parent.exists() or not any(out.parent.iterdir())
+        (tmp_path / "study.toml").write_text(STUDY.format(path=name, units="mm").replace("rings = 4", "rings = 10"))
+        assert main(["validate", str(tmp_path / "study.toml")]) == 2
+        assert_one_line_error(capsys.readouterr().err, valid=words[1:])
 
 
 STUDY = """[study]

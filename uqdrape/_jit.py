@@ -204,6 +204,17 @@ def jit(function):
         numba.config.CACHE_DIR = saved
 
 
+def compiled(kernel) -> bool:
+    """Whether ``kernel`` (made by ``jit``) runs without compiling first: compiled in this
+    process, or numba's index of its machine code present in the disk cache (its private
+    ``_cache_file``; a numba that moves it makes this False, which only costs a needless
+    "compiling" line)."""
+    if kernel.signatures:
+        return True
+    index = getattr(getattr(kernel._cache, "_cache_file", None), "_index_path", None)  # none without a cache
+    return index is not None and os.path.isfile(index)
+
+
 def inline(function):
     """``function`` compiled into the code of each compiled caller (numba's
     ``inline="always"``), with uqdrape's settings: for a small helper in a hot loop that

@@ -562,13 +562,13 @@ def drape_mould(mould: Surface, spacing: float = 5.0, rings: int = 20, *, materi
     {'realization': 1, 'i': 21, 'j': 21}
     """
     from .drape import drape
-    from .ensemble.progress import Progress
+    from .ensemble.progress import ring_progress
     from .workflow.single_shot import check_drape_inputs
 
     named = material if isinstance(material, str | os.PathLike) else None
     check_drape_inputs(spacing, rings, options, named and str(named))
     card = load_material(material) if named is not None else material
-    bar = Progress(rings, enabled=progress, desc="ring", unit="ring", last_line=False)
+    bar = ring_progress(rings, mode, progress)
     try:
         return drape(mould, spacing, rings, material=card, mode=mode, progress=lambda k: bar.update(k - bar.n),
                      **options)

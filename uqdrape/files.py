@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import errno
 import json
 import math
 import numbers
@@ -199,12 +200,25 @@ def location(target) -> Path | str:
     return target if isinstance(target, str) and "://" in target else Path(target)
 
 
+#: fsspec's names of this machine's disk (``LocalFileSystem.protocol``; a test holds them equal).
+LOCAL_PROTOCOLS = ("file", "local")
+
+
 def url_problem(url: str) -> str | None:
     """Why the store URL ``url`` cannot be written, or None: nothing after ``scheme://``
-    (``file://`` would put the manifest in the current folder and the data at /data)."""
-    if not url.split("://", 1)[1].strip("/"):
-        return (f"a store URL needs a path after {url.split('://', 1)[0]}://, e.g. file:///abs/path or "
-                "s3://bucket/prefix")
+    (``file://`` would put the manifest in the current folder and the data at /data); a
+    local disk spelt other than ``file://`` (``local://``, ``FILE://``) or a chained URL
+    (``simplecache::file://../x``). A ``file://`` path is held to the rule of a plain path
+    (``study.validate``); the other spellings are refused rather than aliased, so that no
+    spelling reaches a folder that rule has not checked."""
+    scheme, rest = url.split("://", 1)
+    valid = "give a plain path, file:///abs/path or s3://bucket/prefix"
+    if "::" in url:
+        return f"a chained fsspec URL (protocol::URL) is not a store uqdrape writes; {valid}"
+    if scheme.lower() in LOCAL_PROTOCOLS and scheme != "file":
+        return f"{scheme}:// names this machine's disk; {valid}"
+    if not rest.strip("/"):
+        return f"a store URL needs a path after {scheme}://, e.g. file:///abs/path or s3://bucket/prefix"
     return None
 
 
@@ -412,6 +426,20 @@ def claim(tmp) -> None:
     with contextlib.suppress(FileNotFoundError):
         os.unlink(tmp)
     os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o666))
+
+
+def check_unlinked(root, name: str) -> None:
+    """OSError naming the first folder on the way from the run folder ``root`` to its file or
+    folder ``name`` (``name`` included) that is a symbolic link: a run's own folders are
+    written in place, and a link planted in a run (folders are copied and resumed) would
+    send its files elsewhere. A link at a file's own name is harmless: the rename that
+    puts the file in place replaces the link."""
+    path = Path(root)
+    for part in Path(name).parts:
+        path = path / part
+        if path.is_symlink() and path.is_dir():
+            raise OSError(errno.ELOOP, "a symbolic link to a folder inside the run: a run's own folders are written "
+                                       "in place, never through a link; remove the link", str(path))
 
 
 def write_atomic(path, write: Callable[[Path], object], *, keep_suffix: bool = True) -> Path | None:

@@ -16,18 +16,31 @@ if TYPE_CHECKING:  # annotations only: xarray is imported where a Dataset is mad
     import xarray as xr
 
 from .._version import __version__
-from .._jit import on_threads
+from .._jit import compiled, on_threads
 from ..errors import ParameterError
 from ..schema import MODES, QUADRANTS, REALIZATION, SOLVER_INPUTS
 from .energy import BlankHolder
 from .kernels import net_node_mean, net_shear
 from .net import EnergyRings, NetProblem, build_geodesic
-from .ring import boundary_blankholder
+from .ring import boundary_blankholder, drape_ring, geodesic_block
 from .status import Status
 
 #: Realisations solved and post-processed together per block (the solver is compiled per
 #: realisation; the block bounds the memory of the Dataset's temporaries).
 BLOCK = 1024
+
+
+#: Seconds numba takes to compile each mode's kernels, once per cache (``uqdrape drape``, 30
+#: rings on the hemisphere, 2-core development machine: geodesic 22.6 s with an empty cache
+#: against 8.2 s with a full one, energy 41.8 against 8.3 s).
+COMPILE_S = {"geodesic": 15, "energy": 35}
+
+
+def compile_pending(mode: str) -> bool:
+    """Whether a drape in ``mode`` must compile kernels before its first ring: one that it
+    calls from Python is neither compiled in this process nor in the disk cache."""
+    ring = drape_ring if mode == "energy" else geodesic_block
+    return not all(compiled(k) for k in (ring, net_shear, net_node_mean, boundary_blankholder))
 
 
 def _per_realisation(name, value, tail, R):

@@ -37,3 +37,15 @@ def placement_failures(status) -> tuple[float, str]:
     else:
         cause = "the fabric cannot follow the mould (no intersection or folded cells)"
     return failed, f"node status: {counts}; likely {cause}"
+
+
+def unplaced_error(status, budget: float, budget_name: str, net: str) -> str | None:
+    """Why a drape (status array of the net named ``net``) is refused: more than ``budget``
+    (the fraction named ``budget_name``) of its nodes could not be placed, so its results
+    would be NaN nearly everywhere (the crossover off the mould, a net wider than the
+    mould, a sheet the net cannot follow); None within the budget."""
+    failed, why = placement_failures(status)
+    if failed <= budget:
+        return None
+    return (f"{failed:.0%} of the nodes of {net} cannot be placed, more than {budget_name} = {budget:g} ({why}): "
+            "use fewer rings, a smaller spacing or move the crossover")

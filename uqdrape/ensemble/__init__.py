@@ -22,7 +22,7 @@ import importlib
 _EXPORTS = {
     "chunk": ("drape_inputs", "placement_status", "study_mould", "write_atomic", "write_netcdf"),
     "inputs": ("design_variables", "inputs_from_design", "sampled_inputs"),
-    "progress": ("Progress",),
+    "progress": ("Progress", "ring_progress"),
     "run": ("compute_tasks", "reach_scheduler", "run_ensemble"),
     "storage": ("at", "open_ensemble", "read_manifest"),
 }
@@ -30,7 +30,7 @@ _MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in nam
 
 __all__ = ["run_ensemble", "open_ensemble", "sampled_inputs", "inputs_from_design", "design_variables",
            "drape_inputs", "placement_status", "study_mould", "write_atomic", "write_netcdf", "read_manifest",
-           "compute_tasks", "reach_scheduler", "Progress", "local_pool", "at"]
+           "compute_tasks", "reach_scheduler", "Progress", "ring_progress", "local_pool", "at"]
 
 
 def __getattr__(name: str):

@@ -128,21 +128,14 @@ def _chunk_materials(fabric, material, scores):
     return [scattered(base, scatter, z) for z in np.asarray(scores, dtype=float)]
 
 
-def write_atomic(ds: xr.Dataset, path: Path, encoding: dict | None = None, *, keep=None) -> Path | None:
+def write_atomic(ds: xr.Dataset, path: Path, encoding: dict | None = None) -> Path:
     """Write ``ds`` (with netCDF ``encoding``) to ``path`` via ``<path>.part`` in the same
     directory and a rename (uqdrape.files.write_atomic), so ``path`` exists only complete.
     A leftover ``.part`` (a killed writer) is overwritten, never read; a failed write
     removes its ``.part`` and raises OSError naming the path and the cause (a full disk is
-    said so: netCDF itself only reports "HDF error"). ``keep()``, if given, is asked
-    before the rename: False drops the finished file (a worker whose run has died) and
-    returns None."""
+    said so: netCDF itself only reports "HDF error")."""
     path = Path(path)
-
-    def write(part):
-        write_netcdf(ds, part, encoding, target=path)
-        return keep is None or bool(keep())
-
-    return files.write_atomic(path, write, keep_suffix=False)
+    return files.write_atomic(path, lambda part: write_netcdf(ds, part, encoding, target=path), keep_suffix=False)
 
 
 def write_netcdf(ds: xr.Dataset, part: Path, encoding: dict | None = None, *, target: Path) -> None:

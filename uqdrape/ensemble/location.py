@@ -14,8 +14,10 @@ checks of a resumed run.
 from __future__ import annotations
 
 import errno
+import hashlib
 import json
 import re
+import secrets
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -61,10 +63,38 @@ def parse_manifest(text: bytes, where) -> dict:
         raise corrupt_manifest(where, '"chunks" must be a list of chunk file names such as r0000000-0000063.nc')
     if isinstance(size, bool) or not isinstance(size, int) or size < 1:
         raise corrupt_manifest(where, '"chunk_size" must be a positive integer')
+    key = manifest.get("checksum_key")
+    if key is not None and not (isinstance(key, str) and re.fullmatch(r"[0-9a-f]{32}", key)):
+        raise corrupt_manifest(where, '"checksum_key" must be 32 hexadecimal digits')
     wall = manifest.get("wall_time_s", 0.0)
     if isinstance(wall, bool) or not isinstance(wall, (int, float)) or not 0 <= wall < 1e9:
         raise corrupt_manifest(where, '"wall_time_s" must be a number of seconds')
     return manifest
+
+
+def new_key() -> str:
+    """A run's checksum key (``run.json`` ``"checksum_key"``), drawn once per run and kept
+    by its resumptions and extensions: a chunk's digest covers it, so a chunk copied in
+    from another run of the same study does not pass as this run's."""
+    return secrets.token_hex(16)
+
+
+def digest(key: str, name: str, parts) -> str:
+    """The SHA-256 (hex) a chunk is checked by: the run's ``key``, the chunk's ``name``,
+    then its content ``parts`` (bytes, in order). The name is in it, so two chunks
+    swapped, or one copied under another's name, do not pass."""
+    sha = hashlib.sha256(f"{key}\0{name}\0".encode())
+    for part in parts:
+        sha.update(part)
+    return sha.hexdigest()
+
+
+def changed(where, what: str) -> OSError:
+    """The one-line error for a chunk or region at ``where`` whose content is not what the
+    run wrote (edited, swapped, copied in from another run, or damaged)."""
+    return naming(OSError(errno.EIO, f"{what} is not what the run wrote (its SHA-256 differs from the one recorded "
+                                     "with it: changed, swapped or damaged since); run the study again to resume, "
+                                     "which draws it again", str(where)), "resume")
 
 
 @dataclass(frozen=True)
@@ -97,6 +127,12 @@ def plan_chunks(study: Study, chunk_size: int, realizations: int | None = None, 
         prefix = f"f{k:03d}-" if len(levels) > 1 else ""
         chunks += [Chunk(a, b, force, f"{prefix}r{a:07d}-{b - 1:07d}.nc") for a, b in ranges]
     return chunks
+
+
+def region_of(name: str) -> tuple[int, int, int]:
+    """(force level index, first realisation, stop) of the chunk named ``name``."""
+    start, last = (int(v) for v in _RANGE.search(name).groups())
+    return (int(name[1:4]) if name.startswith("f") else 0), start, last + 1
 
 
 def held(chunk_names) -> int:
@@ -158,7 +194,7 @@ class Location:
 
     def child(self, sub: str) -> Location:
         """The location ``sub`` inside this one (a fixed twin's)."""
-        return type(self)(self.path_of(sub))
+        raise NotImplementedError
 
     def sibling(self, suffix: str) -> Location:
         """The location beside this one, its name with ``suffix`` appended (another method's run)."""

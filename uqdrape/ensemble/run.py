@@ -47,7 +47,7 @@ from ..study import Study
 from ..stochastic.inputs import positive_int
 from .chunk import drape_chunk
 from ..pool import local_pool
-from .progress import Progress
+from .progress import Progress, announce_compiling
 from .storage import at
 
 #: dask schedulers in this process: a pool of local processes (default) or no
@@ -57,11 +57,12 @@ LOCAL_SCHEDULERS = ("processes", "synchronous")
 SCHEDULER_TIMEOUT = 10
 
 
-def _run_chunk(study: Study, where, chunk, level: int, attrs: dict, design_rows=None) -> str:
+def _run_chunk(study: Study, where, chunk, level: int, attrs: dict, key: str | None, design_rows=None) -> str:
     """Dask task: drape one chunk (its Monte Carlo realisations, or the given rows of a
-    sensitivity design) and write it to the run's location ``where``; return its name."""
+    sensitivity design) and write it to the run's location ``where`` with its checksum
+    under the run's ``key``; return its name."""
     ds = drape_chunk(study, range(chunk.start, chunk.stop), chunk.force, design_rows)
-    return where.write_chunk(study, ds, chunk, level, attrs)
+    return where.write_chunk(study, ds, chunk, level, attrs, key)
 
 
 def reach_scheduler(scheduler: str | None) -> None:
@@ -177,13 +178,14 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
         if progress and len(todo) < len(chunks):
             print(f"{study.name}: {len(chunks) - len(todo)} of {len(chunks)} {where.parts} already done in {where}",
                   file=sys.stderr)
+        announce_compiling(study.solver.mode, progress and bool(todo), prefix=f"{study.name}: ")
         levels = list(study.force_levels)
         run = dask.delayed(_run_chunk, pure=False)
         sizes = [c.stop - c.start for c in todo]
         total = sum(c.stop - c.start for c in chunks)
         bar = Progress(total, total - sum(sizes), enabled=progress, verbose=verbose, desc=study.name)
         try:
-            compute_tasks([run(study, where, c, levels.index(c.force), attrs,
+            compute_tasks([run(study, where, c, levels.index(c.force), attrs, manifest.get("checksum_key"),
                                None if design_rows is None else design_rows[c.start:c.stop]) for c in todo],
                           sizes, scheduler, workers, bar)
         finally:  # an interrupted or failed run's workers are gone: their unfinished files too

@@ -5,7 +5,9 @@ Layout of ``<output_dir>``::
     run.json          manifest: the study (``Study.to_dict()``), chunk size, chunk file names
     run.lock          one run at a time (``lock.hold_lock``)
     chunks/*.nc       one finished chunk each (written whole, then renamed into place)
-    chunks/*.nc.part  a chunk being written, or left by a killed run: never read
+    chunks/*.nc.sha256  its checksum (``location.digest`` of the file's bytes), written
+                      before the chunk is renamed into place and checked by every reader
+    chunks/*.part     a file being written, or left by a killed run: never read
     rare.json, sensitivity.nc, design.nc, evaluations/, fixed/, report/, export/
                       the files beside the ensemble, each written whole
 
@@ -27,13 +29,13 @@ if TYPE_CHECKING:  # annotations only: xarray is imported where a Dataset is mad
 
 from ..errors import ParameterError, naming
 from ..conventions import cf_decode, cf_encode
-from ..files import write_text_atomic
+from ..files import check_unlinked, write_atomic, write_text_atomic
 from ..schema import FORCE, REALIZATION
-from .chunk import write_atomic
+from .chunk import write_netcdf
 from ..pool import orphaned
 from .lock import run_lock
-from .location import (MANIFEST, MAX_MANIFEST_BYTES, Location, check_growth, check_same_study, corrupt_manifest,
-                       held, parse_manifest, plan_chunks)
+from .location import (MANIFEST, MAX_MANIFEST_BYTES, Location, changed, check_growth, check_same_study,
+                       corrupt_manifest, digest, held, new_key, parse_manifest, plan_chunks)
 
 CHUNKS = "chunks"
 
@@ -55,6 +57,12 @@ class Folder(Location):
     def sibling(self, suffix: str) -> Folder:
         return Folder(self.target.with_name(self.target.name + suffix))
 
+    def child(self, sub: str) -> Folder:
+        """The run folder ``sub`` inside this one (a fixed twin's), refused if it is a link
+        (``files.check_unlinked``)."""
+        check_unlinked(self.target, sub)
+        return Folder(self.target / sub)
+
     def path_of(self, name: str) -> Path:
         return self.target / name
 
@@ -65,6 +73,7 @@ class Folder(Location):
 
     @contextlib.contextmanager
     def writing(self, name: str):
+        check_unlinked(self.target, name)
         yield self.target / name
 
     def local_folder(self) -> Path:
@@ -114,11 +123,12 @@ class Folder(Location):
         this run; drop damaged chunk files. Returns (manifest, earlier wall time in s,
         chunks to drape, damaged chunks). A ``.part`` file here is a killed run's."""
         folder = self.target / CHUNKS
+        check_unlinked(self.target, CHUNKS)
         old = self.read_manifest() if resume else None
-        for path in folder.glob("*.nc.part"):
+        for path in folder.glob("*.part"):
             path.unlink()
         if not resume:
-            for path in folder.glob("*.nc"):
+            for path in (*folder.glob("*.nc"), *folder.glob("*.nc.sha256")):
                 path.unlink()
         elif old is None:
             if any(folder.glob("*.nc")):
@@ -128,26 +138,50 @@ class Folder(Location):
         else:
             check_same_study(self.target, old, manifest["study"])
         folder.mkdir(parents=True, exist_ok=True)
+        key = new_key() if old is None else old.get("checksum_key")  # a run of an older uqdrape has none
+        manifest = {**manifest, "checksum_key": key} if key else manifest
         self.write_manifest(manifest)
-        damaged = [c for c in chunks if (folder / c.name).is_file() and not chunk_intact(folder / c.name, c)]
-        for c in damaged:  # a truncated, swapped or foreign file: drape it again
+        damaged = [c for c in chunks if (folder / c.name).is_file()
+                   and not (chunk_intact(folder / c.name, c) and self._matches(c.name, key))]
+        for c in damaged:  # a truncated, edited, swapped or foreign file: drape it again
             (folder / c.name).unlink()
         todo = [c for c in chunks if not (folder / c.name).is_file()]
         return manifest, (old or {}).get("wall_time_s", 0.0), todo, damaged
 
-    def write_chunk(self, study, ds: xr.Dataset, chunk, level: int, attrs: dict) -> str:
-        """In the worker: write the draped chunk ``ds`` as its file (not after the run has
-        died: ``pool.orphaned``); return its name."""
+    def write_chunk(self, study, ds: xr.Dataset, chunk, level: int, attrs: dict, key: str | None) -> str:
+        """In the worker: write the draped chunk ``ds`` as its file, its checksum under the
+        run's ``key`` first (none without a key: a resumed run of an older uqdrape), and
+        not after the run has died (``pool.orphaned``); return its name."""
         ds.attrs.update(attrs)
         ds, encoding = cf_encode(ds, title=f"uqdrape ensemble chunk: study {study.name}, realisations "
                                            f"{chunk.start}-{chunk.stop - 1} at {chunk.force:g} N",
                                  history=f"uqdrape run {Path(study.path).name}", float32=study.float32)
-        write_atomic(ds, self.target / CHUNKS / chunk.name, encoding, keep=lambda: not orphaned())
+        path = self.target / CHUNKS / chunk.name
+
+        def write(part):
+            write_netcdf(ds, part, encoding, target=path)
+            if key:
+                write_atomic(_sum_of(path), lambda tmp: tmp.write_text(_file_digest(part, key, chunk.name) + "\n"),
+                             keep_suffix=False)
+            return not orphaned()
+
+        write_atomic(path, write, keep_suffix=False)
         return chunk.name
+
+    def _matches(self, name: str, key: str | None) -> bool:
+        """Whether chunk ``name``'s file hashes to the checksum written with it (always, in a
+        run without a ``key``)."""
+        if not key:
+            return True
+        path = self.target / CHUNKS / name
+        try:
+            return _sum_of(path).read_text(encoding="ascii").strip() == _file_digest(path, key, name)
+        except (OSError, UnicodeDecodeError):
+            return False
 
     def finish(self) -> None:
         """After the run's tasks, done or failed: their workers are gone, so are unfinished files."""
-        for part in (self.target / CHUNKS).glob("*.nc.part"):
+        for part in (self.target / CHUNKS).glob("*.part"):
             part.unlink(missing_ok=True)
 
     def open(self) -> xr.Dataset:
@@ -171,6 +205,9 @@ class Folder(Location):
             raise FileNotFoundError(
                 f"{self.target} is an incomplete run: {len(missing)} of {len(paths)} chunk files missing "
                 f"in {CHUNKS}/ ({shown}); resume it (uqdrape run STUDY) to compute them")
+        for path in paths:
+            if not self._matches(path.name, manifest.get("checksum_key")):
+                raise changed(path, f"chunk {path.name}")
         try:
             files = xr.open_mfdataset(
                 paths, engine="netcdf4", combine="by_coords", data_vars="minimal", coords="minimal",
@@ -200,6 +237,17 @@ class Folder(Location):
         ds.attrs["title"] = (f"uqdrape ensemble: study {ds.attrs.get('study_name', self.target.name)}, "
                              f"{ds.sizes.get(REALIZATION, 0)} realisations at {levels} N")
         return ds
+
+
+def _sum_of(path: Path) -> Path:
+    """The checksum file of the chunk file ``path``."""
+    return path.with_name(path.name + ".sha256")
+
+
+def _file_digest(path: Path, key: str, name: str) -> str:
+    """``location.digest`` of the file ``path``'s bytes as chunk ``name`` of the run ``key``."""
+    with open(path, "rb") as f:
+        return digest(key, name, iter(lambda: f.read(2**20), b""))
 
 
 def chunk_intact(path: Path, chunk) -> bool:

@@ -13,7 +13,9 @@ run folders are read, not refused: every reader takes either
     data/           the zarr store (zarr format 3), the ensemble in the layout of
                     ``open_ensemble``: (blankholder_force, realization, ...), zarr
                     chunks of (1, chunk_size, full node grid)
-    done/<chunk>    a region's "done" marker, written after its data
+    done/<chunk>    a region's "done" marker, written after its data: the region's
+                    checksum (``location.digest`` of its stored bytes), checked by every
+                    reader
     rare.json, sensitivity.nc, design.nc, evaluations/, fixed/, report/, export/
                     as in a run folder, each file put whole (``ZarrStore._put``)
 
@@ -37,6 +39,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import itertools
 import json
 import os
 import tempfile
@@ -49,12 +52,12 @@ if TYPE_CHECKING:  # annotations only: xarray is imported where a Dataset is mad
     import xarray as xr
 
 from ..conventions import cf_decode, cf_encode
-from ..files import claim, url_problem
+from ..files import check_unlinked, claim, url_problem
 from ..schema import FORCE, REALIZATION
 from .chunk import drape_chunk
 from .lock import hold_lock
-from .location import (LOCK, MANIFEST, MAX_MANIFEST_BYTES, Location, check_growth, check_same_study, corrupt_manifest,
-                       parse_manifest, plan_chunks)
+from .location import (LOCK, MANIFEST, MAX_MANIFEST_BYTES, Location, changed, check_growth, check_same_study,
+                       corrupt_manifest, digest, new_key, parse_manifest, plan_chunks, region_of)
 
 #: the object ``check_store`` puts and removes to learn that a store takes writes
 PROBE = ".uqdrape-probe"
@@ -64,6 +67,9 @@ DONE = "done"
 ZARR_FORMAT = 3
 #: encoding keys of ``cf_encode`` that mean the same in zarr (netCDF's zlib/complevel do not).
 _KEPT = ("dtype", "_FillValue", "units", "calendar")
+#: regions checked at once when a store is opened: their objects are read in one call
+#: (concurrent on an object store) and held in memory together
+CHECK_BATCH = 16
 
 
 class ZarrStore(Location):
@@ -129,6 +135,7 @@ class ZarrStore(Location):
         part, final = f"{root}/{name}.part", f"{root}/{name}"
         local = "file" in (fs.protocol if isinstance(fs.protocol, tuple) else (fs.protocol,))
         if local:
+            check_unlinked(root, str(Path(name).parent))  # a link at the name itself is replaced below
             fs.makedirs(fs._parent(part), exist_ok=True)
             claim(part)
         try:
@@ -145,6 +152,13 @@ class ZarrStore(Location):
     def local_folder(self) -> Path | None:
         """The local folder of a file:// store (its disk the run fills), else None."""
         return Path(self.target.removeprefix("file://")) if self.target.startswith("file://") else None
+
+    def child(self, sub: str) -> ZarrStore:
+        """The store ``sub`` inside this one (a fixed twin's); in a local store, refused if it
+        is a link (``files.check_unlinked``)."""
+        if self.local_folder() is not None:
+            check_unlinked(self.local_folder(), sub)
+        return ZarrStore(self.path_of(sub))
 
     def probe(self) -> None:
         """OSError unless a run can write here (:func:`check_store`)."""
@@ -223,8 +237,15 @@ class ZarrStore(Location):
         manifest["zarr_format"] = ZARR_FORMAT
         fs, root = _fs(self.target)
         old, done = self._kept(study, manifest["study"], manifest["chunk_size"], n, chunks, resume)  # as it is now
+        key = new_key() if old is None else old.get("checksum_key")  # a run of an older uqdrape has none
+        if key:
+            manifest["checksum_key"] = key
         title = (f"uqdrape ensemble: study {study.name}, {n} realisations at "
                  + ", ".join(f"{f:g}" for f in study.force_levels) + " N")
+        damaged = []
+        if self.local_folder() is not None:
+            for name in (DATA, DONE):
+                check_unlinked(self.local_folder(), name)
         with _writing(self.target, "the store's template"):
             if old is None:
                 if fs.exists(f"{root}/{DONE}"):
@@ -232,17 +253,21 @@ class ZarrStore(Location):
                 _write_template(study, self.target, chunks, n, manifest["chunk_size"], attrs, title, design_rows)
                 self.write_manifest(manifest)
             else:
-                for name in self.done() - done:  # regions of the earlier plan that this one cuts anew
+                damaged = [c for c in chunks if c.name in done and c.name in self.damaged([c.name], key)]
+                for name in self.done() - done | {c.name for c in damaged}:  # regions cut anew, or to draw again
                     fs.rm(f"{root}/{DONE}/{name}")
                 # the manifest first: a store killed while it grows reads as incomplete, not as the smaller run
                 self.write_manifest({**manifest, "wall_time_s": old.get("wall_time_s", 0.0)})
                 _resize(self.target, n, {**attrs, "title": title})
-        return manifest, (old or {}).get("wall_time_s", 0.0), [c for c in chunks if c.name not in done], []
+        done -= {c.name for c in damaged}
+        return manifest, (old or {}).get("wall_time_s", 0.0), [c for c in chunks if c.name not in done], damaged
 
-    def write_chunk(self, study, ds: xr.Dataset, chunk, level: int, attrs: dict) -> str:
+    def write_chunk(self, study, ds: xr.Dataset, chunk, level: int, attrs: dict, key: str | None) -> str:
         """In the worker: write the draped chunk ``ds`` into its region of the store, then
-        the region's marker; return its name. A failed write is one-line OSError naming
-        the store (a full or read-only bucket). The run's attributes are the template's."""
+        the region's marker, its checksum under the run's ``key`` read back from the store
+        (a bare marker without a key: a resumed run of an older uqdrape); return its name.
+        A failed write is one-line OSError naming the store (a full or read-only bucket).
+        The run's attributes are the template's."""
         ds = _encoded(ds, study, title="")
         region = {FORCE: slice(level, level + 1), REALIZATION: slice(chunk.start, chunk.stop)}
         ds = ds.drop_vars([v for v, var in ds.variables.items() if not set(region) & set(var.dims)])
@@ -250,9 +275,65 @@ class ZarrStore(Location):
         with _writing(self.target, f"region {chunk.name}"):
             ds.to_zarr(f"{self.target}/{DATA}", region=region, mode="r+", zarr_format=ZARR_FORMAT,
                        consolidated=False, storage_options=_options(self.target))
-            fs, root = _fs(self.target)
-            fs.pipe_file(f"{root}/{DONE}/{chunk.name}", b"done\n")  # after the data: a marker means the region is whole
+            # after the data: a marker means the region is whole
+            mark = self._digests(self._layout(), [chunk.name], key)[0] if key else "done"
+            self._put(f"{DONE}/{chunk.name}", f"{mark}\n".encode())
         return chunk.name
+
+    def _layout(self) -> list[tuple]:
+        """(name, dims, shape, chunk shape, chunk-key encoder) of each array a region writes:
+        all with a realisation or force dimension but the index coordinates (the run's,
+        written whole with the template). OSError naming the store if its data cannot be
+        opened (damaged metadata)."""
+        import zarr
+
+        try:
+            group = zarr.open_group(f"{self.target}/{DATA}", mode="r", zarr_format=ZARR_FORMAT,
+                                    storage_options=_options(self.target) or None)
+            arrays = sorted(group.arrays(), key=lambda item: item[0])
+            return [(var, list(a.metadata.dimension_names or ()), a.shape, a.chunks, a.metadata.encode_chunk_key)
+                    for var, a in arrays if var not in (FORCE, REALIZATION)
+                    and {FORCE, REALIZATION} & set(a.metadata.dimension_names or ())]
+        except Exception as err:  # zarr's, JSON's or the filesystem's error, whichever damaged metadata raises
+            raise OSError(errno.EIO, f"the store's data cannot be opened ({type(err).__name__}: {err}); run the "
+                          "study again without resuming", self.path_of(DATA)) from None
+
+    @staticmethod
+    def _objects(layout, name: str) -> list[str]:
+        """The keys (under ``data/``) of the stored objects region ``name`` writes."""
+        level, start, stop = region_of(name)
+        keys = []
+        for var, dims, shape, chunks, encode in layout:
+            ranges = [range(level // c, level // c + 1) if d == FORCE else range(start // c, (stop - 1) // c + 1)
+                      if d == REALIZATION else range(-(-size // c)) for d, size, c in zip(dims, shape, chunks)]
+            keys += [f"{var}/{encode(index)}" for index in itertools.product(*ranges)]
+        return keys
+
+    def _digests(self, layout, names, key: str) -> list[str]:
+        """``location.digest`` of each region in ``names``: the stored objects it writes, by
+        key, their bytes as stored (compressed; none for one zarr left unwritten or that
+        cannot be read)."""
+        fs, root = _fs(self.target)
+        keys = [self._objects(layout, name) for name in names]
+        objects = fs.cat([f"{root}/{DATA}/{k}" for ks in keys for k in ks], on_error="return")
+        return [digest(key, name, (part for k in ks for part in (k.encode() + b"\0",
+                                                                 _bytes(objects, f"{root}/{DATA}/{k}"))))
+                for name, ks in zip(names, keys)]
+
+    def damaged(self, names, key: str | None) -> list[str]:
+        """The regions among ``names`` (marked done) whose stored objects are not those their
+        marker's checksum was taken of (edited, swapped, cut short, removed); none without
+        a ``key``. OSError naming the store if its data cannot be opened at all."""
+        if not key or not names:
+            return []
+        fs, root = _fs(self.target)
+        layout, bad = self._layout(), []
+        for at in range(0, len(names), CHECK_BATCH):
+            batch = list(names[at:at + CHECK_BATCH])
+            marks = fs.cat([f"{root}/{DONE}/{name}" for name in batch], on_error="return")
+            bad += [name for name, sha in zip(batch, self._digests(layout, batch, key))
+                    if _bytes(marks, f"{root}/{DONE}/{name}").strip() != sha.encode()]
+        return bad
 
     def finish(self) -> None:
         """Nothing to clear: a region without its marker is drawn again by the next run."""
@@ -269,9 +350,18 @@ class ZarrStore(Location):
         if missing:
             raise FileNotFoundError(f"{self.target} is an incomplete run: {len(missing)} of {len(manifest['chunks'])} "
                                     f"regions not done ({', '.join(missing[:5])}); resume it to compute them")
+        damaged = self.damaged(manifest["chunks"], manifest.get("checksum_key"))
+        if damaged:
+            raise changed(self.target, f"region {damaged[0]}" + (f" (and {len(damaged) - 1} more)" if damaged[1:] else ""))
         raw = xr.open_zarr(f"{self.target}/{DATA}", consolidated=False, zarr_format=ZARR_FORMAT,
                            storage_options=_options(self.target))
         return cf_decode(raw)
+
+
+def _bytes(objects: dict, path: str) -> bytes:
+    """The object ``path`` from ``fs.cat``'s answer: its bytes, none if it could not be read."""
+    data = objects.get(path)
+    return data if isinstance(data, bytes) else b""
 
 
 def _fs(url: str):

@@ -56,6 +56,24 @@ class Surface:
         """Boolean array: True where (x, y) lies in the mould's domain."""
         return compiled.evaluate_inside(self.kernel, x, y)
 
+    def contains(self, x: float, y: float) -> bool:
+        """Whether the one plan point (x, y) (mm) lies in the mould's domain."""
+        return bool(np.asarray(self.inside(np.float64(x), np.float64(y))))
+
+    def domain(self) -> str:
+        """The mould in words (``describe``) and, for one read from a file, its plan extent
+        (mm): what a point outside its domain is told."""
+        bounds = getattr(self, "bounds", None)
+        if bounds is None:
+            return self.describe()
+        return f"{self.describe()}, plan x in [{bounds[0]:g}, {bounds[1]:g}], y in [{bounds[2]:g}, {bounds[3]:g}] mm"
+
+    def crossover_error(self, x: float, y: float) -> str | None:
+        """Why a drape cannot start at plan point (x, y) (mm) of this mould, None if it can:
+        the blank's first contact must lie in the mould's domain (a mesh's plan extent has
+        no area when the mesh is a wall seen edge-on from the press direction)."""
+        return None if self.contains(x, y) else f"the crossover must lie inside the mould's domain ({self.domain()})"
+
     def height_gradient(self, x, y):
         """(h, dh/dx, dh/dy) in one call."""
         return compiled.evaluate(self.kernel, x, y)

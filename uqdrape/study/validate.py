@@ -266,9 +266,9 @@ def _fabric(src: _Source, doc: dict, mould) -> Fabric:
         t.invalid("pre_shear_deg", f"a blank pre-sheared {pre_shear:g} deg is {locked}")
     crossover = t.numbers("crossover", (0.0, 0.0), length=2,
                           hint="crossover must be two numbers [x, y] in mm")
-    if not _inside(mould, *crossover):
-        src.invalid("fabric.crossover", list(crossover),
-                    f"the crossover must lie inside the mould's domain ({_describe(mould)})")
+    off = mould.crossover_error(*crossover)
+    if off:
+        src.invalid("fabric.crossover", list(crossover), off)
     imbalance = t.number("imbalance_Nm", None, gt=0)
     if imbalance is not None:
         from ..material.imbalance import with_imbalance
@@ -472,11 +472,11 @@ def _uncertainty(src: _Source, doc: dict, fabric: Fabric, process: Process, solv
         xs = _extent(factors["crossover_x"]) if "crossover_x" in factors else (fabric.crossover[0],) * 2
         ys = _extent(factors["crossover_y"]) if "crossover_y" in factors else (fabric.crossover[1],) * 2
         corners = [(x, y) for x in xs for y in ys]
-        if not all(_inside(mould, x, y) for x, y in corners):
+        if not all(mould.contains(x, y) for x, y in corners):
             key = "crossover_x" if "crossover_x" in factors else "crossover_y"
             src.invalid(f"uncertainty.{key}", t.data[key],
                         f"crossovers up to x in [{xs[0]:g}, {xs[1]:g}], y in [{ys[0]:g}, {ys[1]:g}] mm "
-                        f"leave the mould's domain ({_describe(mould)})")
+                        f"leave the mould's domain ({mould.domain()})")
     return Uncertainty(fields, factors)
 
 
@@ -495,17 +495,6 @@ def _extent(factor) -> tuple[float, float]:
     """The range of values a design can give (u = 0 and 1; about ±7 sd for a normal)."""
     lo, hi = factor.ppf(np.array([0.0, 1.0]))
     return float(lo), float(hi)
-
-
-def _inside(mould, x: float, y: float) -> bool:
-    return bool(np.asarray(mould.inside(np.float64(x), np.float64(y))))
-
-
-def _describe(mould) -> str:
-    bounds = getattr(mould, "bounds", None)
-    if bounds is None:
-        return mould.describe()
-    return f"{mould.describe()}, plan x in [{bounds[0]:g}, {bounds[1]:g}], y in [{bounds[2]:g}, {bounds[3]:g}] mm"
 
 
 def _sampling(src: _Source, doc: dict, realizations: int, seed: int, uncertainty: Uncertainty,

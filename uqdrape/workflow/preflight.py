@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..drape import placement_failures
+from ..drape import placement_failures, unplaced_error
 from ..errors import ParameterError
 from ..ensemble import inputs_from_design, placement_status, sampled_inputs
 from ..ensemble import at
@@ -122,16 +122,15 @@ def check_placement(study, realization: int = 0, force: float | None = None, des
     r = np.arange(realization, realization + 1)
     inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows[r])
     force = study.force_levels[0] if force is None else force
-    failed, why = placement_failures(placement_status(study, r, inputs, force=force)[0])
+    status = placement_status(study, r, inputs, force=force)[0]
+    failed, why = placement_failures(status)
     if not quiet and WARN_UNPLACED < failed <= study.solver.failure_budget:
         print(f"{study.name}: warning: {failed:.0%} of the nodes of realisation {realization} cannot be placed "
               f"({why}); within solver.failure_budget = {study.solver.failure_budget:g}, so the run goes on "
               "and those nodes are NaN in its results", file=sys.stderr)
-    if failed > study.solver.failure_budget:
-        raise study_error(study.path, "solver.rings", study.solver.rings,
-                          f"{failed:.0%} of the nodes of realisation {realization} cannot be placed, more than "
-                          f"solver.failure_budget = {study.solver.failure_budget:g} ({why}): use fewer rings, a "
-                          "smaller spacing or move the crossover")
+    refused = unplaced_error(status, study.solver.failure_budget, "solver.failure_budget", f"realisation {realization}")
+    if refused:
+        raise study_error(study.path, "solver.rings", study.solver.rings, refused)
 
 
 def run_preflight(study, output_dir, *, chunk_size: int | None = None, design_rows=None, quiet: bool = False):

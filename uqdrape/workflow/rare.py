@@ -22,17 +22,22 @@ written for the same study and request.
 from __future__ import annotations
 
 import dataclasses
+import errno
 import hashlib
 import json
 import math
 import sys
+from pathlib import Path
 
 import numpy as np
 from scipy.special import ndtr
 
 from ..ensemble import at, design_variables, drape_inputs, inputs_from_design, study_mould
+from ..files import check_input_file
 from ..reliability import importance_sampling
 from ..report import rare_rows
+from ..report.html import RARE_METHODS
+from ..schema import QOI_ATTRS
 from ..stats import realization_qois
 from ..study import identity
 
@@ -136,13 +141,60 @@ def rare_key(study) -> str:
 
 def read_rare(study, output_dir) -> dict | None:
     """The rare-event record in ``output_dir`` (``RARE_FILE``; a run folder or a
-    store's URL) if it is of ``study``'s
-    ``[study] rare`` (:func:`rare_key`), else None."""
-    text = None if study.rare is None else at(output_dir).read_text(RARE_FILE)
-    if text is None:
+    store's URL) if it is of ``study``'s ``[study] rare`` (:func:`rare_key`), else None;
+    one uqdrape did not write raises as :func:`parse_rare`."""
+    if study.rare is None:
         return None
-    record = json.loads(text)
-    return record if record.get("key") == rare_key(study) else None
+    where = at(output_dir)
+    with where.reading(RARE_FILE) as path:
+        if path is None:
+            return None
+        check_input_file(path, "rare-event record", MAX_RARE_BYTES)  # a FIFO or a huge file: one line
+        record = parse_rare(Path(path).read_bytes(), where.path_of(RARE_FILE))
+    return record if record["key"] == rare_key(study) else None
+
+
+#: Largest rare-event record read (bytes): a level takes about 300.
+MAX_RARE_BYTES = 2**20
+
+
+def parse_rare(data: bytes, where) -> dict:
+    """The rare-event record in ``data`` (the bytes of the file ``where``), checked to hold
+    what a resume and the report read of it (:func:`untrusted`, ``report.rare_rows``); one
+    that is not JSON, or is not such a record (hand-edited, truncated, another program's),
+    raises a one-line OSError naming ``where``, as a damaged run manifest does."""
+    def damaged(why: str) -> OSError:
+        return OSError(errno.EIO, f"not a uqdrape rare-event record ({why}); delete it and run the study again to "
+                                  "estimate it anew", str(where))
+
+    def number(value, low=-math.inf, integer=False) -> bool:
+        kind = int if integer else (int, float)
+        return isinstance(value, kind) and not isinstance(value, bool) and low <= value < math.inf
+
+    try:
+        record = json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError) as err:
+        raise damaged(f"not JSON text: {type(err).__name__}") from None
+    if not isinstance(record, dict):
+        raise damaged("not a JSON object")
+    if not isinstance(record.get("key"), str):
+        raise damaged('"key" must be the digest of the study and its request')
+    if not (isinstance(record.get("qoi"), str) and record["qoi"] in QOI_ATTRS):
+        raise damaged(f'"qoi" must be one of {", ".join(QOI_ATTRS)}')
+    if not (number(record.get("threshold")) and number(record.get("cov"), 0.0) and record["cov"] > 0
+            and number(record.get("variables"), 0, integer=True)):
+        raise damaged('"threshold" must be a number, "cov" one > 0 and "variables" a count')
+    levels = record.get("levels")
+    if not (isinstance(levels, list) and all(isinstance(level, dict) for level in levels)):
+        raise damaged('"levels" must be a list of force levels')
+    for level in levels:
+        if not (number(level.get("force")) and number(level.get("probability"), 0.0) and level["probability"] <= 1
+                and number(level.get("cov"), 0.0) and number(level.get("drapes"), 0, integer=True)
+                and isinstance(level.get("method"), str) and level["method"] in RARE_METHODS
+                and isinstance(level.get("note", ""), str)):
+            raise damaged("a level must hold its force, a probability in [0, 1], its cov >= 0, a count of drapes, "
+                          f"the method ({', '.join(RARE_METHODS)}) and a note")
+    return record
 
 
 def rare_probabilities(study, output_dir, *, resume: bool = True, progress: bool = True) -> dict:

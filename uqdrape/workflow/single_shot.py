@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from ..conventions import cf_encode
-from ..drape import drape
-from ..ensemble import Progress, at, write_netcdf
+from ..drape import drape, unplaced_error
+from ..ensemble import at, ring_progress, write_netcdf
 from ..export import cut_files, fe_files, flat_files, levels, netcdf_file, open_result, vtk_files
 from ..files import local_path, write_all, write_text_atomic
 from ..errors import ParameterError
@@ -23,6 +23,7 @@ from ..material.plot import plot_architecture, plot_sheartest
 from ..material.sheartest import fit_card, read_rig
 from ..report import plot_lines, plot_net
 from ..schema import MAX_RINGS, MAX_TOLERANCE_DEG, SOLVER_INPUTS, SPACING_RANGE_MM
+from ..study.spec import Solver
 from .preflight import WORKING_BYTES_PER_NODE, memory_bytes
 
 
@@ -32,18 +33,28 @@ def drape_to_files(geometry: str, params: dict, spacing: float, rings: int, out,
     and write ``OUT.nc`` (CF netCDF), ``OUT-net.png`` and ``OUT-lines.png``, all three or
     none; return the paths and a one-line summary. The inputs are checked first against
     the same physical ranges a study's are (``check_drape_inputs``), and the net against
-    this machine's memory. ``command`` is recorded as the file's history."""
+    this machine's memory; the mould as ``uqdrape validate`` checks a study's: the
+    crossover in its domain, and a drape with more than a study's default failure budget
+    of its nodes unplaced refused, not written. ``command`` is recorded as the file's history."""
     check_drape_inputs(spacing, rings, options, material)
     out = local_path(out, "out")
     surface = build(geometry, **params)
+    x, y = options.get("crossover", (0.0, 0.0))
+    off = surface.crossover_error(x, y)
+    if off:
+        raise ParameterError("crossover", f"crossover = ({x:g}, {y:g}) mm is invalid: {off}")
     card = load_material(material) if material else None
+    mode = options.get("mode", "geodesic")
     # a ring k/n counter: a bar on a terminal, elsewhere a line every PLAIN_EVERY s of a long drape
-    bar = Progress(rings, enabled=progress, desc="ring", unit="ring", last_line=False)
+    bar = ring_progress(rings, mode, progress)
     try:
         ds = drape(surface, spacing, rings, material=card, progress=lambda k: bar.update(k - bar.n), **options)
     finally:
         bar.close()
-    mode = options.get("mode", "geodesic")
+    refused = unplaced_error(ds.status.values[0], Solver.failure_budget, "a study's default solver.failure_budget",
+                             "the drape")
+    if refused:
+        raise ParameterError("rings", refused)
     encoded, encoding = cf_encode(ds, title=f"uqdrape {mode} drape of {surface.describe()}", history=command)
     nc = out.with_suffix(".nc")
     written = write_all({
