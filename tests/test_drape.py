@@ -492,3 +492,22 @@ def test_a_node_is_locked_when_a_valid_cell_next_to_it_locks():
                 assert np.isnan(locked[a, b])
             else:
                 assert locked[a, b] == float(near.any())
+
+
+@pytest.mark.parametrize("mode", ["geodesic", "energy"])
+def test_drape_status_is_the_drapes_status_without_its_dataset(mode, monkeypatch):
+    """``drape_status`` (the placement check of ``uqdrape validate``, issue 41) solves the
+    same nets as ``drape`` and gives their status, over several blocks of realisations too,
+    with nodes off a small mould."""
+    from uqdrape.drape import drape_status
+    from uqdrape.drape import solver
+
+    monkeypatch.setattr(solver, "BLOCK", 2)  # three blocks of five realisations
+    rng = np.random.default_rng(2)
+    options = dict(orientation=rng.uniform(-30, 30, 5), crossover=rng.normal(0, 5, (5, 2)), mode=mode,
+                   material=load_material("generic_woven") if mode == "energy" else None,
+                   gamma0=rng.normal(0, 2, (5, 24, 24)), blankholder_force=20.0)
+    status = drape_status(Hemisphere(radius=25), 5.0, 12, **options)
+    expected = drape(Hemisphere(radius=25), 5.0, 12, **options)["status"].values
+    assert status.dtype == expected.dtype and np.array_equal(status, expected)
+    assert (status != Status.OK).any() and (status == Status.OK).any()

@@ -110,3 +110,22 @@ def test_every_module_that_compiles_kernels_is_hashed():
     assert decorated and decorated <= sources, sorted(map(str, decorated - sources))
     assert PACKAGE / "drape" / "ring.py" in sources and PACKAGE / "geometry" / "compiled.py" in sources
     assert PACKAGE / "cli.py" not in sources  # not imported by a kernel module: edits keep the cache
+
+
+def test_the_sources_found_are_remembered_per_state_of_the_package(package):
+    """The kernel sources are parsed out of the package once per state of it (issue 41:
+    a tenth of a second of every process), their folder's name kept in ``sources-<hash
+    of every module>``: read back while nothing changed; an edit of a module no kernel
+    depends on gives a new record but the same folder, whose kernels still load."""
+    cache = package / "__pycache__"
+    assert run(package) == (3.0, 0)
+    memos = list(cache.glob(f"{_jit._MEMO}*"))
+    folders = list(cache.glob(f"{_jit._PREFIX}*"))
+    assert len(memos) == 1 and len(folders) == 1
+    assert folders[0].name == _jit._PREFIX + memos[0].read_text()
+    assert run(package) == (3.0, 1)
+    assert list(cache.glob(f"{_jit._MEMO}*")) == memos
+    (package / "_unrelated.py").write_text("VALUE = 1\n")
+    assert run(package) == (3.0, 1)
+    assert len(list(cache.glob(f"{_jit._MEMO}*"))) == 2
+    assert list(cache.glob(f"{_jit._PREFIX}*")) == folders

@@ -257,3 +257,42 @@ def test_plot_writes_png(tmp_path):
     out = plot_material(load_material("ebxhd936_like"), tmp_path / "ebx.png")
     data = out.read_bytes()
     assert len(data) > 10_000 and data[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def _bitwise(a, b) -> bool:
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return a.shape == b.shape and np.array_equal(a.view(np.int64), b.view(np.int64))
+
+
+def test_the_cards_pchip_and_simpson_are_scipys_bitwise():
+    """A card is tabulated without scipy (issue 41: ``uqdrape validate`` imports none of
+    scipy.interpolate or scipy.integrate); its monotone cubic and cumulative Simpson are
+    scipy's PchipInterpolator(extrapolate=False) and cumulative_simpson(initial=0) to the
+    bit: for every shipped card's branches and for curves with flat, falling, two-point
+    and irregular stretches, at and between the points, at the ends and outside (NaN)."""
+    from scipy.integrate import cumulative_simpson
+    from scipy.interpolate import PchipInterpolator
+
+    from uqdrape.material import model
+
+    rng = np.random.default_rng(41)
+    curves = []
+    for name in available_materials():
+        card = load_material(name)
+        curves += [(b.angles_rad, b.ns) for b in (card._pos, card._neg)]
+    for k in range(200):
+        n = 2 + k % 12
+        x = np.deg2rad(np.concatenate([[0.0], np.cumsum(rng.uniform(0.05, 8.0, n - 1))]))
+        y = [rng.uniform(0, 500, n), np.round(rng.uniform(0, 2, n)), np.cumsum(rng.uniform(0, 50, n)),
+             rng.normal(0, 30, n)][k % 4]
+        curves.append((x, y))
+    for x, y in curves:
+        ours, scipys = model._Pchip(x, y), PchipInterpolator(x, y, extrapolate=False)
+        at = np.concatenate([x, np.linspace(0.0, x[-1], 301), rng.uniform(-0.1, x[-1] + 0.1, 50),
+                             [-1e-12, x[-1] * (1 + 1e-15), np.nan, np.inf]])
+        assert _bitwise(ours(at), scipys(at))
+        assert _bitwise(ours(0.5 * x[-1]), scipys(0.5 * x[-1]))  # a scalar gives a 0-d array
+        for points in (3, 4, 17, model.TABLE_POINTS):
+            grid = np.linspace(0.0, x[-1], points)
+            dw = ours(grid) * np.sin(0.5 * np.pi - grid)
+            assert _bitwise(model._cumulative_simpson(dw, grid), cumulative_simpson(dw, x=grid, initial=0.0))

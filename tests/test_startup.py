@@ -1,8 +1,9 @@
 """Start-up matches the work (issue 41): ``uqdrape --help``, a sub-command's help (its
 epilog lists the mould kinds from the geometry registry), ``--version`` and ``import
-uqdrape`` load none of the numerical stack they do not use (each in a fresh interpreter,
-which then lists the heavy modules it holds); successive runs share the workers'
-forkserver and give the same numbers."""
+uqdrape`` load none of the numerical stack they do not use, nor ``uqdrape validate`` the
+Dataset stack and the parts of SciPy it does not use (each in a fresh interpreter, which
+then lists the heavy modules it holds); successive runs share the workers' forkserver and
+give the same numbers."""
 
 import argparse
 import dataclasses
@@ -56,6 +57,46 @@ def test_import_uqdrape_imports_no_numerical_stack():
 def test_the_probe_sees_an_import():
     """The probe itself can fail: a module the code imports is listed."""
     assert "xarray" in heavy_modules("import xarray")
+
+
+#: What ``uqdrape validate`` of a study without scalar factors has no use for (issue 41): the
+#: Dataset, run and report stack, and the parts of SciPy its checks do not call (numba's own
+#: BLAS check, when the placement drape loads the kernels, imports scipy.linalg).
+NOT_FOR_VALIDATE = ("xarray", "pandas", "dask", "distributed", "matplotlib", "tqdm", "netCDF4", "scipy.stats",
+                    "scipy.special", "scipy.interpolate", "scipy.integrate", "scipy.optimize")
+
+LOADED = """import contextlib, io, json, sys
+sys.path.insert(0, {root!r})
+from uqdrape.cli import main
+with contextlib.redirect_stdout(io.StringIO()):
+    code = main({argv!r})
+print(json.dumps([code, sorted(m for m in {names!r} if m in sys.modules)]))
+"""
+
+
+@pytest.mark.parametrize("study", ["nosecone-zero-angle", "geodesic"])
+def test_validate_loads_neither_the_dataset_stack_nor_scipy_it_does_not_use(tmp_path, study):
+    """validate reads the study (its card tabulated in numpy), checks the output folder and
+    drapes one realisation for its placement without building the drape's Dataset: in a
+    fresh interpreter it exits 0 holding none of NOT_FOR_VALIDATE. The shipped energy study
+    with a zero-angle field (the issue's), and a geodesic one with random spacing."""
+    path = (ROOT / "studies" / f"{study}.toml" if study != "geodesic"
+            else write_study(tmp_path, uncertainty={"spacing": {"cv": 0.01}}))
+    out = subprocess.run([sys.executable, "-c", LOADED.format(root=str(ROOT), argv=["validate", str(path)],
+                                                              names=NOT_FOR_VALIDATE)],
+                         capture_output=True, text=True, check=True, cwd=ROOT)
+    assert json.loads(out.stdout.splitlines()[-1]) == [0, []], out.stderr
+
+
+def test_the_validate_probe_sees_a_module_it_lists(tmp_path):
+    """The probe itself can fail: a scalar factor's values come from scipy.stats (the
+    placement drape samples it), which is then listed."""
+    path = write_study(tmp_path, uncertainty={"friction": {"dist": "normal", "mean": 0.2, "sd": 0.01}})
+    out = subprocess.run([sys.executable, "-c", LOADED.format(root=str(ROOT), argv=["validate", str(path)],
+                                                              names=NOT_FOR_VALIDATE)],
+                         capture_output=True, text=True, check=True, cwd=ROOT)
+    code, loaded = json.loads(out.stdout.splitlines()[-1])
+    assert code == 0 and "scipy.stats" in loaded, out.stderr
 
 
 def test_drape_help_lists_every_geometry_kind_and_the_moulds_still_evaluate(capsys):

@@ -13,6 +13,12 @@ from the same files). The folder lies under ``$NUMBA_CACHE_DIR`` if set, else in
 package's ``__pycache__`` (a checkout keeps its cache), else under ``$XDG_CACHE_HOME/uqdrape``
 (``~/.cache/uqdrape``); with none writable the kernels compile in every process. The
 folders of other sources are kept while among the ``KEEP`` last used, then removed.
+
+Finding the kernel sources parses the package's modules for their imports (a tenth of a
+second, in every process: ``uqdrape validate`` pays it too). So the name found is kept
+beside the folders in a small file named by a hash of every module of the package and
+numba's version (``sources-<hash>``, reading them is a few milliseconds): the parse runs
+once per state of the package, and any edit of any module parses afresh.
 """
 
 import ast
@@ -31,6 +37,7 @@ from numba import njit
 _OPTIONS = dict(error_model="numpy", nogil=True)
 _PACKAGE = Path(__file__).resolve().parent
 _PREFIX = "kernels-"
+_MEMO = "sources-"
 #: Cache folders kept, the current one included (other checkouts, branches, numba versions).
 KEEP = 4
 
@@ -91,6 +98,63 @@ def sources_key(package: Path = _PACKAGE) -> str:
     return digest.hexdigest()[:16]
 
 
+def _package_key(package: Path = _PACKAGE) -> str:
+    """16 hex digits of a SHA-256 over numba's version and every module of ``package``
+    (paths relative to the package, and contents): the state the kernel sources are found in."""
+    digest = hashlib.sha256(numba.__version__.encode())
+    for path in sorted(p for p in package.rglob("*.py") if "__pycache__" not in p.parts):
+        digest.update(b"\0" + path.relative_to(package).as_posix().encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def _remembered_key(parents: list[Path], package: Path = _PACKAGE) -> str:
+    """``sources_key(package)``, read from the file ``sources-<_package_key>`` in the first
+    of ``parents`` holding it, else computed and written to the first writable one."""
+    name = _MEMO + _package_key(package)
+    for parent in parents:
+        try:
+            key = (parent / name).read_text(encoding="ascii")
+        except (OSError, ValueError):
+            continue
+        if len(key) == 16 and all(c in "0123456789abcdef" for c in key):
+            _used(parent / name)
+            return key
+    key = sources_key(package)
+    for parent in parents:
+        if _writable(parent):
+            part = None
+            try:  # a whole file or none: dask workers start together
+                with tempfile.NamedTemporaryFile("w", dir=parent, prefix=".sources", delete=False) as part:
+                    part.write(key)
+                os.replace(part.name, parent / name)
+            except OSError:
+                if part is not None:
+                    Path(part.name).unlink(missing_ok=True)
+                continue
+            _prune(parent, _MEMO, parent / name)
+            break
+    return key
+
+
+def _used(path: Path) -> None:
+    """Mark ``path`` used now (its modification time), if it still exists."""
+    try:
+        os.utime(path)
+    except OSError:
+        pass
+
+
+def _prune(parent: Path, prefix: str, current: Path) -> None:
+    """Remove the entries ``prefix*`` of ``parent`` other than ``current`` past the
+    ``KEEP - 1`` last used."""
+    siblings = sorted(parent.glob(f"{prefix}*"), key=_last_used, reverse=True)
+    for stale in [p for p in siblings if p != current][KEEP - 1:]:
+        if stale.is_dir():
+            shutil.rmtree(stale, ignore_errors=True)
+        else:
+            stale.unlink(missing_ok=True)
+
+
 def _writable(folder: Path) -> bool:
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -114,14 +178,12 @@ def _cache_dir() -> Path | None:
     user_cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "uqdrape"
     parents = [Path(os.environ["NUMBA_CACHE_DIR"])] if os.environ.get("NUMBA_CACHE_DIR") else []
     parents += [_PACKAGE / "__pycache__", user_cache]
-    name = _PREFIX + sources_key()
+    name = _PREFIX + _remembered_key(parents)
     folder = next((p / name for p in parents if _writable(p / name)), None)
     if folder is None:
         return None
     os.utime(folder)
-    siblings = sorted(folder.parent.glob(f"{_PREFIX}*"), key=_last_used, reverse=True)
-    for stale in [p for p in siblings if p != folder][KEEP - 1:]:
-        shutil.rmtree(stale, ignore_errors=True)
+    _prune(folder.parent, _PREFIX, folder)
     return folder
 
 

@@ -23,9 +23,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import xarray as xr
+
+if TYPE_CHECKING:  # annotations only: xarray is imported where a Dataset is made or read
+    import xarray as xr
 
 #: Ensemble dimensions: realisations, and the blank-holder force level (N; length 1 without a sweep).
 REALIZATION = "realization"
@@ -153,6 +156,8 @@ def by_force(ds: xr.Dataset) -> xr.Dataset:
     distinct forces into levels (one drape per level for a batch of forces, as
     ``drape(blankholder_force=[0, 126, ...])`` gives), the realisations of each level
     renumbered 0..n-1. ValueError if the levels have different numbers of drapes."""
+    import xarray as xr
+
     if FORCE in ds.dims:
         return ds
     forces = ds[FORCE].values

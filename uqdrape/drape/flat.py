@@ -10,8 +10,12 @@ s i e1 + s j e2; with random spacing every segment keeps its own length.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import xarray as xr
+
+if TYPE_CHECKING:  # annotations only: xarray is imported where a Dataset is made or read
+    import xarray as xr
 
 from ..geometry import Plate
 from .solver import drape

@@ -8,8 +8,12 @@ from the crossover (mm).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import xarray as xr
+
+if TYPE_CHECKING:  # annotations only: xarray is imported where a Dataset is made or read
+    import xarray as xr
 
 from ..schema import QUADRANTS
 
@@ -21,6 +25,8 @@ _ARM_STEP = {"+i": (1, 0), "+j": (0, 1), "-i": (-1, 0), "-j": (0, -1)}
 
 
 def _walk(ds: xr.Dataset, steps: dict, label: str) -> xr.Dataset:
+    import xarray as xr
+
     n = int(min(ds.sizes["i"], ds.sizes["j"]) // 2)
     k = np.arange(n + 1)
     pieces = []

@@ -7,10 +7,13 @@ import json
 import multiprocessing
 import numbers
 import threading
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
-import xarray as xr
+
+if TYPE_CHECKING:  # annotations only: xarray is imported where a Dataset is made or read
+    import xarray as xr
 
 from .._version import __version__
 from .._jit import compiled, on_threads
@@ -120,6 +123,37 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     Nodes that cannot be placed are NaN with a ``status`` code (``Status``); the call
     does not raise for them. Impossible arguments raise ValueError naming the argument.
     """
+    import xarray as xr
+
+    blocks = [_dataset(prob, *solved, mode, stored, gamma0, threads)
+              for prob, solved, stored, gamma0, threads in _solved(
+                  surface, spacing, rings, orientation=orientation, pre_shear=pre_shear, skew=skew,
+                  crossover=crossover, seg_i=seg_i, seg_j=seg_j, gamma0=gamma0, mode=mode, material=material,
+                  blankholder_force=blankholder_force, friction=friction, sectors=sectors,
+                  blankholder_model=blankholder_model, tolerance=tolerance, max_iterations=max_iterations,
+                  max_turn=max_turn, factors=factors, progress=progress, threads=threads)]
+    if len(blocks) == 1:
+        return blocks[0]
+    ds = xr.concat(blocks, dim=REALIZATION, data_vars="minimal", coords="minimal", compat="override",
+                   join="override")
+    return ds.assign_coords(realization=np.arange(sum(block.sizes[REALIZATION] for block in blocks)))
+
+
+def drape_status(surface, spacing, rings, **options) -> np.ndarray:
+    """The node status (R, 2n + 1, 2n + 1) of the drapes ``drape(surface, spacing, rings,
+    **options)`` makes (the same arguments, checks and solve), without their Dataset:
+    none of the per-cell and energy post-processing or its kernels, and no xarray. The
+    placement check of ``uqdrape validate`` and of a run's preflight."""
+    return np.concatenate([solved[1] for _, solved, _, _, _ in _solved(surface, spacing, rings, **options)])
+
+
+def _solved(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0, crossover=(0.0, 0.0),
+            seg_i=None, seg_j=None, gamma0=None, mode="geodesic", material=None, blankholder_force=0.0,
+            friction=0.2, sectors=None, blankholder_model="slip", tolerance=1e-3, max_iterations=30,
+            max_turn=10.0, factors=None, progress=None, threads=None):
+    """``drape``'s arguments checked and broadcast, then its blocks of BLOCK realisations
+    solved one after another: yields (problem, (P, status, turns, bending, iterations,
+    converged), the block's stored inputs, its zero-energy angles in degrees, threads)."""
     if mode not in MODES:
         raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
     if not isinstance(spacing, numbers.Real) or not np.isfinite(spacing) or spacing <= 0:
@@ -181,7 +215,6 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     stored = dict(orientation=orientation, pre_shear=pre_shear, skew=skew, crossover_x=crossover[:, 0],
                   crossover_y=crossover[:, 1], blankholder_force=force, friction=mu,
                   **{k: np.broadcast_to(np.asarray(v, dtype=float), (R,)) for k, v in (factors or {}).items()})
-    blocks = []
     for start in range(0, R, BLOCK):
         b = slice(start, start + BLOCK)
         prob = NetProblem(surface, float(spacing), n, crossover[b], arm_angles[b], seg_i[b], seg_j[b],
@@ -196,12 +229,7 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
         else:
             solved = EnergyRings(prob, prob.material.bending_stiffness, np.deg2rad(tolerance),
                                  int(max_iterations), np.deg2rad(max_turn), threads).run(progress)
-        blocks.append(_dataset(prob, *solved, mode, {k: v[b] for k, v in stored.items()}, gamma0[b], threads))
-    if len(blocks) == 1:
-        return blocks[0]
-    ds = xr.concat(blocks, dim=REALIZATION, data_vars="minimal", coords="minimal", compat="override",
-                   join="override")
-    return ds.assign_coords(realization=np.arange(R))
+        yield prob, solved, {k: v[b] for k, v in stored.items()}, gamma0[b], threads
 
 
 def cell_shear(P, threads=1):
@@ -231,6 +259,8 @@ def node_mean(cells, threads=1):
 def _coords(R, n):
     """The coordinates of a drape Dataset of R realisations of an n-ring net, with their
     indexes built once per shape (building them was most of a single drape's time)."""
+    import xarray as xr
+
     return xr.Coordinates({REALIZATION: np.arange(R), "i": np.arange(-n, n + 1), "j": np.arange(-n, n + 1),
                            "cell_i": np.arange(-n, n) + 0.5, "cell_j": np.arange(-n, n) + 0.5,
                            "ring": np.arange(1, n + 1), "arm": ["+i", "+j", "-i", "-j"], "quadrant": list(QUADRANTS)})
@@ -254,6 +284,8 @@ def _material_list(material):
 
 def _dataset(prob, P, status, turns, bending, iterations, converged, mode, factors, gamma0_deg, threads):
     """The drape Dataset of one block; ``gamma0_deg`` is the caller's zero-energy angles (deg)."""
+    import xarray as xr
+
     n = prob.n
     gamma = cell_shear(P, threads)
     material = prob.material

@@ -9,16 +9,39 @@ either. ``sampled_inputs`` / ``inputs_from_design`` give the solver inputs of
 realisations as deterministic functions of standard variables, and ``drape_inputs``
 drapes them (e.g. for a sensitivity design); ``compute_tasks`` runs any such batches as
 dask tasks on the same schedulers (e.g. the candidate designs of ``uqdrape.design``).
+
+The names below are imported on first use (PEP 562), so that ``uqdrape validate``, which
+drapes one realisation (``inputs``, ``chunk``) and checks the output folder (``storage``),
+does not load dask, the run loop or the progress bar.
 """
 
-from .chunk import drape_inputs, study_mould, write_atomic, write_netcdf
-from .inputs import design_variables, inputs_from_design, sampled_inputs
-from ..pool import local_pool
-from .progress import Progress, ring_progress
-from .run import compute_tasks, reach_scheduler, run_ensemble
-from .storage import at, open_ensemble, read_manifest
+from __future__ import annotations
 
+import importlib
+
+_EXPORTS = {
+    "chunk": ("drape_inputs", "placement_status", "study_mould", "write_atomic", "write_netcdf"),
+    "inputs": ("design_variables", "inputs_from_design", "sampled_inputs"),
+    "progress": ("Progress", "ring_progress"),
+    "run": ("compute_tasks", "reach_scheduler", "run_ensemble"),
+    "storage": ("at", "open_ensemble", "read_manifest"),
+}
+_MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
 
 __all__ = ["run_ensemble", "open_ensemble", "sampled_inputs", "inputs_from_design", "design_variables",
-           "drape_inputs", "study_mould", "write_atomic", "write_netcdf", "read_manifest",
+           "drape_inputs", "placement_status", "study_mould", "write_atomic", "write_netcdf", "read_manifest",
            "compute_tasks", "reach_scheduler", "Progress", "ring_progress", "local_pool", "at"]
+
+
+def __getattr__(name: str):
+    if name == "local_pool":  # the worker pool's, re-exported
+        from ..pool import local_pool
+
+        return local_pool
+    if name not in _MODULE_OF:
+        raise AttributeError(f"module 'uqdrape.ensemble' has no attribute {name!r}")
+    return getattr(importlib.import_module(f".{_MODULE_OF[name]}", __name__), name)
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})

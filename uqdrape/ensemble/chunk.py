@@ -17,13 +17,16 @@ import json
 import shutil
 import threading
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import xarray as xr
+
+if TYPE_CHECKING:  # annotations only: xarray is imported where a Dataset is made or read
+    import xarray as xr
 
 from .. import files
 from .. import geometry as _geometry
-from ..drape import drape
+from ..drape import drape, drape_status
 from ..material.scatter import card_scatter, scattered
 from ..schema import REALIZATION, SOLVER_INPUTS, at_level
 from ..study.spec import CARD
@@ -70,6 +73,28 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
     them (default: the study's mould from the process's cache, :func:`study_mould`, and
     its material loaded)."""
     r = np.asarray(realizations, dtype=np.int64)
+    args, options = _drape_arguments(study, r, inputs, force, surface, material)
+    ds = drape(*args, **options).assign_coords(realization=r)
+    if CARD in inputs:
+        ds[CARD] = (REALIZATION, np.asarray(inputs[CARD], dtype=float),
+                    {"units": "1", "long_name": "card scatter score z: N_s = mean + z sd of the card's specimens"})
+    if "seg_i" in inputs:
+        ds["seg_i"] = ((REALIZATION, "cell_i", "j"), inputs["seg_i"],
+                       {"units": "mm", "long_name": "fibre-1 segment length (flat blank)"})
+        ds["seg_j"] = ((REALIZATION, "i", "cell_j"), inputs["seg_j"],
+                       {"units": "mm", "long_name": "fibre-2 segment length (flat blank)"})
+    return ds
+
+
+def placement_status(study, realizations, inputs: dict, *, force=None) -> np.ndarray:
+    """The node status (R, 2n + 1, 2n + 1) of :func:`drape_inputs` with the same arguments
+    (``uqdrape.drape.drape_status``: the same solve, no Dataset)."""
+    args, options = _drape_arguments(study, np.asarray(realizations, dtype=np.int64), inputs, force, None, None)
+    return drape_status(*args, **options)
+
+
+def _drape_arguments(study, r, inputs: dict, force, surface, material) -> tuple[tuple, dict]:
+    """The arguments and options of the solver's ``drape`` for :func:`drape_inputs`."""
     levels = study.force_levels
     if (force is None and study.is_sweep) or (force is not None and float(force) not in levels):
         raise ValueError(f"force={force!r}: pass one of study {study.name!r}'s blank-holder levels {list(levels)} N")
@@ -81,9 +106,7 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
                          f"{', '.join(settings)}")
     R = len(r)
     value = {name: np.broadcast_to(inputs.get(name, fixed), (R,)) for name, fixed in settings.items()}
-    ds = drape(
-        study_mould(study) if surface is None else surface,
-        fabric.spacing_mm, solver.rings,
+    return (study_mould(study) if surface is None else surface, fabric.spacing_mm, solver.rings), dict(
         orientation=value["orientation"], pre_shear=value["pre_shear"], skew=value["skew"],
         crossover=np.stack([value["crossover_x"], value["crossover_y"]], axis=-1),
         seg_i=inputs.get("seg_i"), seg_j=inputs.get("seg_j"), gamma0=inputs.get("gamma0"),
@@ -93,16 +116,6 @@ def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None,
         sectors=process.sectors, blankholder_model=process.blankholder_model,
         tolerance=solver.tolerance_deg, max_iterations=solver.max_iterations,
     )
-    ds = ds.assign_coords(realization=r)
-    if CARD in inputs:
-        ds[CARD] = (REALIZATION, np.asarray(inputs[CARD], dtype=float),
-                    {"units": "1", "long_name": "card scatter score z: N_s = mean + z sd of the card's specimens"})
-    if "seg_i" in inputs:
-        ds["seg_i"] = ((REALIZATION, "cell_i", "j"), inputs["seg_i"],
-                       {"units": "mm", "long_name": "fibre-1 segment length (flat blank)"})
-        ds["seg_j"] = ((REALIZATION, "i", "cell_j"), inputs["seg_j"],
-                       {"units": "mm", "long_name": "fibre-2 segment length (flat blank)"})
-    return ds
 
 
 def _chunk_materials(fabric, material, scores):

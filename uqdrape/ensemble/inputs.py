@@ -48,8 +48,6 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from scipy.special import ndtr
-from scipy.stats import chi2
 
 from ..stochastic import realization_normals, sample_uniforms, uniforms_to_normals
 from ..stochastic.sampling import RQMC, rqmc_points, rqmc_uniforms
@@ -119,6 +117,9 @@ def _drawn(field, normals) -> tuple:
 
 def _sd_from_normal(field, z) -> np.ndarray:
     """sd_r = sd_deg √(m / χ²_m) with χ²_m its Φ(z) quantile (deg)."""
+    from scipy.special import ndtr
+    from scipy.stats import chi2
+
     m = field.sd_dof
     return field.params["sd_deg"] * np.sqrt(m / chi2.ppf(ndtr(np.asarray(z, dtype=float)), m))
 
@@ -157,7 +158,11 @@ def sampled_inputs(study, realizations) -> dict:
     d = len(study.uncertainty.factors)
     normals = _normals(study, r, fields)
     xi = dict(zip(fields, normals))
-    if study.sampling.plan == "monte_carlo":
+    if study.sampling.plan == "monte_carlo" and d == 0:
+        u = np.empty((r.size, 0))  # no factor: nothing for Φ (scipy.special) to map
+    elif study.sampling.plan == "monte_carlo":
+        from scipy.special import ndtr
+
         u = ndtr(normals[len(fields)])
     else:
         u = sample_uniforms(study.sampling.plan, study.realizations, d, study.seed)[r]

@@ -20,8 +20,10 @@ import re
 import secrets
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import xarray as xr
+if TYPE_CHECKING:  # annotations only: xarray is imported where a Dataset is made or read
+    import xarray as xr
 
 from ..errors import ParameterError, naming
 from ..files import write_text_atomic
@@ -219,6 +221,8 @@ class Location:
     def read_dataset(self, name: str) -> xr.Dataset | None:
         """The run's own netCDF file ``name`` (e.g. ``sensitivity.nc``), loaded; None if the
         run has none. OSError / ValueError as xarray's for an unreadable file."""
+        import xarray as xr
+
         with self.reading(name) as path, HDF5_LOCK:
             return None if path is None else xr.load_dataset(path, engine="netcdf4")
 

@@ -22,8 +22,10 @@ import contextlib
 import errno
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import xarray as xr
+if TYPE_CHECKING:  # annotations only: xarray is imported where a Dataset is made or read
+    import xarray as xr
 
 from ..errors import ParameterError, naming
 from ..conventions import cf_decode, cf_encode
@@ -190,6 +192,8 @@ class Folder(Location):
         FileNotFoundError if the folder holds no run or some chunks are missing (naming
         them: resume the run to compute them), ValueError for a run written before the force
         was always a dimension."""
+        import xarray as xr
+
         manifest = self.read_manifest()
         if manifest is None:
             raise FileNotFoundError(
@@ -250,6 +254,8 @@ def chunk_intact(path: Path, chunk) -> bool:
     """Whether ``path`` is the finished chunk ``chunk``: a netCDF file that opens, holds the
     node shear and exactly the chunk's realisations at its force level. Reads only the
     file's metadata and two coordinates."""
+    import xarray as xr
+
     try:
         with xr.open_dataset(path, engine="netcdf4", decode_cf=False) as ds:
             return ("shear" in ds.variables and FORCE in ds.variables and REALIZATION in ds.variables

@@ -44,10 +44,12 @@ import json
 import os
 import tempfile
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import dask.array
 import numpy as np
-import xarray as xr
+
+if TYPE_CHECKING:  # annotations only: xarray is imported where a Dataset is made or read
+    import xarray as xr
 
 from ..conventions import cf_decode, cf_encode
 from ..files import check_unlinked, claim, url_problem
@@ -339,6 +341,8 @@ class ZarrStore(Location):
     def open(self) -> xr.Dataset:
         """The ensemble as a lazy (dask) Dataset, one dask chunk per region;
         FileNotFoundError naming the regions not yet done."""
+        import xarray as xr
+
         manifest = self.read_manifest()
         if manifest is None:
             raise FileNotFoundError(f"{self.target} holds no uqdrape run (no {MANIFEST}); run the study first")
@@ -459,6 +463,9 @@ def _write_template(study, url, chunks, n, chunk_size, attrs, title, design_rows
     """Write the store's metadata and index coordinates once (``compute=False``): every
     variable of a chunk, widened to all force levels and ``n`` realisations, no data.
     The structure is that of one realisation draped here."""
+    import dask.array
+    import xarray as xr
+
     first = chunks[0]
     one = drape_chunk(study, [first.start], first.force, None if design_rows is None else design_rows[:1])
     levels = np.asarray(study.force_levels, dtype=float)

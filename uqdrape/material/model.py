@@ -7,11 +7,10 @@ drape solver calls them from inside its batched kernels.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
-from scipy.integrate import cumulative_simpson
-from scipy.interpolate import CubicHermiteSpline, PchipInterpolator
 
 from .._jit import jit
 
@@ -43,6 +42,79 @@ class MaterialError(ValueError):
         self.key = key
 
 
+class _Pchip:
+    """scipy's ``PchipInterpolator(x, y, extrapolate=False)`` of 1-D data, bitwise: its
+    derivatives (Fritsch-Carlson weighted harmonic means, Moler's one-sided ends), its
+    cubic pieces and its evaluation, in numpy. A card is tabulated with it when it is read
+    (every energy drape, ``uqdrape validate`` included), which then imports none of
+    scipy.interpolate (0.3-0.4 s); ``tests/test_material.py`` holds the two equal."""
+
+    def __init__(self, x, y):
+        self.x = x = np.asarray(x, dtype=float)
+        y = np.asarray(y, dtype=float)
+        h = x[1:] - x[:-1]
+        m = (y[1:] - y[:-1]) / h
+        if y.size == 2:
+            d = np.array([m[0], m[0]])
+        else:
+            sign = np.sign(m)
+            flat = (sign[1:] != sign[:-1]) | (m[1:] == 0) | (m[:-1] == 0)
+            w1, w2 = 2 * h[1:] + h[:-1], h[1:] + 2 * h[:-1]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                mean = (w1 / m[:-1] + w2 / m[1:]) / (w1 + w2)
+            d = np.zeros_like(y)
+            d[1:-1][~flat] = 1.0 / mean[~flat]
+            d[0] = self._end(h[0], h[1], m[0], m[1])
+            d[-1] = self._end(h[-1], h[-2], m[-1], m[-2])
+        # CubicHermiteSpline's pieces: c[0] s^3 + c[1] s^2 + c[2] s + c[3], s = x - x[i]
+        t = (d[:-1] + d[1:] - 2 * m) / h
+        self.c = np.stack((t / h, (m - d[:-1]) / h - t, d[:-1], y[:-1]))
+
+    @staticmethod
+    def _end(h0, h1, m0, m1) -> float:
+        """The one-sided three-point derivative at an end, kept shape-preserving."""
+        d = ((2 * h0 + h1) * m0 - h0 * m1) / (h0 + h1)
+        if np.sign(d) != np.sign(m0):
+            return 0.0
+        if np.sign(m0) != np.sign(m1) and abs(d) > 3.0 * abs(m0):
+            return 3.0 * m0
+        return d
+
+    def __call__(self, xi):
+        """Values at ``xi`` (any shape), NaN outside [x[0], x[-1]] (PPoly's sums in its order)."""
+        xi = np.asarray(xi, dtype=float)
+        x, c = self.x, self.c
+        k = np.clip(np.searchsorted(x, xi, side="right") - 1, 0, x.size - 2)
+        with np.errstate(invalid="ignore", over="ignore"):  # outside the data: NaN below
+            s = xi - x[k]
+            s2 = s * s
+            out = 0.0 + c[3, k]
+            out = out + c[2, k] * s
+            out = out + c[1, k] * s2
+            out = out + c[0, k] * (s2 * s)
+        return np.where((x[0] <= xi) & (xi <= x[-1]), out, np.nan)
+
+
+def _cumulative_simpson(y, x):
+    """scipy's ``cumulative_simpson(y, x=x, initial=0.0)`` of 1-D data (3 points or more),
+    bitwise: each interval's Simpson integral from the quadratic through it and its right
+    neighbour (its left one for the last), summed in order."""
+    def pieces(y, dx):  # eq. (8) of Cartwright (2017), as scipy writes it
+        x21, x32 = dx[:-1], dx[1:]
+        x21_x31 = x21 / (x21 + x32)
+        x21x21_x31x32 = x21_x31 * (x21 / x32)
+        coeff1, coeff2, coeff3 = 3 - x21_x31, 3 + x21x21_x31x32 + x21_x31, -x21x21_x31x32
+        return x21 / 6 * (coeff1 * y[:-2] + coeff2 * y[1:-1] + coeff3 * y[2:])
+
+    dx = np.diff(x)
+    ahead, behind = pieces(y, dx), pieces(y[::-1], dx[::-1])[::-1]
+    integrals = np.empty(y.size - 1)
+    integrals[:-1:2] = ahead[::2]
+    integrals[1::2] = behind[::2]
+    integrals[-1] = behind[-1]
+    return np.concatenate(([0.0], np.cumsum(integrals) + 0.0))
+
+
 class _Branch:
     """One shear branch (positive or negative) on the magnitude axis x = |γ| >= 0 (rad).
 
@@ -55,16 +127,23 @@ class _Branch:
         self.ns = ns
         self.limit = limit_rad
         self.lock_stiffness = lock_stiffness
-        self.force = PchipInterpolator(angles_rad, ns, extrapolate=False)
+        self.force = _Pchip(angles_rad, ns)
         grid = np.linspace(0.0, limit_rad, TABLE_POINTS)
         dw = self.force(grid) * np.sin(2.0 * phi0_rad - sense * grid) / np.sin(2.0 * phi0_rad)
-        w = cumulative_simpson(dw, x=grid, initial=0.0)
-        self.table = CubicHermiteSpline(grid, w, dw, extrapolate=False)
+        w = _cumulative_simpson(dw, grid)
+        self.grid, self.dw = grid, dw
         self.w_limit = float(w[-1])
         self.slope_limit = float(dw[-1])
         # the same cubic Hermite pieces, for a lookup without a search on the uniform grid
         self.step = grid[1] - grid[0]
         self.w, self.dw_step = w, dw * self.step
+
+    @functools.cached_property
+    def table(self):
+        """W as scipy's cubic Hermite spline (for dW/dx), built on first use."""
+        from scipy.interpolate import CubicHermiteSpline
+
+        return CubicHermiteSpline(self.grid, self.w, self.dw, extrapolate=False)
 
     def denergy(self, x):
         """dW/dx (J/m²/rad) along the branch at magnitude x (rad)."""

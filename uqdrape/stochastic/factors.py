@@ -1,10 +1,11 @@
 """Scalar process factors: a distribution that maps a standard uniform u to a value.
 
-Each factor is a deterministic function of u ∈ [0, 1] (the inverse CDF, via scipy.stats),
-so Monte Carlo, Latin hypercube, Sobol and SALib designs all drive it the same way.
-Values carry the factor's own units (blank-holder force N, friction -, angles degree,
-offsets mm). u is clipped to [1e-12, 1 − 1e-12] so the ends of a design stay finite
-(about ±7 sd for a normal).
+Each factor is a deterministic function of u ∈ [0, 1] (the inverse CDF, via scipy.stats,
+imported when a factor is first evaluated: reading a study imports none of it), so Monte
+Carlo, Latin hypercube, Sobol and SALib designs all drive it the same way. Values carry
+the factor's own units (blank-holder force N, friction -, angles degree, offsets mm). u
+is clipped to [1e-12, 1 − 1e-12] so the ends of a design stay finite (about ±7 sd for a
+normal).
 
 Parametrisations:
 - ``normal(mean, sd)``;
@@ -18,12 +19,12 @@ Parametrisations:
 
 from __future__ import annotations
 
+import functools
 import inspect
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
-import scipy.stats
 
 from ..errors import ParameterError
 
@@ -62,11 +63,26 @@ class Factor:
     params: dict
     salib_dist: str | None = None
     salib_bounds: tuple | None = None
-    _rv: object = field(default=None, repr=False, compare=False)
 
     @property
     def is_random(self) -> bool:
         return self.dist != "constant"
+
+    @functools.cached_property
+    def _rv(self):
+        """The frozen scipy.stats distribution, built on first use from ``params``."""
+        import scipy.stats
+
+        p = self.params
+        if self.dist == "normal":
+            return scipy.stats.norm(p["mean"], p["sd"])
+        if self.dist == "truncnormal":
+            return scipy.stats.truncnorm((p["lower"] - p["mean"]) / p["sd"], (p["upper"] - p["mean"]) / p["sd"],
+                                         loc=p["mean"], scale=p["sd"])
+        if self.dist == "uniform":
+            return scipy.stats.uniform(p["lower"], p["upper"] - p["lower"])
+        mu, sigma = self.salib_bounds  # lognormal
+        return scipy.stats.lognorm(sigma, scale=math.exp(mu))
 
     def ppf(self, u) -> np.ndarray:
         """Values at standard uniforms ``u`` (any shape, each in [0, 1])."""
@@ -90,29 +106,26 @@ class Factor:
 
 def normal(mean, sd) -> Factor:
     mean, sd = _finite("mean", mean), _positive("sd", sd)
-    return Factor("normal", {"mean": mean, "sd": sd}, "norm", (mean, sd), scipy.stats.norm(mean, sd))
+    return Factor("normal", {"mean": mean, "sd": sd}, "norm", (mean, sd))
 
 
 def truncnormal(mean, sd, lower, upper) -> Factor:
     mean, sd = _finite("mean", mean), _positive("sd", sd)
     lower, upper = _ordered(lower, upper)
-    rv = scipy.stats.truncnorm((lower - mean) / sd, (upper - mean) / sd, loc=mean, scale=sd)
     params = {"mean": mean, "sd": sd, "lower": lower, "upper": upper}
-    return Factor("truncnormal", params, "truncnorm", (lower, upper, mean, sd), rv)
+    return Factor("truncnormal", params, "truncnorm", (lower, upper, mean, sd))
 
 
 def uniform(lower, upper) -> Factor:
     lower, upper = _ordered(lower, upper)
-    rv = scipy.stats.uniform(lower, upper - lower)
-    return Factor("uniform", {"lower": lower, "upper": upper}, "unif", (lower, upper), rv)
+    return Factor("uniform", {"lower": lower, "upper": upper}, "unif", (lower, upper))
 
 
 def lognormal(mean, sd) -> Factor:
     mean, sd = _positive("mean", mean), _positive("sd", sd)
     sigma = math.sqrt(math.log1p((sd / mean) ** 2))
     mu = math.log(mean) - 0.5 * sigma**2
-    rv = scipy.stats.lognorm(sigma, scale=math.exp(mu))
-    return Factor("lognormal", {"mean": mean, "sd": sd}, "lognorm", (mu, sigma), rv)
+    return Factor("lognormal", {"mean": mean, "sd": sd}, "lognorm", (mu, sigma))
 
 
 def constant(value) -> Factor:

@@ -22,7 +22,6 @@ round-off negative eigenvalues are set to zero.
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
 
 from ..errors import ParameterError
 
@@ -58,11 +57,15 @@ def correlation_function(lag_mm, correlation: str, length_mm: float | None) -> n
 
 def _correlation_matrix(n: int, step_mm: float, correlation: str, length_mm: float | None):
     """1-D correlation matrix of n lattice points ``step_mm`` apart."""
+    import scipy.linalg
+
     return scipy.linalg.toeplitz(correlation_function(step_mm * np.arange(n), correlation, length_mm))
 
 
 def _eigenpairs(matrix):
     """Eigenvalues (descending, negatives from round-off set to 0) and eigenvectors."""
+    import scipy.linalg
+
     lam, phi = scipy.linalg.eigh(matrix)
     return np.clip(lam[::-1], 0.0, None), phi[:, ::-1]
 

@@ -20,7 +20,6 @@ Three sources of randomness, all derived from one study seed:
 from __future__ import annotations
 
 import numpy as np
-from scipy.stats import qmc
 
 from ..errors import ParameterError
 from .factors import normal
@@ -76,6 +75,8 @@ def sample_uniforms(plan: str, n: int, d: int, seed: int) -> np.ndarray:
         return np.empty((n, 0))
     if plan == "monte_carlo":
         return rng.random((n, d))
+    from scipy.stats import qmc
+
     if plan == "latin_hypercube":
         return qmc.LatinHypercube(d, rng=rng).random(n)
     return qmc.Sobol(d, scramble=True, rng=rng).random_base2(m)
@@ -111,6 +112,8 @@ def rqmc_uniforms(seed: int, randomization: int, points: int, d: int) -> np.ndar
     plan: a Sobol' net of ``points`` (a power of two) points in d dimensions, scrambled by
     scipy's linear matrix scrambling and digital shift (Matousek 1998: the net stays
     balanced, every point is uniform) from its own seed sequence (module docstring)."""
+    from scipy.stats import qmc
+
     if d > qmc.Sobol.MAXDIM:
         raise ParameterError("d", f"an rqmc plan of {d} variables needs a Sobol' sequence of {d} dimensions, "
                                   f"more than scipy's {qmc.Sobol.MAXDIM}")

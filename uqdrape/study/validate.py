@@ -48,7 +48,6 @@ import re
 from pathlib import Path
 
 import numpy as np
-from scipy.stats import chi2, qmc
 
 from .. import geometry as _geometry
 from .. import material as _material
@@ -361,6 +360,8 @@ def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, materia
     sd_dof = t.number("sd_dof", gt=0) if t.has("sd_dof") else None
     if sd_dof is not None and name == "zero_angle":
         # the sd a realisation may draw (its 99.9 % quantile) must keep the field's reach inside (-90, 90)
+        from scipy.stats import chi2
+
         top = params["sd_deg"] * math.sqrt(sd_dof / chi2.ppf(1e-3, sd_dof))
         if abs(params["mean_deg"]) + REACH_SD * top >= 90:
             t.invalid("sd_dof", f"a realisation's sd reaches {top:.3g} deg (99.9 % quantile of sd_deg sqrt(m / chi2_m)), "
@@ -519,6 +520,8 @@ def _sampling(src: _Source, doc: dict, realizations: int, seed: int, uncertainty
         rqmc_points(realizations, k)
     except ValueError as err:
         src.wrap(err, "sampling", given)
+    from scipy.stats import qmc
+
     if d > qmc.Sobol.MAXDIM:
         src.invalid("sampling.plan", plan, f"an rqmc plan of {d} variables (factors and KL modes) needs more "
                                            f"Sobol' dimensions than scipy's {qmc.Sobol.MAXDIM}: use a correlated "

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..drape import placement_failures, unplaced_error
 from ..errors import ParameterError
-from ..ensemble import drape_inputs, inputs_from_design, sampled_inputs
+from ..ensemble import inputs_from_design, placement_status, sampled_inputs
 from ..ensemble import at
 from ..study import load_study, study_error
 
@@ -122,7 +122,7 @@ def check_placement(study, realization: int = 0, force: float | None = None, des
     r = np.arange(realization, realization + 1)
     inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows[r])
     force = study.force_levels[0] if force is None else force
-    status = drape_inputs(study, r, inputs, force=force)["status"].values[0]
+    status = placement_status(study, r, inputs, force=force)[0]
     failed, why = placement_failures(status)
     if not quiet and WARN_UNPLACED < failed <= study.solver.failure_budget:
         print(f"{study.name}: warning: {failed:.0%} of the nodes of realisation {realization} cannot be placed "
