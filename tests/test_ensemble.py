@@ -218,6 +218,31 @@ def test_chunk_file_opens_with_plain_xarray(tmp_path, reference):
         xr.testing.assert_identical(ds.x.reset_coords(drop=True), ref.x.sel(realization=slice(7, 13)))
 
 
+def test_chunks_with_the_old_design_attribute_names_still_read(tmp_path, reference):
+    """Issue 35: an older uqdrape named a sensitivity run's sample matrix design_method,
+    design_base_samples and design_evaluations in every chunk; such a run opens with the
+    current names (``conventions.RENAMED_ATTRS``) and is still a sensitivity sample."""
+    import netCDF4
+
+    from uqdrape.ensemble.store import _file_digest
+    from uqdrape.stats import study_kind
+
+    study, ref = reference
+    out = run_study(moved(study, tmp_path), scheduler="synchronous", progress=False)  # chunks of 7
+    old = {"design_method": "sobol", "design_base_samples": 4, "design_evaluations": N}
+    key = read_manifest(out)["checksum_key"]
+    for path in sorted((out / "chunks").glob("*.nc")):  # as the older uqdrape wrote them, checksums too
+        with netCDF4.Dataset(path, "a") as nc:
+            nc.setncatts(old)
+        path.with_name(path.name + ".sha256").write_text(_file_digest(path, key, path.name) + "\n", encoding="ascii")
+    with open_ensemble(out) as ds:
+        assert not {name for name in ds.attrs if name.startswith("design")}
+        assert (ds.attrs["sample_method"], int(ds.attrs["sample_base_samples"]),
+                int(ds.attrs["sample_evaluations"])) == ("sobol", 4, N)
+        assert study_kind(ds) == "sensitivity sample"
+        assert_same_numbers(ds, ref)
+
+
 def test_a_sampled_force_is_stored_per_drape_beside_its_nominal_level(tmp_path):
     path = study_file(tmp_path, name="sampled")
     path.write_text(path.read_text() + '\n[uncertainty.blankholder_force]\ndist = "uniform"\nbounds = [50.0, 150.0]\n')
