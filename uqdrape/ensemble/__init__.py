@@ -12,7 +12,7 @@ dask tasks on the same schedulers (e.g. the candidate designs of ``uqdrape.desig
 """
 
 from .chunk import drape_inputs, study_mould, write_atomic, write_netcdf
-from .inputs import sample_columns, inputs_from_rows, sampled_inputs
+from .inputs import inputs_from_rows, sample_columns, sampled_inputs
 from ..pool import local_pool
 from .progress import Progress, ring_progress
 from .run import compute_tasks, reach_scheduler, run_ensemble

@@ -32,8 +32,8 @@ from SALib.analyze import sobol as sobol_analyze
 from SALib.util import compute_groups_matrix
 
 from ..schema import REALIZATION
-from .sample import MORRIS_NUM_LEVELS, check_method, check_seed
 from .problem import check_problem
+from .sample import MORRIS_NUM_LEVELS, check_method, check_seed
 
 CONSTANT_RTOL = 1e-12
 

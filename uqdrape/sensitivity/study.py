@@ -25,9 +25,9 @@ from scipy.stats import qmc
 
 from ..errors import ParameterError
 from ..stochastic import check_base_samples, check_method, normal, uniform
-from .sample import UNBOUNDED, sample
 from .indices import SampleMatrix
 from .problem import make_problem
+from .sample import UNBOUNDED, sample
 
 #: Morris trajectories of a screening run (``--method morris``) of a study that is not a
 #: Morris study: 20, the top of Campolongo et al.'s 10-20, at (groups + 1) drapes each.

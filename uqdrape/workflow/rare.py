@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 from scipy.special import ndtr
 
-from ..ensemble import at, sample_columns, drape_inputs, inputs_from_rows, study_mould
+from ..ensemble import at, drape_inputs, inputs_from_rows, sample_columns, study_mould
 from ..files import check_input_file
 from ..reliability import importance_sampling
 from ..report import rare_rows
@@ -78,7 +78,7 @@ def drape_limit_state(study, qoi: str, threshold: float, force: float | None = N
 def factor_values(study):
     """The map of U's columns (n, d) to what a response surface of the drapes is fitted in:
     a scalar factor's own value (its ``ppf`` of Phi(u): a bounded factor saturates in u),
-    the random fields' KL modes as they are (``uqdrape.reliability.most_probable_point``)."""
+    the random fields' KL modes as they are (``uqdrape.reliability.importance.most_probable_point``)."""
     factors = list(study.uncertainty.factors.values())
 
     def features(U):

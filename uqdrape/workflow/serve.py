@@ -40,7 +40,7 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 
 import numpy as np
 
-from ..ensemble import sample_columns, drape_inputs, inputs_from_rows
+from ..ensemble import drape_inputs, inputs_from_rows, sample_columns
 from ..errors import ParameterError
 from ..schema import SOLVER_INPUTS
 from ..stats.qoi import check_qois, realization_qois
