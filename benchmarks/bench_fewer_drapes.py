@@ -15,7 +15,7 @@
     against the stated CoV, and the model calls against plain MC's (1 - P) / (P CoV^2)
     for the same CoV; at 1e-4 the samples per level that give a 10 % CoV (over the runs)
     and their calls against MC's 10^6.
-(b') ``importance``: importance sampling around the design point the subset levels give
+(b') ``importance``: importance sampling around the most probable point the subset levels give
     (``uqdrape.reliability.importance_sampling``, target CoV 10 %) on the linear limit
     state in 100 dimensions at 1e-3, 1e-4, 1e-5 and the sphere's exterior in 200 at 1e-4:
     mean P, CoV over repeated runs against the stated one, the share of runs whose
@@ -23,7 +23,7 @@
     which estimate each run returned.
 (c) ``drape``: a drape exceedance at P ~ 1e-3, cross-checked against plain MC: geodesic
     drapes of a 50 mm dome (6 rings, iid spacing cv 2 %, skew sd 1 deg: 313 standard
-    variables), P(max |shear| >= t) (failing at either sign of the skew: two design
+    variables), P(max |shear| >= t) (failing at either sign of the skew: two most probable
     points) and P(mean_shear_positive >= t) (one), t the 0.999 quantile of 200,000 MC
     drapes (MC's CoV 7 %), against 10 subset simulations of 1000 samples a level and 10
     importance samplings to 10 % CoV (``uqdrape.workflow.rare.drape_limit_state``).
@@ -145,7 +145,7 @@ def importance_part() -> None:
     from uqdrape.reliability import importance_sampling, linear_limit_state, sphere_limit_state
 
     repeats = 100
-    print(f"\n## importance sampling at the subset levels' design point, target CoV 0.1, {repeats} runs ({load()})")
+    print(f"\n## importance sampling at the subset levels' most probable point, target CoV 0.1, {repeats} runs ({load()})")
     print("| limit state | d | P | mean estimate | CoV over runs | stated CoV (mean) | covered (2 CoV) | calls (mean) "
           "| MC calls for 10 % | ratio | estimate used |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")

@@ -22,7 +22,7 @@ would need, (1 - P) / (P CoV^2), over the estimator's drapes: the ratio the issu
 - ``energy-normal``: the ``energy`` case with friction N(0.2, 0.02) (every factor normal).
 - ``dome``: the headline case of ``bench_fewer_drapes.py`` (part ``drape``): geodesic drapes
   of the 50 mm dome, 6 rings, spacing cv 2 %, skew sd 1 deg: P(mean_shear_positive >= t),
-  one design point.
+  one most probable point.
 
 - ``analytic``: 30 repeats on limit states of known P (``uqdrape.reliability``'s linear
   and bounded-factor ones, and two half-spaces), no drapes: the stated CoV against the

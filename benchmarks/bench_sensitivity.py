@@ -12,7 +12,7 @@ over-estimate). Target: the full study in under 15 minutes on 2 cores.
 ``--rings 30`` runs the same study at the thesis's 30 rings (a copy of the study file
 with its ``rings`` changed, written to a temporary folder). ``--study PATH`` times another
 sensitivity study, e.g. studies/sensitivity-vs-blankholder-30rings.toml. The design alone
-(``study_design``) is timed too, so design and analysis are stated apart.
+(``sensitivity_sample``) is timed too, so design and analysis are stated apart.
 
 Run: python benchmarks/bench_sensitivity.py [--study PATH] [--base-samples N] [--workers W] [--out DIR] [--rings R]
 """
@@ -24,7 +24,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from uqdrape.workflow import run_report, run_study, study_design
+from uqdrape.workflow import run_report, run_study, sensitivity_sample
 from uqdrape.study import load_study
 
 STUDY = Path(__file__).resolve().parents[1] / "studies" / "sensitivity-vs-blankholder.toml"
@@ -66,7 +66,7 @@ def main():
     report_time = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    study_design(study)
+    sensitivity_sample(study)
     design_time = time.perf_counter() - t0
     drape_time = total - overhead
     print(f"{study.name}: sobol, {groups} factors/groups, base {base}: {per_level} drapes per level x "

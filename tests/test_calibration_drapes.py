@@ -11,7 +11,7 @@ import xarray as xr
 
 import uqdrape.material
 from conftest import assert_one_line_error, write_study
-from uqdrape.calibration.emulator import Emulator, design_points
+from uqdrape.calibration.emulator import Emulator, latin_hypercube
 from uqdrape.cli import main
 from uqdrape.stats import shear_at_points
 from uqdrape.study import load_study
@@ -30,10 +30,10 @@ DISTANCES = [10.0, 20.0, 30.0, 40.0]
 
 def test_the_emulator_is_scikit_learns_gp_prediction():
     """The vectorised predictive equations are the fitted GPs' own (mean and variance)."""
-    x = design_points([0.0, 10.0], [1.0, 30.0], 15, seed=1)
+    x = latin_hypercube([0.0, 10.0], [1.0, 30.0], 15, seed=1)
     y = np.column_stack([np.sin(3 * x[:, 0]) + 0.1 * x[:, 1], x[:, 0] ** 2])
     emu = Emulator(x, y, np.full(y.shape, 1e-4), [0.0, 10.0], [1.0, 30.0])
-    at = design_points([0.0, 10.0], [1.0, 30.0], 7, seed=2)
+    at = latin_hypercube([0.0, 10.0], [1.0, 30.0], 7, seed=2)
     mean, var = emu.predict(at)
     unit = (at - emu.lower) / (emu.upper - emu.lower)
     for col, gp in enumerate(emu.gps):
@@ -86,7 +86,7 @@ def test_calibrate_drapes_command_writes_the_study_the_sample_and_the_report(tmp
         csvs.append(str(csv))
     out = tmp_path / "calibrated.toml"
     assert main(["calibrate", "--drapes", *csvs, "--study", str(study), "--parameter", f"{SD_KEY}=0.5:8",
-                 "--design", "6", "--realizations", "8", "--measurement-sd", "0.02", "--scheduler", "synchronous",
+                 "--training-points", "6", "--realizations", "8", "--measurement-sd", "0.02", "--scheduler", "synchronous",
                  "--out", str(out), "--report", str(tmp_path / "report"), "-q"]) == 0
     said = capsys.readouterr().out
     calibrated = load_study(out)
@@ -94,7 +94,7 @@ def test_calibrate_drapes_command_writes_the_study_the_sample_and_the_report(tmp
     sample = xr.load_dataset(tmp_path / "calibrated-posterior.nc")
     median = float(np.median(sample["posterior"].sel(parameter=SD_KEY)))
     assert calibrated.uncertainty.fields["zero_angle"].params["sd_deg"] == float(f"{median:.4g}")
-    assert sample.sizes["design_point"] == 9 and sample.sizes["part"] == 2  # 6, then 3 from the posterior
+    assert sample.sizes["training_point"] == 9 and sample.sizes["part"] == 2  # 6, then 3 from the posterior
     page = (tmp_path / "report" / "index.html").read_text()
     assert "posterior.png" in page and "predictive.png" in page
     assert "% of the measured points inside the 90 % band" in said

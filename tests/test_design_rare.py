@@ -197,7 +197,7 @@ def test_certain_failure_is_p_one_and_no_design_keeps_the_bound(tmp_path, monkey
 
 
 def test_an_estimate_above_its_target_cov_is_not_feasible_and_says_why(tmp_path, monkeypatch):
-    # failure at both signs, P = 2 Phi(-F / SCALE): no design point carries it, and 1,000 drapes
+    # failure at both signs, P = 2 Phi(-F / SCALE): no most probable point carries it, and 1,000 drapes
     # leave subset rounds above the 10 % target: such a candidate is infeasible whatever its P
     monkeypatch.setattr(rare, "drape_limit_state", lambda study, qoi, threshold, force: (
         lambda U: force / SCALE - np.abs(np.asarray(U).sum(axis=1)) / np.sqrt(D), D))

@@ -20,7 +20,7 @@ import pytest
 import xarray as xr
 
 from uqdrape.ensemble import (
-    design_variables, drape_inputs, inputs_from_design, open_ensemble, sampled_inputs,
+    drape_inputs, inputs_from_rows, open_ensemble, sample_columns, sampled_inputs,
 )
 from uqdrape.ensemble import read_manifest
 from uqdrape.stats import varying_factors
@@ -101,9 +101,9 @@ def test_monte_carlo_realisation_does_not_depend_on_ensemble_size(tmp_path):
     assert a["friction"].min() < 0.15 and a["friction"].max() > 0.25
 
 
-def test_inputs_from_design_maps_standard_variables(tmp_path):
+def test_inputs_from_rows_maps_standard_variables(tmp_path):
     study = load_study(study_file(tmp_path))
-    names = design_variables(study)
+    names = sample_columns(study)
     assert names[0] == "friction"
     n_spacing = sum(name.startswith("spacing[") for name in names)
     n_zero = sum(name.startswith("zero_angle[") for name in names)
@@ -113,17 +113,17 @@ def test_inputs_from_design_maps_standard_variables(tmp_path):
     X[:, 0] = [0.0, 0.5, 1.0]
     X[2, 1] = 2.0          # one KL mode of the spacing in the last row
     X[1, 1 + n_spacing] = -1.5  # one KL mode of the zero angle in the middle row
-    inp = inputs_from_design(study, X)
+    inp = inputs_from_rows(study, X)
     np.testing.assert_allclose(inp["friction"], [0.1, 0.2, 0.3], rtol=1e-9)
     # zero KL variables: the mean fields
     np.testing.assert_array_equal(inp["seg_i"][:2], 5.0)
     np.testing.assert_array_equal(inp["gamma0"][[0, 2]], 0.0)
     assert np.ptp(inp["seg_i"][2]) > 0 and np.ptp(inp["gamma0"][1]) > 0
     with pytest.raises(ValueError, match=r"X must have shape \(R >= 1, %d\)" % len(names)):
-        inputs_from_design(study, X[:, :-1])
+        inputs_from_rows(study, X[:, :-1])
     X[0, 0] = 1.5
     with pytest.raises(ValueError, match=r"\['friction'\] are standard uniforms"):
-        inputs_from_design(study, X)
+        inputs_from_rows(study, X)
 
 
 def test_every_study_factor_reaches_the_solver(tmp_path):
@@ -216,6 +216,31 @@ def test_chunk_file_opens_with_plain_xarray(tmp_path, reference):
                          "energy_total": "J", "friction": "1", "seg_i": "mm", "gamma0": "degree"}
         assert {"x", "y", "z"} <= set(ds.coords)  # CF 'coordinates': plain xarray places the nodes
         xr.testing.assert_identical(ds.x.reset_coords(drop=True), ref.x.sel(realization=slice(7, 13)))
+
+
+def test_chunks_with_the_old_design_attribute_names_still_read(tmp_path, reference):
+    """Issue 35: an older uqdrape named a sensitivity run's sample matrix design_method,
+    design_base_samples and design_evaluations in every chunk; such a run opens with the
+    current names (``conventions.RENAMED_ATTRS``) and is still a sensitivity sample."""
+    import netCDF4
+
+    from uqdrape.ensemble.store import _file_digest
+    from uqdrape.stats import study_kind
+
+    study, ref = reference
+    out = run_study(moved(study, tmp_path), scheduler="synchronous", progress=False)  # chunks of 7
+    old = {"design_method": "sobol", "design_base_samples": 4, "design_evaluations": N}
+    key = read_manifest(out)["checksum_key"]
+    for path in sorted((out / "chunks").glob("*.nc")):  # as the older uqdrape wrote them, checksums too
+        with netCDF4.Dataset(path, "a") as nc:
+            nc.setncatts(old)
+        path.with_name(path.name + ".sha256").write_text(_file_digest(path, key, path.name) + "\n", encoding="ascii")
+    with open_ensemble(out) as ds:
+        assert not {name for name in ds.attrs if name.startswith("design")}
+        assert (ds.attrs["sample_method"], int(ds.attrs["sample_base_samples"]),
+                int(ds.attrs["sample_evaluations"])) == ("sobol", 4, N)
+        assert study_kind(ds) == "sensitivity sample"
+        assert_same_numbers(ds, ref)
 
 
 def test_a_sampled_force_is_stored_per_drape_beside_its_nominal_level(tmp_path):

@@ -1,7 +1,7 @@
-"""Importance sampling at the design point the subset levels give (issue 29 item 1):
+"""Importance sampling at the most probable point the subset levels give (issue 29 item 1):
 known probabilities in >= 100 dimensions to a 10 % CoV with >= 50x fewer calls than
 plain Monte Carlo's 100 / P, the stated CoV covering the truth over repeated runs; where
-no single design point carries the probability (two failure regions, the exterior of a
+no single most probable point carries the probability (two failure regions, the exterior of a
 sphere) the checks send it back to subset simulation, whose estimate is then the answer."""
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ def test_a_hyperplane_at_1e4_in_100_dimensions_to_10_percent_with_50x_fewer_call
     g, exact = linear_limit_state(100, 1e-4)
     runs = [importance_sampling(g, 100, seed=seed, cov=0.1) for seed in range(10)]
     assert all(r.method == "importance" and r.cov <= 0.1 for r in runs)
-    # the design point of a hyperplane is beta along its normal: the fit is exact, the root
+    # the most probable point of a hyperplane is beta along its normal: the fit is exact, the root
     # search finds beta = -Phi^-1(1e-4) to its tolerance
     assert all(r.r2 == pytest.approx(1.0, abs=1e-9) and abs(r.beta - 3.7190) < 2e-3 for r in runs)
     assert all(r.calls * 50 <= mc_calls(exact) for r in runs)  # measured: about 2,600 calls, 380x
@@ -63,7 +63,7 @@ def test_the_stated_cov_covers_known_probabilities_over_repeated_runs(p):
     runs = [importance_sampling(g, 100, seed=seed, cov=0.1) for seed in range(RUNS)]
     estimate = np.array([r.probability for r in runs])
     stated = np.array([r.cov for r in runs])
-    # a run whose agreement check refused the design point by chance (a 3-sd check against a
+    # a run whose agreement check refused the most probable point by chance (a 3-sd check against a
     # skewed 500-a-level subset estimate: 3 of 50 here at 1e-5) answers by subset simulation
     # sized for the target; its estimate counts in the coverage, its calls in the cost
     importance = np.array([r.method == "importance" for r in runs])

@@ -1,6 +1,6 @@
 """Inputs whose size or value would run a command out of memory or into junk are refused
 in one line, before the work, naming the size or value and the limit: calibration points,
-images and their window, design points, sectors, worker processes; a fibre direction of
+images and their window, training points, sectors, worker processes; a fibre direction of
 nan, a measurement sd of 1e200, a measured shear of 1e300; a mesh's units as a list."""
 
 from __future__ import annotations
@@ -86,7 +86,7 @@ def test_a_measured_shear_of_1e300_is_refused_not_calibrated_from_the_prior(tmp_
     assert_one_line_error(capsys.readouterr().err, file=part, valid=["row 2", "shear_deg", "90"])
 
 
-@pytest.mark.parametrize("flag, value, valid", [("--design", "1000000000", "from 3 to 1000"),
+@pytest.mark.parametrize("flag, value, valid", [("--training-points", "1000000000", "from 3 to 1000"),
                                                 ("--realizations", "1000000000", "from 3 to 10000"),
                                                 ("--measurement-sd", "1e200", "from 0 to 90"),
                                                 ("--workers", "1000000", "--workers: workers must be from 1 to")])

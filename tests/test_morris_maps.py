@@ -56,11 +56,11 @@ def test_morris_maps_equal_salib_per_node():
     assert maps.mu_star_conf.sel(factor="a").isel(node=1) < 1e-12
 
 
-def test_a_design_whose_variables_move_twice_is_refused():
+def test_a_sample_whose_variables_move_twice_is_refused():
     p = field_problem(4)
     X, _ = sample(p, "morris", base_samples=10, seed=1)
     X[1, 0] = X[0, 0] + 0.5  # variable a now also moves at a step that is not its own
-    with pytest.raises(ValueError, match="not a Morris trajectory design"):
+    with pytest.raises(ValueError, match="not a Morris trajectory sample"):
         analyze_map(p, X, xr.DataArray(node_outputs(X, 3), dims=("realization", "node")), method="morris", seed=0)
 
 

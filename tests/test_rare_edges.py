@@ -1,8 +1,8 @@
 """Rare-event estimates that keep their promise (issue 39), on analytic limit states: the
 edges (certain failure is P = 1, no failure is an upper bound, the budget is a hard limit
 however small), a stated CoV that is true over repeated runs (importance sampling, and
-subset simulation in independent rounds where no design point carries the probability),
-and a bounded factor (a standard uniform's Phi(u) saturating in u) whose design point
+subset simulation in independent rounds where no most probable point carries the probability),
+and a bounded factor (a standard uniform's Phi(u) saturating in u) whose most probable point
 the response surface finds when it is fitted in the factor's own value."""
 
 from __future__ import annotations
@@ -112,7 +112,7 @@ def test_a_bounded_factor_fitted_in_its_own_value_gets_its_design_point_and_a_tr
     d, p = 50, 1e-3
     g, exact, uniform_value = bounded_limit_state(d, p)
     t = g(np.zeros(d))[()] + 0.5  # g(0) = t - Phi(0)
-    # FORM's design point: least |u| with Phi(u0) + sigma |z| = t, z along the noise's direction
+    # FORM's most probable point: least |u| with Phi(u0) + sigma |z| = t, z along the noise's direction
     u0 = optimize.minimize_scalar(lambda v: v**2 + ((t - ndtr(v)) / 0.05) ** 2, bounds=(0, 5), method="bounded").x
     form = np.hypot(u0, (t - ndtr(u0)) / 0.05)
     runs = [importance_sampling(g, d, seed=seed, cov=0.1, max_calls=20_000, features=uniform_value)
@@ -134,7 +134,7 @@ def test_a_bounded_factor_fitted_in_u_is_caught_by_the_beta_check_and_says_its_c
     d, p = 50, 1e-3
     g, _, _ = bounded_limit_state(d, p)
     runs = [importance_sampling(g, d, seed=seed, cov=0.1, max_calls=20_000) for seed in range(REPEATS)]
-    assert all(r.method == "subset" and "design point beta" in r.note for r in runs if r.beta > 5)
+    assert all(r.method == "subset" and "most probable point beta" in r.note for r in runs if r.beta > 5)
     assert sum(r.beta > 5 for r in runs) >= 0.9 * REPEATS
     observed, stated, bias = spread(runs, p)
     assert 1 / 1.5 <= observed / stated <= 1.5 and abs(bias - 1) <= 3 * observed / np.sqrt(REPEATS)
@@ -163,7 +163,7 @@ def test_subset_rounds_stay_in_the_budget(budget):
 
 
 def test_where_plain_sampling_is_no_dearer_than_subset_rounds_it_is_used():
-    # two half-spaces at P = 0.05: no design point carries it, and plain sampling on from the
+    # two half-spaces at P = 0.05: no most probable point carries it, and plain sampling on from the
     # pilot's 500 independent samples needs fewer calls than subset rounds to 10 %
     d = 10
     beta, a = -stats.norm.ppf(0.025), np.ones(d) / np.sqrt(d)

@@ -54,7 +54,7 @@ def test_a_study_estimates_its_rare_probability_and_reports_it(tmp_path, capsys,
     assert abs(level["probability"] / 0.01 - 1) <= 3 * level["cov"]
     err = capsys.readouterr().err
     line = (f"rare: P(mean_shear_positive >= 10.9 deg) at 50 N = {level['probability']:.3g} (CoV "
-            f"{level['cov']:.2f}, {level['drapes']:,} drapes, importance sampling at the design point of subset "
+            f"{level['cov']:.2f}, {level['drapes']:,} drapes, importance sampling at the most probable point of subset "
             "levels, 313 standard variables)")
     assert line in err.splitlines()
     index = run_report(out)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from uqdrape.ensemble import drape_inputs, inputs_from_design
+from uqdrape.ensemble import drape_inputs, inputs_from_rows
 from uqdrape.reliability import linear_limit_state, sphere_limit_state, subset_simulation
 from uqdrape.reliability.subset import chain_gamma
 from uqdrape.stats import realization_qois
@@ -91,7 +91,7 @@ def test_a_drape_limit_state_is_the_drape_of_its_standard_variables(tmp_path):
     U = np.random.default_rng(2).standard_normal((5, d))
     X = U.copy()
     X[:, 0] = stats.norm.cdf(U[:, 0])  # skew, the one factor, as a standard uniform
-    ds = drape_inputs(study, np.arange(5), inputs_from_design(study, X))
+    ds = drape_inputs(study, np.arange(5), inputs_from_rows(study, X))
     np.testing.assert_array_equal(g(U), 30.0 - realization_qois(ds, ["max_abs_shear"])["max_abs_shear"].values)
 
 

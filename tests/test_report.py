@@ -165,7 +165,7 @@ def test_plot_net_errors(ensemble, tmp_path):
 
 def test_figure_titles_fit_their_figure_and_wrap_only_when_they_must():
     head, detail = "ST of node shear on the mean net (x-y plan), nose cone, ebxhd936_like, energy drape", \
-        "Sobol' design, 128 base samples, 896 drapes per level"
+        "Sobol' sample, 128 base samples, 896 drapes per level"
     wide = Figure(figsize=(21.6, 4.2))  # room for both on one line
     suptitle(wide, head, detail)
     assert wide._suptitle.get_text() == f"{head}: {detail}"
@@ -477,7 +477,7 @@ def test_study_kind_rules(ensemble, sweep):
     skewed = ensemble.assign(skew=("realization", np.linspace(0.0, 55.0, 12)))
     assert study_kind(ensemble) == "random sample"
     assert study_kind(sweep.isel(realization=[0])) == "deterministic"
-    assert study_kind(ensemble.assign_attrs(design_method="sobol")) == "sensitivity design"
+    assert study_kind(ensemble.assign_attrs(sample_method="sobol")) == "sensitivity sample"
     assert study_kind(skewed) == "swept factor"  # no study record: one varying scalar factor
     uniform = _study_json(skew={"dist": "uniform", "bounds": [0, 55]})
     assert study_kind(skewed.assign_attrs(study_json=uniform)) == "swept factor"
@@ -512,12 +512,12 @@ def test_each_kind_s_report_leaves_out_what_does_not_apply(ensemble, sweep, tmp_
     assert swept["figures"] == ["net.png", "lines.png", "vs_skew.png"]
     assert swept["max_sd_deg"] is None and swept["samples_needed"] is None and "N needed" not in page
 
-    # the rows of a sensitivity design: descriptive maps, no interval, convergence or histogram
-    design, page = _record(ensemble.assign_attrs(design_method="sobol"), tmp_path / "design")
-    assert design["figures"] == ["net.png", "lines.png", "mean_shear.png", "sd_shear.png"]
-    assert design["max_sd_deg"]["value"] == random["max_sd_deg"]["value"] and design["samples_needed"] is None
+    # the rows of a sensitivity sample: descriptive maps, no interval, convergence or histogram
+    rows, page = _record(ensemble.assign_attrs(sample_method="sobol"), tmp_path / "sensitivity")
+    assert rows["figures"] == ["net.png", "lines.png", "mean_shear.png", "sd_shear.png"]
+    assert rows["max_sd_deg"]["value"] == random["max_sd_deg"]["value"] and rows["samples_needed"] is None
     for name in ("histograms.png", "convergence.png", "wrinkle_risk.png"):
-        assert not (tmp_path / "design" / name).exists()
+        assert not (tmp_path / "sensitivity" / name).exists()
     assert {kind for spec in PLAN for kind in spec.kinds} == set(STUDY_KINDS)
 
 
@@ -560,7 +560,7 @@ def test_sensitivity_legend_tells_st_solid_from_s1_dashed(tmp_path, drawn):
 
 
 def test_sensitivity_page_starts_with_the_indices_and_their_largest_st(ensemble, tmp_path, unrasterised):
-    record, page = _record(ensemble.assign_attrs(design_method="sobol"), tmp_path, sensitivity=_indices())
+    record, page = _record(ensemble.assign_attrs(sample_method="sobol"), tmp_path, sensitivity=_indices())
     assert record["sensitivity"]["largest_ST"] == [{"blankholder_force_N": 0.0, "factor": "friction",
                                                     "qoi": "asymmetry", "ST": 0.7, "ST_conf": 0.05}]
     assert ("largest total-order Sobol&#x27; index ST, F_BH = 0 N</th><td class=\"num\">friction 0.70 ± 0.05</td>"

@@ -10,7 +10,7 @@ import pytest
 from scipy.special import ndtri
 
 from uqdrape.ensemble import open_ensemble, read_manifest, sampled_inputs
-from uqdrape.ensemble.inputs import design_variables
+from uqdrape.ensemble.inputs import sample_columns
 from uqdrape.stats import realization_qois
 from uqdrape.study import StudyError, identity, load_study
 from uqdrape.stochastic.sampling import rqmc_uniforms
@@ -74,7 +74,7 @@ def test_study_rqmc_realisations_depend_on_the_points_per_randomisation_only(tmp
     u = (sampled_inputs(four, range(32))["friction"] - 0.1) / 0.2
     for k in range(4):
         np.testing.assert_array_equal(np.sort(np.floor(u[8 * k:8 * k + 8] * 8)), np.arange(8))
-    assert len(design_variables(two)) == 1 + a["seg_i"][0].size + a["seg_j"][0].size  # iid: every segment a mode
+    assert len(sample_columns(two)) == 1 + a["seg_i"][0].size + a["seg_j"][0].size  # iid: every segment a mode
     other = load_study(rqmc_file(tmp_path, "eight", 32, 2))  # 16 points per randomisation: another point set
     assert identity(other.to_dict()) != identity(two.to_dict())
 

@@ -1,4 +1,4 @@
-"""uqdrape.sensitivity: SALib problem, designs, indices, pipeline (Ishigami and toys)."""
+"""uqdrape.sensitivity: SALib problem, sample matrices, indices, pipeline (Ishigami and toys)."""
 
 import warnings
 
@@ -28,8 +28,8 @@ from golden import ISHIGAMI_S1, ISHIGAMI_ST
 
 
 def run_sensitivity(problem, evaluate, *, base_samples, method="sobol", seed, qoi_names=None):
-    """Sample the design, evaluate ``evaluate(X) -> Y`` once, analyse every QoI (SALib's own
-    flow for a callable toy model); the design metadata in the attributes."""
+    """Sample the matrix, evaluate ``evaluate(X) -> Y`` once, analyse every QoI (SALib's own
+    flow for a callable toy model); the sample metadata in the attributes."""
     X, meta = sample(problem, method, base_samples=base_samples, seed=seed)
     ds = analyze(problem, X, np.asarray(evaluate(X), dtype=float), method=method, qoi_names=qoi_names, seed=seed)
     ds.attrs.update(meta)
@@ -105,7 +105,7 @@ def test_problem_rejects_bad_input(build, message):
         build()
 
 
-# --- design ----------------------------------------------------------------------------
+# --- sample ----------------------------------------------------------------------------
 
 
 @pytest.mark.parametrize("method, n, message", [
@@ -114,7 +114,7 @@ def test_problem_rejects_bad_input(build, message):
     ("morris", 5, "minimum is 10 trajectories"),
     ("fast", 64, "method='fast' is not supported"),
 ])
-def test_too_small_or_bad_design_refused(method, n, message):
+def test_too_small_or_bad_sample_refused(method, n, message):
     with pytest.raises(ValueError, match=message):
         sample(ishigami_problem(), method, base_samples=n, seed=1)
 

@@ -1,4 +1,4 @@
-"""Sensitivity studies end to end (issue 6): a study's SALib design draped by the ensemble
+"""Sensitivity studies end to end (issue 6): a study's SALib sample draped by the ensemble
 engine, QoIs per realisation, indices per blank-holder level, files, CLI and report.
 
 Tiny energy drapes of the EBXhd-936-like NCF on the nose cone (6 rings, 30 mm from the
@@ -20,11 +20,12 @@ from SALib.test_functions import Ishigami
 from scipy.stats import norm, qmc
 
 from uqdrape.cli import main
-from uqdrape.ensemble import inputs_from_design, open_ensemble
+from uqdrape.ensemble import inputs_from_rows, open_ensemble
 from uqdrape.sensitivity import qoi_indices
 from uqdrape.stats import SENSITIVITY_QOIS as QOIS, realization_qois
 from uqdrape.study import StudyError, load_study
-from uqdrape.sensitivity import MORRIS_SCREENING_TRAJECTORIES, design_base_samples, study_design, study_problem
+from uqdrape.sensitivity import (MORRIS_SCREENING_TRAJECTORIES, sensitivity_base_samples, sensitivity_sample,
+                                 study_problem)
 from uqdrape.workflow import open_sensitivity, run_study
 
 from conftest import assert_one_line_error, write_study
@@ -105,17 +106,17 @@ def test_zero_angle_field_alone_gives_total_index_one(sweep_run):
 
 
 @pytest.mark.slow  # end to end: uses sweep_run
-def test_design_rows_are_the_realisations_at_every_level(sweep_run):
-    """Common random numbers: the same design rows (friction, zero-angle field) at both forces."""
+def test_sample_rows_are_the_realisations_at_every_level(sweep_run):
+    """Common random numbers: the same sample rows (friction, zero-angle field) at both forces."""
     study, out = sweep_run
-    design = study_design(study)
+    sample = sensitivity_sample(study)
     with open_ensemble(out) as ds:
-        assert ds.sizes["realization"] == design.n_evaluations == 128 * (2 + 2)
+        assert ds.sizes["realization"] == sample.n_evaluations == 128 * (2 + 2)
         friction = ds["friction"].transpose("blankholder_force", "realization").values
         gamma0 = ds["gamma0"].isel(realization=slice(0, 40)).transpose("blankholder_force", ...).values
-    inputs = inputs_from_design(study, design.standard[:40])
+    inputs = inputs_from_rows(study, sample.standard[:40])
     for level in range(len(FORCES)):
-        np.testing.assert_array_equal(friction[level], inputs_from_design(study, design.standard)["friction"])
+        np.testing.assert_array_equal(friction[level], inputs_from_rows(study, sample.standard)["friction"])
         # the drape stores gamma0 back from radians: equal to round-off
         np.testing.assert_allclose(gamma0[level], inputs["gamma0"], rtol=0, atol=1e-12)
 
@@ -150,7 +151,7 @@ def test_stored_indices_round_trip_and_equal_a_recomputation(sweep_run, tmp_path
     ind.to_netcdf(tmp_path / "again.nc")
     xr.testing.assert_identical(xr.load_dataset(tmp_path / "again.nc"), ind)
     with open_ensemble(out) as ds:
-        again = qoi_indices(study_design(study), realization_qois(ds), seed=study.seed)
+        again = qoi_indices(sensitivity_sample(study), realization_qois(ds), seed=study.seed)
     xr.testing.assert_identical(again.drop_attrs(), ind.drop_attrs())
 
 
@@ -172,18 +173,18 @@ def test_qois_of_a_drape(sweep_run):
 # ----------------------------------------------------------------------------- same path as SALib
 
 
-def test_ishigami_through_the_study_design_path_reproduces_salib(tmp_path):
-    """Swap the drape for Ishigami: study factors -> standard design -> inputs_from_design
+def test_ishigami_through_the_study_sample_path_reproduces_salib(tmp_path):
+    """Swap the drape for Ishigami: study factors -> standard sample -> inputs_from_rows
     (physical values) -> qoi_indices gives SALib's own indices and the analytic ones."""
     uncertainty = {name: {"dist": "uniform", "bounds": [-np.pi, np.pi]}
                    for name in ("orientation", "pre_shear", "skew")}
     study = load_study(study_file(tmp_path, force=0.0, base=1024, uncertainty=uncertainty))
-    design = study_design(study)
-    inputs = inputs_from_design(study, design.standard)
+    sample = sensitivity_sample(study)
+    inputs = inputs_from_rows(study, sample.standard)
     x = np.stack([inputs["orientation"], inputs["pre_shear"], inputs["skew"]], axis=1)
     qois = xr.Dataset({"y": (("blankholder_force", "realization"), Ishigami.evaluate(x)[None])},
-                      coords={"blankholder_force": [0.0], "realization": np.arange(design.n_evaluations)})
-    ours = qoi_indices(design, qois, seed=study.seed).squeeze("blankholder_force")
+                      coords={"blankholder_force": [0.0], "realization": np.arange(sample.n_evaluations)})
+    ours = qoi_indices(sample, qois, seed=study.seed).squeeze("blankholder_force")
 
     physical = {"num_vars": 3, "names": ["x1", "x2", "x3"], "bounds": [[-np.pi, np.pi]] * 3}
     X = salib_sobol_sample.sample(physical, 1024, calc_second_order=False, seed=study.seed)
@@ -202,11 +203,11 @@ def test_unbounded_factors_are_coded_as_standard_normals(tmp_path):
     study = load_study(study_file(tmp_path, force=0.0, base=64, uncertainty=uncertainty))
     problem = study_problem(study)
     assert problem["names"] == ["orientation", "crossover_x"] and problem["dists"] == ["norm", "unif"]
-    morris = study_design(study, "morris")
-    values = inputs_from_design(study, morris.standard)["orientation"]
+    morris = sensitivity_sample(study, "morris")
+    values = inputs_from_rows(study, morris.standard)["orientation"]
     # Morris end levels at the 0.5 % / 99.5 % quantiles (+-2.58 sd), not u = 0 / 1 (+-7 sd)
     assert np.abs(values).max() == pytest.approx(2.0 * norm.ppf(0.995), rel=1e-9)
-    assert morris.meta["base_samples"] == MORRIS_SCREENING_TRAJECTORIES == design_base_samples(study, "morris")
+    assert morris.meta["base_samples"] == MORRIS_SCREENING_TRAJECTORIES == sensitivity_base_samples(study, "morris")
 
 
 # ----------------------------------------------------------------------------- refusals
@@ -221,7 +222,7 @@ def test_too_small_base_sample_is_refused_with_the_minimum(tmp_path, method, bas
     assert_one_line_error(str(err.value), file=path, key="sensitivity.base_samples", value=str(base), valid=[minimum])
 
 
-def test_one_group_and_huge_sobol_designs_are_refused(tmp_path):
+def test_one_group_and_huge_sobol_samples_are_refused(tmp_path):
     # the validator refuses it before anything runs
     alone = study_file(tmp_path, name="alone", uncertainty={"zero_angle": {"sd_deg": 5.0}})
     with pytest.raises(StudyError) as err:
@@ -231,7 +232,7 @@ def test_one_group_and_huge_sobol_designs_are_refused(tmp_path):
     big = {"spacing": {"cv": 0.001}, "zero_angle": {"sd_deg": 5.0}}
     huge = load_study(study_file(tmp_path, name="huge", rings=30, uncertainty=big))
     with pytest.raises(ValueError, match=r"more than scipy's 21201 .*'spacing': 7320, 'zero_angle': 3600"):
-        study_design(huge)
+        sensitivity_sample(huge)
 
 
 # ----------------------------------------------------------------------------- command line
@@ -266,4 +267,4 @@ def test_shipped_study_is_five_groups_within_the_sobol_dimension_limit():
     assert problem["groups"].count("spacing") == 2 * 40 * 41 and problem["groups"].count("zero_angle") == 40 * 40
     assert 2 * problem["num_vars"] <= qmc.Sobol.MAXDIM
     assert study.force_levels == (0.0, 126.0, 252.0, 378.0)
-    assert (study.sensitivity.method, design_base_samples(study, "sobol")) == ("sobol", 256)
+    assert (study.sensitivity.method, sensitivity_base_samples(study, "sobol")) == ("sobol", 256)

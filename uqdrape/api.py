@@ -99,7 +99,7 @@ def validate_study(path: PathLike) -> Study:
 def run_study(study: Study | PathLike, *, out: PathLike | None = None, scheduler: str | None = None,
               workers: int | None = None, chunk_size: int | None = None, method: str | None = None,
               resume: bool = True, progress: bool = True) -> Path | str:
-    """Run a study: its Monte Carlo ensemble, its sensitivity design or its blank-holder design.
+    """Run a study: its Monte Carlo ensemble, its sensitivity sample or its blank-holder design.
 
     Realisations are draped in chunks by dask, each chunk written as it finishes; a run
     stopped part-way resumes from its finished chunks. Results are the same numbers for
@@ -735,14 +735,14 @@ def calibrate_fibre_angles(points: PathLike, out: PathLike, *, plot: bool | Path
 
 
 def calibrate_drapes(parts: Sequence[PathLike], study: PathLike, parameters: Mapping[str, tuple[float, float]],
-                     out: PathLike, *, report: PathLike | None = None, design: int | None = None,
+                     out: PathLike, *, report: PathLike | None = None, training_points: int | None = None,
                      realizations: int | None = None, measurement_sd: float = 0.1, level: float = 0.9,
                      scheduler: str | None = None, workers: int | None = None, progress: bool = True) -> str:
     """Calibrate study parameters to the shear measured on formed parts.
 
     The posterior of ``parameters`` (uniform priors) through a Gaussian-process emulator
-    of the study's ensemble mean and sd at the measured points, over a Latin-hypercube
-    design of ensemble runs, sampled with emcee (needs ``uqdrape[calibrate]``).
+    of the study's ensemble mean and sd at the measured points, over Latin-hypercube
+    training points (ensemble runs), sampled with emcee (needs ``uqdrape[calibrate]``).
 
     Parameters
     ----------
@@ -759,16 +759,16 @@ def calibrate_drapes(parts: Sequence[PathLike], study: PathLike, parameters: Map
         the posterior sample goes beside it (``-posterior.nc``).
     report : str or os.PathLike, optional
         Also write the calibration report into this folder.
-    design : int, optional
-        Design points of the emulator (default 10 per parameter).
+    training_points : int, optional
+        Training points of the emulator, each an ensemble (default 10 per parameter).
     realizations : int, optional
-        Drapes per design point (default: the study's).
+        Drapes per training point (default: the study's).
     measurement_sd : float, default 0.1
         Sd of a measured shear's own error, deg.
     level : float, default 0.9
         Level of the intervals.
     scheduler, workers
-        Where the design's drapes run, as in :func:`run_study`.
+        Where the training points' drapes run, as in :func:`run_study`.
     progress : bool, default True
         Show progress on stderr.
 
@@ -785,6 +785,6 @@ def calibrate_drapes(parts: Sequence[PathLike], study: PathLike, parameters: Map
     from .workflow.calibrate import calibrate_drapes as calibrate
 
     boxes = [f"{key}={float(low)!r}:{float(high)!r}" for key, (low, high) in parameters.items()]
-    return calibrate([str(p) for p in parts], study, boxes, out, report=report, design=design,
+    return calibrate([str(p) for p in parts], study, boxes, out, report=report, training_points=training_points,
                      realizations=realizations, measurement_sd=measurement_sd, level=level, scheduler=scheduler,
                      workers=workers, progress=progress, command="uqdrape.calibrate_drapes")

@@ -207,7 +207,7 @@ def cmd_calibrate(args) -> int:
             raise ValueError("--drapes needs --study STUDY.toml, the study whose parameters are calibrated")
         check_workers(args.workers)
         print(calibrate_drapes(args.drapes, args.study, args.parameter or [], args.out, report=args.report,
-                               design=args.design, realizations=args.realizations,
+                               training_points=args.training_points, realizations=args.realizations,
                                measurement_sd=args.measurement_sd, level=args.level, scheduler=args.scheduler,
                                workers=args.workers, progress=args.verbosity > 0, command=command))
         return 0
@@ -462,9 +462,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "With --drapes: the posterior of chosen study parameters (--parameter KEY=LOW:HIGH, a\n"
                     "uniform prior) given measured shear on formed parts (one CSV a part:\n"
                     "distance_mm,shear_deg,quadrant_sign), through a Gaussian-process emulator of the study's\n"
-                    "ensemble mean and sd at the measured points over a Latin-hypercube design of ensemble\n"
-                    "runs, sampled with emcee (needs uqdrape[calibrate]); writes the study at the posterior\n"
-                    "medians (--out, beside the study) and the sample (-posterior.nc).\n\n"
+                    "ensemble mean and sd at the measured points over Latin-hypercube training points\n"
+                    "(ensemble runs), sampled with emcee (needs uqdrape[calibrate]); writes the study at the\n"
+                    "posterior medians (--out, beside the study) and the sample (-posterior.nc).\n\n"
                     "Examples:\n"
                     "  uqdrape calibrate points.csv --out results/calibration/zero_angle.toml --plot --report results/calibration/\n"
                     "  uqdrape calibrate --drapes part1.csv part2.csv --study studies/my.toml \\\n"
@@ -497,8 +497,9 @@ def build_parser() -> argparse.ArgumentParser:
     drapes.add_argument("--parameter", action="append", metavar="KEY=LOW:HIGH",
                         help="a study key to calibrate and its uniform prior box, repeatable "
                              "(e.g. process.friction=0.1:0.4, uncertainty.zero_angle.sd_deg=0.5:8)")
-    drapes.add_argument("--design", type=int, help="design points (ensembles) of the emulator (default 10 per parameter)")
-    drapes.add_argument("--realizations", type=int, help="drapes per design point (default: the study's realizations)")
+    drapes.add_argument("--training-points", type=int,
+                        help="training points (ensembles) of the emulator (default 10 per parameter)")
+    drapes.add_argument("--realizations", type=int, help="drapes per training point (default: the study's realizations)")
     drapes.add_argument("--measurement-sd", type=float, default=0.1,
                         help="sd of a measured shear's own error, deg (default 0.1)")
     drapes.add_argument("--scheduler", metavar="ADDRESS", help="dask.distributed scheduler (default: local processes)")

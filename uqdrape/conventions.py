@@ -14,6 +14,8 @@ and its numbers are unchanged unless ``float32`` is asked for.
 - global ``title``, ``history``, ``source`` (package and git version), ``date_created``
 - optional: float variables stored as float32 with zlib (the 127-drape nose-cone
   ensemble: 9.8 MB instead of 27.6 MB; numbers rounded to float32, relative 6e-8)
+- global attributes an older uqdrape wrote under another name (:data:`RENAMED_ATTRS`)
+  are read under their current name: the one place where old names are read
 """
 
 from __future__ import annotations
@@ -36,6 +38,11 @@ CONVENTIONS = "CF-1.8"
 POSITIONS = ("x", "y", "z")
 #: Suffix of the variable holding the labels of a string-valued coordinate.
 LABEL = "_label"
+#: Global attributes an older uqdrape wrote, by their current names (issue 35: "design"
+#: is the blank-holder optimisation's word; a sensitivity run's rows are a sample matrix).
+#: Written under the current names; :func:`cf_decode` reads either.
+RENAMED_ATTRS = {"design_method": "sample_method", "design_base_samples": "sample_base_samples",
+                 "design_evaluations": "sample_evaluations"}
 #: Attributes of the index coordinates a drape Dataset can have.
 INDEX_ATTRS = {
     "realization": ("realisation index (global within the study)", "1"),
@@ -113,8 +120,12 @@ def cf_encode(ds: xr.Dataset, *, title: str, history: str, float32: bool = False
 def cf_decode(ds: xr.Dataset) -> xr.Dataset:
     """The Dataset layout of ``uqdrape.drape``: node positions that a CF-aware reader made
     coordinates (from the ``coordinates`` attributes) become data variables again, and
-    string coordinates get their labels back."""
+    string coordinates get their labels back; attributes an older uqdrape wrote get their
+    current names (:data:`RENAMED_ATTRS`; where a file holds both, the current one)."""
     ds = ds.reset_coords([p for p in POSITIONS if p in ds.coords])
+    if RENAMED_ATTRS.keys() & ds.attrs.keys():
+        ds.attrs = {RENAMED_ATTRS.get(k, k): v for k, v in ds.attrs.items()
+                    if not (k in RENAMED_ATTRS and RENAMED_ATTRS[k] in ds.attrs)}
     for label in [v for v in ds.variables if str(v).endswith(LABEL) and str(v)[:-len(LABEL)] in ds.dims]:
         name = label[:-len(LABEL)]
         attrs = {k: v for k, v in ds[name].attrs.items() if k not in ("long_name", "units")}

@@ -95,7 +95,7 @@ plt.show()
 # %%
 # A sensitivity index
 # -------------------
-# The same study with a Morris screening design instead of the Monte Carlo sample
+# The same study with a Morris screening sample instead of the Monte Carlo sample
 # (written beside the run, in ``run-morris``): which input moves the asymmetry of the
 # max-shear lines, at each force? Without blank-holder force the friction does nothing.
 

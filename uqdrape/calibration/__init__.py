@@ -23,7 +23,7 @@ IMAGE --mm-per-px``).
 profile interval, or a posterior piling against the prior's bound).
 
 Measured drapes -> study parameters: :mod:`.emulator` (a GP per ensemble statistic over a
-Latin-hypercube design, scikit-learn) and :mod:`.drapes` (the parts' likelihood, its
+Latin-hypercube training points, scikit-learn) and :mod:`.drapes` (the parts' likelihood, its
 posterior by emcee, the posterior-predictive bands); the drapes themselves are run by
 ``uqdrape.workflow.calibrate``.
 """

@@ -4,15 +4,15 @@ ensemble statistics (emcee and scikit-learn; optional extra ``calibrate``).
 Data: parts, each a set of measured shears (deg) at points of its max-shear lines
 (``uqdrape.experimental``). Model: at parameters θ (a point of the prior box) the study's
 ensemble gives, at the union of the parts' points, the shear's mean μ(θ) and sd s(θ) over
-its realisations (``uqdrape.stats.shear_at_points``); a space-filling design of θ is
+its realisations (``uqdrape.stats.shear_at_points``); space-filling training points θ are
 draped (``uqdrape.workflow.calibrate``) and :class:`.emulator.Emulator` interpolates μ and
-log s between the design points, with predictive variances v_μ and v_l.
+log s between the training points, with predictive variances v_μ and v_l.
 
 Likelihood (decided here): the parts are independent realisations of the study; one part's
 shears y are Gaussian, y ~ N(μ, D R D + diag(v_μ) + σ_m² I) over its points, where D =
 diag(s) with s² = exp(2 l + 2 v_l) (the mean of s² when log s is N(l, v_l): the
 emulator's error in the sd widens the likelihood rather than being ignored), R is the
-correlation of the ensemble's shears between the points (pooled over the design's
+correlation of the ensemble's shears between the points (pooled over the training points'
 standardised residuals, shrunk by Ledoit-Wolf; taken as not depending on θ), v_μ the
 emulator's variance of the mean, and σ_m the measurement's own sd. The prior is uniform
 in the box. The posterior is sampled with emcee's affine-invariant ensemble.
@@ -32,8 +32,8 @@ SD_FLOOR_DEG = 1e-6
 
 
 @dataclass(frozen=True)
-class DesignRuns:
-    """The draped design: ``points`` (design point, parameter), ``shear`` (design point,
+class TrainingRuns:
+    """The draped training points: ``points`` (training point, parameter), ``shear`` (training point,
     draw, measured point) in deg, the draws being ``copies`` line copies of each
     realisation (``uqdrape.stats.shear_at_points``)."""
 
@@ -42,11 +42,11 @@ class DesignRuns:
     copies: int = 2
 
     def statistics(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Per design point and measured point: mean, log sd and their Monte Carlo variances
+        """Per training point and measured point: mean, log sd and their Monte Carlo variances
         (as of one draw per realisation: a realisation's copies share its ring turns)."""
         n = np.isfinite(self.shear).sum(axis=1) / self.copies
         if (n < 2).any():
-            raise ValueError("a design point has fewer than 2 realisations reaching a measured point: the points lie "
+            raise ValueError("a training point has fewer than 2 realisations reaching a measured point: the points lie "
                              "beyond the study's net (more rings, or nearer points)")
         mean = np.nanmean(self.shear, axis=1)
         sd = np.maximum(np.nanstd(self.shear, axis=1, ddof=1), SD_FLOOR_DEG)

@@ -1,13 +1,13 @@
 """A Gaussian-process emulator of ensemble statistics over a box of study parameters
 (scikit-learn; optional extra ``calibrate``).
 
-The design is a space-filling Latin hypercube of the box (scipy's ``qmc``, optimised for
+The training points are a space-filling Latin hypercube of the box (scipy's ``qmc``, optimised for
 centred discrepancy). Each output column (e.g. the ensemble mean of one measured point's
 shear) gets its own GP with a constant times anisotropic squared-exponential kernel on
 the box scaled to the unit cube, its hyper-parameters by maximum marginal likelihood; the
-known Monte Carlo variance of each design value (a finite ensemble's mean or log sd)
+known Monte Carlo variance of each training value (a finite ensemble's mean or log sd)
 enters as that point's noise, so the emulator smooths it out and its predictive variance
-(of the underlying function, noise not added) says what the design has not pinned down.
+(of the underlying function, noise not added) says what the training points have not pinned down.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from .posterior import MissingExtraError
 RESTARTS = 2
 
 
-def design_points(lower, upper, n: int, seed: int) -> np.ndarray:
+def latin_hypercube(lower, upper, n: int, seed: int) -> np.ndarray:
     """``n`` space-filling points (rows) in the box [lower, upper]: a Latin hypercube."""
     lower, upper = np.asarray(lower, float), np.asarray(upper, float)
     sampler = scipy.stats.qmc.LatinHypercube(d=lower.size, optimization="random-cd", rng=np.random.default_rng(seed))
@@ -38,7 +38,7 @@ def _sklearn():
 
 
 class Emulator:
-    """GPs of the columns of ``values`` (design point, output) at ``points`` (design point,
+    """GPs of the columns of ``values`` (training point, output) at ``points`` (training point,
     parameter) in the box [lower, upper]; ``noise_var`` (same shape as ``values``) the
     Monte Carlo variance of each value."""
 

@@ -59,7 +59,7 @@ def result_dataset(result: Result, evaluate: Evaluator) -> xr.Dataset:
         data["rare_drapes"] = ("evaluation", [int(r["rare_drapes"]) for r in records],
                                {"units": "1", "long_name": "drapes of its estimate"})
         data["rare_method"] = ("evaluation", [str(r["rare_method"]) for r in records],
-                               {"long_name": "importance (at the design point), subset (simulation), montecarlo "
+                               {"long_name": "importance (at the most probable point), subset (simulation), montecarlo "
                                              "(not rare) or below (no failure reached: P is a bound)"})
         data["rare_note"] = ("evaluation", [str(r.get("rare_note", "")) for r in records],
                              {"long_name": "why the estimate is above its target CoV (then not feasible) or a bound"})

@@ -1,13 +1,13 @@
 """uqdrape.ensemble: run a study's realisations as dask tasks into a run's storage.
 
-``run_ensemble(study)`` drapes every realisation (or the rows of a design) (locally or on
+``run_ensemble(study)`` drapes every realisation (or the rows of a sample matrix) (locally or on
 a dask.distributed cluster, resumable) and returns where it wrote them;
 ``open_ensemble(where)`` opens them lazily as one xarray Dataset. Where a run lives is
 chosen once by ``at(path or URL)`` (``location``: the one storage interface; a plain path
 is a run folder of netCDF chunks, an fsspec URL one zarr store), and every reader takes
-either. ``sampled_inputs`` / ``inputs_from_design`` give the solver inputs of
+either. ``sampled_inputs`` / ``inputs_from_rows`` give the solver inputs of
 realisations as deterministic functions of standard variables, and ``drape_inputs``
-drapes them (e.g. for a sensitivity design); ``compute_tasks`` runs any such batches as
+drapes them (e.g. for a sensitivity sample); ``compute_tasks`` runs any such batches as
 dask tasks on the same schedulers (e.g. the candidate designs of ``uqdrape.design``).
 
 The names below are imported on first use (PEP 562), so that ``uqdrape validate``, which
@@ -21,14 +21,14 @@ import importlib
 
 _EXPORTS = {
     "chunk": ("drape_inputs", "placement_status", "study_mould", "write_atomic", "write_netcdf"),
-    "inputs": ("design_variables", "inputs_from_design", "sampled_inputs"),
+    "inputs": ("inputs_from_rows", "sample_columns", "sampled_inputs"),
     "progress": ("Progress", "ring_progress"),
     "run": ("compute_tasks", "reach_scheduler", "run_ensemble"),
     "storage": ("at", "open_ensemble", "read_manifest"),
 }
 _MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
 
-__all__ = ["run_ensemble", "open_ensemble", "sampled_inputs", "inputs_from_design", "design_variables",
+__all__ = ["run_ensemble", "open_ensemble", "sampled_inputs", "inputs_from_rows", "sample_columns",
            "drape_inputs", "placement_status", "study_mould", "write_atomic", "write_netcdf", "read_manifest",
            "compute_tasks", "reach_scheduler", "Progress", "ring_progress", "local_pool", "at"]
 

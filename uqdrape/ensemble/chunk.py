@@ -30,7 +30,7 @@ from ..drape import drape, drape_status
 from ..material.scatter import card_scatter, scattered
 from ..schema import REALIZATION, SOLVER_INPUTS, at_level
 from ..study.spec import CARD
-from .inputs import inputs_from_design, sampled_inputs
+from .inputs import inputs_from_rows, sampled_inputs
 
 
 #: One netCDF (HDF5) write or read at a time in a process: the HDF5 library under netCDF4
@@ -55,18 +55,18 @@ def study_mould(study):
     return _mould(g.kind, json.dumps(g.params, sort_keys=True), stat and (stat.st_mtime_ns, stat.st_size))
 
 
-def drape_chunk(study, realizations, force: float, design_rows=None) -> xr.Dataset:
+def drape_chunk(study, realizations, force: float, sample_rows=None) -> xr.Dataset:
     """The task every run drapes: realisations ``realizations`` of the study's sample, or
-    the design rows ``design_rows`` (one per realisation), at force level ``force`` (N),
+    the sample rows ``sample_rows`` (one per realisation), at force level ``force`` (N),
     in the ensemble layout (``uqdrape.schema.at_level``)."""
     r = np.asarray(realizations)
-    inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows)
+    inputs = sampled_inputs(study, r) if sample_rows is None else inputs_from_rows(study, sample_rows)
     return at_level(drape_inputs(study, r, inputs, force=force), force)
 
 
 def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None, material=None) -> xr.Dataset:
     """One batched drape of ``realizations`` (global indices) with ``inputs`` from
-    ``sampled_inputs`` / ``inputs_from_design``; settings a factor does not vary are the
+    ``sampled_inputs`` / ``inputs_from_rows``; settings a factor does not vary are the
     study's fixed ones. ``force`` (N) must be one of the study's blank-holder force
     levels (None: the only level of a study without a sweep). Returns the solver's drape
     Dataset (the force per realisation). ``surface`` / ``material`` may be passed to reuse

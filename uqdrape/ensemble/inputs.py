@@ -10,17 +10,17 @@ own unit). Two sources of standard variables share one map (:func:`_inputs`):
   from its own stream (``realization_normals(seed, [r], ...)``, exact sampling). Its
   factor uniforms come from the sampling plan: ``monte_carlo`` draws them from the same
   stream right after the field noise (u = Phi(z) of further normals of that stream);
-  ``latin_hypercube`` / ``sobol`` take row r of the global design
+  ``latin_hypercube`` / ``sobol`` take row r of the global sample matrix
   ``sample_uniforms(plan, N, d, seed)`` (N = study realisations, d = number of
   factors; cheap, recomputed wherever needed). Fields stay exact Monte Carlo under every
   plan. Under ``rqmc`` every standard variable comes from a scrambled Sobol' point instead:
   realisation r is point r mod M of randomisation r // M (``rqmc_uniforms``), its
-  columns those of :func:`design_variables` (factor uniforms, then the fields' truncated
+  columns those of :func:`sample_columns` (factor uniforms, then the fields' truncated
   KL modes as Phi^-1(u), keeping ``kl_retained`` of each field's variance), mapped by
-  :func:`inputs_from_design`. Either way realisation r's numbers never depend on the chunk
+  :func:`inputs_from_rows`. Either way realisation r's numbers never depend on the chunk
   it is in or on which worker runs it.
-- :func:`inputs_from_design` -- an explicit design matrix (e.g. a sensitivity design),
-  columns as named by :func:`design_variables`: factor uniforms first, then each field's
+- :func:`inputs_from_rows` -- an explicit sample matrix (e.g. a sensitivity sample),
+  columns as named by :func:`sample_columns`: factor uniforms first, then each field's
   truncated Karhunen-Loeve mode variables (standard normals), ``name[k]``.
 
 A zero-angle field with ``sd_dof`` (a hierarchical ensemble) also draws each
@@ -35,7 +35,7 @@ field of realisation r is sampled exactly from a field rebuilt for L_r (two 2n x
 eigendecompositions per realisation, eigenvector signs matched to the study's field so
 that the same noise gives a nearby field for a nearby length; ξ_c keeps its values).
 Only :func:`sampled_inputs` does this (validation refuses both keys with rqmc and
-sensitivity designs).
+sensitivity samples).
 
 Returned inputs are a dict of arrays with a leading realisation axis: ``seg_i``
 (R, 2n, 2n+1) and ``seg_j`` (R, 2n+1, 2n) in mm if spacing varies, ``gamma0``
@@ -65,7 +65,7 @@ def _realizations(study, realizations) -> np.ndarray:
 
 
 def _field_inputs(study, kl: bool) -> dict:
-    """The study's random-field input maps by name (exact, or truncated KL for a design)."""
+    """The study's random-field input maps by name (exact, or truncated KL for sample rows)."""
     out = {}
     for name, spec in study.uncertainty.fields.items():
         inp = spec.build_input(study.solver.rings, study.fabric.spacing_mm)
@@ -153,7 +153,7 @@ def sampled_inputs(study, realizations) -> dict:
     """Solver inputs of the given realisation indices of the study's ensemble."""
     r = _realizations(study, realizations)
     if study.sampling.plan == RQMC:
-        return inputs_from_design(study, rqmc_design(study, r))
+        return inputs_from_rows(study, rqmc_rows(study, r))
     fields = _field_inputs(study, kl=False)
     d = len(study.uncertainty.factors)
     normals = _normals(study, r, fields)
@@ -198,13 +198,13 @@ def _scaled(inp, xi, sd) -> np.ndarray:
     return gamma0
 
 
-def rqmc_design(study, realizations) -> np.ndarray:
+def rqmc_rows(study, realizations) -> np.ndarray:
     """Rows of the study's rqmc plan for the given realisation indices, in the standard
-    variables of :func:`design_variables` (uniforms for the factors, normals for the KL
+    variables of :func:`sample_columns` (uniforms for the factors, normals for the KL
     modes). Each randomisation's points are drawn once per call."""
     r = np.asarray(realizations, dtype=np.int64)
     points = rqmc_points(study.realizations, study.sampling.randomizations)
-    d_factors, d = len(study.uncertainty.factors), len(design_variables(study))
+    d_factors, d = len(study.uncertainty.factors), len(sample_columns(study))
     X = np.empty((r.size, d))
     for k in np.unique(r // points):
         rows = np.flatnonzero(r // points == k)
@@ -213,8 +213,8 @@ def rqmc_design(study, realizations) -> np.ndarray:
     return X
 
 
-def design_variables(study) -> list[str]:
-    """Column names of a design matrix for :func:`inputs_from_design`: the scalar factors
+def sample_columns(study) -> list[str]:
+    """Column names of a sample matrix for :func:`inputs_from_rows`: the scalar factors
     (standard uniforms), then ``field[k]`` for each field's KL modes (standard normals),
     fields in the order ``spacing``, ``zero_angle``, ``stitch_prestrain`` (as uqdrape.sensitivity
     names them)."""
@@ -224,11 +224,11 @@ def design_variables(study) -> list[str]:
     return names
 
 
-def inputs_from_design(study, X) -> dict:
-    """Solver inputs of the rows of a design matrix X (R, len(design_variables(study)))
+def inputs_from_rows(study, X) -> dict:
+    """Solver inputs of the rows of a sample matrix X (R, len(sample_columns(study)))
     of standard variables; row k becomes realisation k of the result."""
     X = np.asarray(X, dtype=float)
-    names = design_variables(study)
+    names = sample_columns(study)
     if X.ndim != 2 or X.shape[0] == 0 or X.shape[1] != len(names):
         raise ValueError(f"X must have shape (R >= 1, {len(names)}) with columns {names}, got shape {X.shape}")
     d = len(study.uncertainty.factors)

@@ -112,7 +112,7 @@ _RANGE = re.compile(r"r(\d{7})-(\d{7})\.nc$")
 
 def plan_chunks(study: Study, chunk_size: int, realizations: int | None = None, kept=()) -> list[Chunk]:
     """The chunks of a study: consecutive ranges of its realisations (default
-    ``study.realizations``; a sensitivity design's row count) at each force level, named
+    ``study.realizations``; a sensitivity sample's row count) at each force level, named
     ``r<first>-<last>.nc``, prefixed ``f<level>-`` in a sweep. ``kept``: the chunk names of
     an earlier run of the same study, whose ranges stay as they are (an extension); the
     realisations after them are cut into ``chunk_size`` pieces."""

@@ -24,7 +24,7 @@ realisation r's inputs depend only on the study and r (under the plans of
 Fewer realisations than a run holds, or another number under a plan whose points depend
 on N (latin_hypercube, sobol), are refused.
 
-Given a design matrix (a sensitivity study's rows, ``uqdrape.workflow.study_design``),
+Given a sample matrix (a sensitivity study's rows, ``uqdrape.sensitivity.sensitivity_sample``),
 its rows are draped as realisations 0..n-1 instead of the Monte Carlo sample, through
 the same chunks; what the outputs mean is not this package's business.
 """
@@ -57,11 +57,11 @@ LOCAL_SCHEDULERS = ("processes", "synchronous")
 SCHEDULER_TIMEOUT = 10
 
 
-def _run_chunk(study: Study, where, chunk, level: int, attrs: dict, key: str | None, design_rows=None) -> str:
+def _run_chunk(study: Study, where, chunk, level: int, attrs: dict, key: str | None, sample_rows=None) -> str:
     """Dask task: drape one chunk (its Monte Carlo realisations, or the given rows of a
-    sensitivity design) and write it to the run's location ``where`` with its checksum
+    sensitivity sample) and write it to the run's location ``where`` with its checksum
     under the run's ``key``; return its name."""
-    ds = drape_chunk(study, range(chunk.start, chunk.stop), chunk.force, design_rows)
+    ds = drape_chunk(study, range(chunk.start, chunk.stop), chunk.force, sample_rows)
     return where.write_chunk(study, ds, chunk, level, attrs, key)
 
 
@@ -114,7 +114,7 @@ def compute_tasks(tasks: list, sizes: list, scheduler: str | None, workers: int 
         return [future.result() for future in futures]
 
 
-def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance: dict | None = None,
+def run_ensemble(study: Study, *, sample_rows=None, output_dir=None, provenance: dict | None = None,
                  attrs: dict | None = None, scheduler: str | None = None, workers: int | None = None,
                  chunk_size: int | None = None, resume: bool = True, progress: bool = True,
                  verbose: bool = False, preflight=None) -> Path | str:
@@ -123,8 +123,8 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
     zarr store there instead (``uqdrape.ensemble.zarrstore``) and returns the URL; a
     location (``storage.at``) is taken as it is.
 
-    design_rows  None: the study's own sample (``sampled_inputs``); else a design matrix
-                 of standard variables (``inputs_from_design``), row k draped as realisation k
+    sample_rows  None: the study's own sample (``sampled_inputs``); else a sample matrix
+                 of standard variables (``inputs_from_rows``), row k draped as realisation k
     output_dir   default: the study's [output] directory; a folder, or a store's URL
     provenance   the study record kept in the manifest and every chunk (default ``study.to_dict()``)
     attrs        further attributes of every chunk
@@ -159,7 +159,7 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
     if where.refused_with(scheduler):
         raise ValueError(f"{where}: {where.refused_with(scheduler)}")
     provenance = study.to_dict() if provenance is None else provenance
-    n = study.realizations if design_rows is None else len(design_rows)
+    n = study.realizations if sample_rows is None else len(sample_rows)
     chunks, done = where.plan(study, provenance, chunk_size, n, resume)
     reach_scheduler(scheduler)
     todo = [c for c in chunks if c.name not in done]
@@ -171,7 +171,7 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
     manifest = {"study": provenance, "chunk_size": chunk_size, "chunks": [c.name for c in chunks],
                 "uqdrape_version": __version__}
     with where.lock():
-        manifest, earlier, todo, damaged = where.prepare(study, chunks, manifest, resume, attrs, design_rows)
+        manifest, earlier, todo, damaged = where.prepare(study, chunks, manifest, resume, attrs, sample_rows)
         if damaged and progress:
             print(f"{study.name}: {len(damaged)} chunk file(s) damaged or not this run's, draped again: "
                   + ", ".join(c.name for c in damaged[:5]) + (", ..." if len(damaged) > 5 else ""), file=sys.stderr)
@@ -186,7 +186,7 @@ def run_ensemble(study: Study, *, design_rows=None, output_dir=None, provenance:
         bar = Progress(total, total - sum(sizes), enabled=progress, verbose=verbose, desc=study.name)
         try:
             compute_tasks([run(study, where, c, levels.index(c.force), attrs, manifest.get("checksum_key"),
-                               None if design_rows is None else design_rows[c.start:c.stop]) for c in todo],
+                               None if sample_rows is None else sample_rows[c.start:c.stop]) for c in todo],
                           sizes, scheduler, workers, bar)
         finally:  # an interrupted or failed run's workers are gone: their unfinished files too
             bar.close()

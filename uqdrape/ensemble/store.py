@@ -118,7 +118,7 @@ class Folder(Location):
         done = {p.name for p in (self.target / CHUNKS).glob("*.nc")} if resume else set()
         return plan_chunks(study, chunk_size, n, kept), done
 
-    def prepare(self, study, chunks, manifest: dict, resume: bool, attrs: dict, design_rows):
+    def prepare(self, study, chunks, manifest: dict, resume: bool, attrs: dict, sample_rows):
         """Under the run's lock: check an earlier run can be resumed, or clear it; record
         this run; drop damaged chunk files. Returns (manifest, earlier wall time in s,
         chunks to drape, damaged chunks). A ``.part`` file here is a killed run's."""

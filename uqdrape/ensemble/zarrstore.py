@@ -228,7 +228,7 @@ class ZarrStore(Location):
         check_growth(self.target, study, old["chunk_size"], old["realizations"], chunk_size, n)
         return old, self.done() & {c.name for c in chunks}
 
-    def prepare(self, study, chunks, manifest: dict, resume: bool, attrs: dict, design_rows):
+    def prepare(self, study, chunks, manifest: dict, resume: bool, attrs: dict, sample_rows):
         """Under the run's lock: write the template afresh (no run to keep), or grow the
         kept run's arrays to this one's realisations; record this run. Returns (manifest,
         earlier wall time in s, chunks to drape, damaged chunks: none, a marker is written
@@ -250,7 +250,7 @@ class ZarrStore(Location):
             if old is None:
                 if fs.exists(f"{root}/{DONE}"):
                     fs.rm(f"{root}/{DONE}", recursive=True)
-                _write_template(study, self.target, chunks, n, manifest["chunk_size"], attrs, title, design_rows)
+                _write_template(study, self.target, chunks, n, manifest["chunk_size"], attrs, title, sample_rows)
                 self.write_manifest(manifest)
             else:
                 damaged = [c for c in chunks if c.name in done and c.name in self.damaged([c.name], key)]
@@ -459,7 +459,7 @@ def _resize(url: str, n: int, attrs: dict) -> None:
     group.attrs.update(attrs)
 
 
-def _write_template(study, url, chunks, n, chunk_size, attrs, title, design_rows) -> None:
+def _write_template(study, url, chunks, n, chunk_size, attrs, title, sample_rows) -> None:
     """Write the store's metadata and index coordinates once (``compute=False``): every
     variable of a chunk, widened to all force levels and ``n`` realisations, no data.
     The structure is that of one realisation draped here."""
@@ -467,7 +467,7 @@ def _write_template(study, url, chunks, n, chunk_size, attrs, title, design_rows
     import xarray as xr
 
     first = chunks[0]
-    one = drape_chunk(study, [first.start], first.force, None if design_rows is None else design_rows[:1])
+    one = drape_chunk(study, [first.start], first.force, None if sample_rows is None else sample_rows[:1])
     levels = np.asarray(study.force_levels, dtype=float)
     one.attrs.update(attrs)
     ds = _encoded(one, study, title=title)

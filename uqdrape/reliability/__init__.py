@@ -1,13 +1,13 @@
 """uqdrape.reliability: probabilities of rare events, P(g(U) <= 0) for a limit state g of
 standard normal variables U in any dimension (a drape's random fields and factors map
-from them, ``uqdrape.ensemble.inputs_from_design``), with the estimate's coefficient of
+from them, ``uqdrape.ensemble.inputs_from_rows``), with the estimate's coefficient of
 variation and the number of model calls it took.
 
 ``subset_simulation`` (Au & Beck 2001: nested intermediate failure domains, each
 populated by modified Metropolis chains from the previous one's samples);
 ``importance_sampling`` (to a target CoV within a hard budget: importance sampling
-around the design point the subset levels give, subset simulation in independent rounds
-where no design point carries the probability, plain Monte Carlo where failure is not
+around the most probable point the subset levels give, subset simulation in independent rounds
+where no most probable point carries the probability, plain Monte Carlo where failure is not
 rare, an upper bound where none is reached); ``limit_states`` holds analytic cases with
 known P (linear, the sphere's exterior, a bounded factor plus noise) that check them.
 """

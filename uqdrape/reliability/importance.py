@@ -1,5 +1,5 @@
 """P(g(U) <= 0) with U standard normal in d dimensions, to a target coefficient of
-variation within a hard budget of model calls: importance sampling around a design point
+variation within a hard budget of model calls: importance sampling around a most probable point
 found by subset simulation where that point carries the probability, subset simulation
 in independent rounds where it does not, plain Monte Carlo where failure is not rare.
 
@@ -17,7 +17,7 @@ in independent rounds where it does not, plain Monte Carlo where failure is not 
      binomial CoV sqrt((1 - P) / (P n)) meets the target; P = 1 (CoV 0) where every one
      failed.
 
-2. The design point (the most likely failure point, FORM's beta alpha) from the pilot's
+2. The most probable point u* (the most likely failure point, FORM's beta alpha) from the pilot's
    samples without gradients: a linear response surface g ~ a0 + a . u, fitted by least
    squares to every distinct sample, gives the direction alpha = -a / |a|; a root search
    of g along it (``scipy.optimize.brentq`` on g(c alpha)) gives beta. The fit's R^2 is
@@ -28,11 +28,11 @@ in independent rounds where it does not, plain Monte Carlo where failure is not 
    its CoV the sample sd of the independent terms over sqrt(n) P. The next round aims at
    the n (cov / target)^2 that 1/sqrt(n) needs, at most doubling n.
 
-The importance estimate is unbiased whatever the design point, but where the point does
+The importance estimate is unbiased whatever the most probable point, but where the point does
 not carry the probability the weights are so heavy-tailed that the sample CoV of a few
 hundred of them means nothing. Four checks decide that it does:
 
-- the pilot's last-level failure samples (draws of U given failure) lie on the design
+- the pilot's last-level failure samples (draws of U given failure) lie on the most probable
   point's side: at most ``OPPOSITE`` of them with u . alpha <= 0 (a sphere's exterior,
   or failure at both signs of a factor, fail it);
 - beta agrees with the pilot's generalised index Phi^-1(1 - P_sus): within ``BETA_GAP``
@@ -62,11 +62,11 @@ from scipy.special import ndtri
 from .subset import SubsetResult, subset_levels
 
 #: Log ratio of the first importance-sampling round's estimate to the pilot's, in sd (and
-#: sd of the pilot's generalised index in the beta check), past which the design point is
+#: sd of the pilot's generalised index in the beta check), past which the most probable point is
 #: taken not to carry the probability.
 AGREE = 3.0
-#: Share of the pilot's failure samples on the far side of the origin from the design
-#: point (u . alpha <= 0) past which it is taken not to carry the probability: about the
+#: Share of the pilot's failure samples on the far side of the origin from the most
+#: probable point (u . alpha <= 0) past which it is taken not to carry the probability: about the
 #: relative bias of an estimate that missed them, a tenth of a 10 % CoV.
 OPPOSITE = 0.01
 #: |beta - Phi^-1(1 - P_sus)| allowed beyond the pilot's own scatter: FORM's index of a
@@ -74,10 +74,10 @@ OPPOSITE = 0.01
 BETA_GAP = 0.5
 #: Samples of the first importance-sampling round.
 FIRST_ROUND = 200
-#: Independent subset-simulation rounds where no design point carries the probability,
+#: Independent subset-simulation rounds where no most probable point carries the probability,
 #: and the least samples a level that one may have.
 ROUNDS, LEAST_LEVEL = 5, 100
-#: Model calls the design point's root search may take at most (the origin, 9 bracket
+#: Model calls the most probable point's root search may take at most (the origin, 9 bracket
 #: steps, brentq's ends and SEARCH - 12 iterations): kept back from the pilot's budget.
 SEARCH = 40
 #: Failures in none of N independent samples: P < -ln(1 - 0.95) / N with 95 % confidence.
@@ -90,7 +90,7 @@ class RareResult:
     the root search's, the importance samples' and the rounds'); ``method`` "importance",
     "subset", "montecarlo" (failure not rare) or "below" (no failure reached:
     ``probability`` is an upper bound, ``cov`` 0); ``beta`` |u*| and ``r2`` the response
-    surface's fit (NaN where no design point was sought); ``opposite`` the share of the
+    surface's fit (NaN where no most probable point was sought); ``opposite`` the share of the
     pilot's failure samples on the far side (u . alpha <= 0); ``importance_calls`` the
     importance samples; ``subset`` the pilot subset simulation; ``note`` why the CoV is
     above the target or the result is a bound ("" when it is neither)."""
@@ -107,9 +107,10 @@ class RareResult:
     note: str = ""
 
 
-def design_point(g, samples, features=None) -> tuple[np.ndarray | None, float, int]:
-    """(u*, R^2, calls): the design point from the pilot's ``samples`` [(U, g)] (module
-    docstring, step 2) and the model calls its root search took; u* the surface's own point
+def most_probable_point(g, samples, features=None) -> tuple[np.ndarray | None, float, int]:
+    """(u*, R^2, calls): the most probable failure point (FORM's design point) from the
+    pilot's ``samples`` [(U, g)] (module docstring, step 2) and the model calls its root
+    search took; u* the surface's own point
     where g has no root along its direction within 8 steps out, None where g(0) <= 0.
     ``features`` maps each column of U on its own (e.g. a bounded factor's u to its own
     value); the response surface is linear in them (default: in U)."""
@@ -144,7 +145,7 @@ def design_point(g, samples, features=None) -> tuple[np.ndarray | None, float, i
 
 
 def surface_point(a0: float, a: np.ndarray, features, d: int) -> np.ndarray:
-    """The design point of the response surface q(u) = a0 + a . features(u): the u of least
+    """The most probable point of the response surface q(u) = a0 + a . features(u): the u of least
     |u| with q(u) = 0 (FORM on the surface; ``scipy.optimize.minimize``'s SLSQP from the
     linear surface's point, the features' slopes by central differences). In U itself
     (``features`` None) it is -a0 a / |a|^2."""
@@ -174,7 +175,7 @@ def agree(p: float, delta: float, sus: SubsetResult) -> bool:
 
 
 def beta_agrees(beta: float, sus: SubsetResult) -> bool:
-    """Whether the design point's ``beta`` agrees with the pilot's generalised index
+    """Whether the most probable point's ``beta`` agrees with the pilot's generalised index
     -Phi^-1(P_sus): within BETA_GAP plus AGREE sd of the index (its sd from the pilot's
     CoV: P cov / phi(index))."""
     index = -float(ndtri(sus.probability))
@@ -189,7 +190,7 @@ def importance_sampling(g, d: int, *, seed: int, cov: float = 0.1, max_calls: in
     ``max_calls`` model calls in all, a hard limit (the module docstring); the pilot's
     subset levels have ``n_per_level`` samples (fewer if the budget is smaller), at most
     ``max_levels`` of them, and conditional probability ``p0``. ``features``: what the
-    response surface is linear in (:func:`design_point`; default U)."""
+    response surface is linear in (:func:`most_probable_point`; default U)."""
     chain = round(1 / p0)
     n_per_level = min(n_per_level, int(max_calls) // chain * chain)
     if n_per_level < chain:
@@ -211,7 +212,7 @@ def importance_sampling(g, d: int, *, seed: int, cov: float = 0.1, max_calls: in
         return _monte_carlo(g, d, samples[0][1], cov, max_calls, rng, result)
     if sus.calls + SEARCH > max_calls:  # no budget for the root search: the pilot is the answer
         return result(sus.probability, sus.cov, sus.calls, "subset", why="the budget ran out")
-    u_star, r2, search = design_point(g, samples, features)
+    u_star, r2, search = most_probable_point(g, samples, features)
     spent = sus.calls + search
     u_last, y_last = samples[-1]
     if u_star is None:
@@ -226,9 +227,9 @@ def importance_sampling(g, d: int, *, seed: int, cov: float = 0.1, max_calls: in
                                                      importance=importance_calls), why)
 
     if opposite > OPPOSITE:
-        return subset_again(0, "failures on both sides of the design point")
+        return subset_again(0, "failures on both sides of the most probable point")
     if not beta_agrees(beta, sus):
-        return subset_again(0, f"design point beta {beta:.2f} against the subset estimate's "
+        return subset_again(0, f"most probable point beta {beta:.2f} against the subset estimate's "
                                f"{-float(ndtri(sus.probability)):.2f}")
     terms, previous = np.empty(0), math.inf
     n = FIRST_ROUND

@@ -30,7 +30,7 @@ def linear_limit_state(d: int, p: float):
 def sphere_limit_state(d: int, p: float):
     """(g, P) of the exterior of a sphere, g(u) = r^2 - |u|^2 with r^2 the chi-square (d dof)
     upper p-quantile: P(|U|^2 >= r^2) = p exactly. Every direction fails at the same radius,
-    the hard case for methods that look for one design point."""
+    the hard case for methods that look for one most probable point."""
     _check(d, p)
     r2 = stats.chi2.isf(p, d)
 
@@ -45,7 +45,7 @@ def bounded_limit_state(d: int, p: float, sigma: float = 0.05):
     bounded factor, as a friction U[a, b] is in a study), z = sum(u_1..u_{d-1}) / sqrt(d - 1)
     a standard normal (a field's noise), t such that P = int_0^1 Phi((x - t) / sigma) dx = p
     (to 1e-12). Phi(u_0) saturates, so the failure surface curves in U and a response
-    surface linear in U puts its design point far out; ``features`` maps U to the factor's
+    surface linear in U puts its most probable point far out; ``features`` maps U to the factor's
     own value (column 0 to Phi(u_0)), where g is linear."""
     _check(d, p)
     if d < 2:

@@ -210,7 +210,7 @@ def _rare_limit(ds: xr.Dataset) -> str:
     r = json.loads(ds.attrs["rare"])
     return (f"P({r['qoi']} >= {r['threshold']:g}) <= {r['max_probability']:g} on the {ds.attrs['statistic']}, "
             f"estimated per design to CoV {r['cov']:g} within {r['max_drapes']:,} drapes as a [study] rare is "
-            "(importance sampling at the design point of subset levels, or subset simulation; method per design below)")
+            "(importance sampling at the most probable point of subset levels, or subset simulation; method per design below)")
 
 
 def _rare_table(ds: xr.Dataset) -> str:

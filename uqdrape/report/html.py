@@ -3,7 +3,7 @@
 The page (``index.html``) uses inline CSS and relative links to PNGs in the same
 folder, so the folder can be copied or served as is. Layout: title, provenance (date,
 uqdrape version, git commit, wall time of the run), the headline table, a sensitivity
-design's indices, the figures two to a row (a wide figure spans the row), the study
+sample's indices, the figures two to a row (a wide figure spans the row), the study
 file once and the ensemble's other attributes. ``summary.json`` holds the same numbers
 (``uqdrape.stats.headline_numbers``) and the provenance.
 """
@@ -26,7 +26,7 @@ from uqdrape.stats import (
     study_kind,
     wrinkle_risk,
 )
-from uqdrape.stats.headline import DESIGN, DETERMINISTIC, RANDOM, SWEPT
+from uqdrape.stats.headline import SENSITIVITY, DETERMINISTIC, RANDOM, SWEPT
 
 from ..experimental import read_experimental
 from ..conventions import cf_encode
@@ -46,7 +46,7 @@ _KIND_TEXT = {
     RANDOM: "a random sample: every ensemble statistic applies",
     DETERMINISTIC: "one drape per blank-holder level: no spread statistics",
     SWEPT: "a deterministic sweep over one factor: results against the factor, no distribution fits",
-    DESIGN: "the rows of a sensitivity design: indices first; no confidence intervals or convergence",
+    SENSITIVITY: "the rows of a sensitivity sample: indices first; no confidence intervals or convergence",
 }
 
 
@@ -75,8 +75,8 @@ def _where(site: Mapping) -> str:
 
 
 #: The rare-event estimators (``uqdrape.reliability.importance_sampling``'s ``method``) in words.
-RARE_METHODS = {"importance": "importance sampling at the design point of subset levels",
-                "subset": "subset simulation in independent rounds (no design point carries the probability)",
+RARE_METHODS = {"importance": "importance sampling at the most probable point of subset levels",
+                "subset": "subset simulation in independent rounds (no most probable point carries the probability)",
                 "montecarlo": "plain Monte Carlo (failure is not rare)",
                 "below": "subset levels that reached no failure"}
 
@@ -104,7 +104,7 @@ def rare_rows(record: Mapping) -> list[tuple[str, str, str]]:
 def _rows(numbers: Mapping, extra: Mapping, dominant: list | None) -> list[tuple[str, str, str]]:
     """(quantity, value, where/how) rows of the headline table; only what applies to the kind."""
     kind, levels = numbers["kind"], numbers["blankholder_force_levels_N"]
-    count = {DESIGN: "design evaluations", SWEPT: "drapes in the sweep"}.get(kind, "realisations N")
+    count = {SENSITIVITY: "sample evaluations", SWEPT: "drapes in the sweep"}.get(kind, "realisations N")
     rows = [("study kind", kind, _KIND_TEXT[kind]), (count + (" per level" if len(levels) > 1 else ""),
                                                       str(numbers["realizations"]), ""),
             ("blank-holder force levels (N)", ", ".join(f"{f:g}" for f in levels), "")]
@@ -272,7 +272,7 @@ def _json_attr(value):
 
 
 def _sensitivity_section(indices: xr.Dataset, items) -> str:
-    """HTML: the design, a table of the indices (± confidence half-width) per QoI and
+    """HTML: the sample, a table of the indices (± confidence half-width) per QoI and
     factor with one column per blank-holder level, and the sensitivity figures."""
     esc = html.escape
     method = indices.attrs["method"]
@@ -290,7 +290,7 @@ def _sensitivity_section(indices: xr.Dataset, items) -> str:
                         + "".join(f"<td class=\"num\">{esc(c)}</td>" for c in cells) + "</tr>")
     unit = "trajectories" if method == "morris" else "base samples"
     return f"""<h2>Sensitivity</h2>
-<p>{esc(method)} design: {indices.attrs['base_samples']} {unit}, {indices.attrs['n_evaluations']} drapes per
+<p>{esc(method)} sample: {indices.attrs['base_samples']} {unit}, {indices.attrs['n_evaluations']} drapes per
 blank-holder level (the same rows at every level); a random field is one group of its Karhunen&ndash;Lo&egrave;ve
 variables. Table: {esc(" / ".join(v for v, _, _ in pairs))} ± the half-width of the
 {100 * indices.attrs['conf_level']:g} % bootstrap confidence interval.</p>

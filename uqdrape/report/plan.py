@@ -1,14 +1,14 @@
 """The report plan: which figures a study's report has, decided from what the study is.
 
 Each :class:`Spec` names the study kinds it applies to (``uqdrape.stats.STUDY_KINDS``: random
-sample, deterministic, swept factor, sensitivity design) and a predicate on the data;
+sample, deterministic, swept factor, sensitivity sample) and a predicate on the data;
 :func:`render` walks :data:`PLAN` in order and draws what applies. A spec whose kind
 applies but whose data does not (e.g. a wrinkle-risk map where no node ever locks) may
 give a sentence for the page instead of a figure. Decisions:
 
 - histograms with a Normal fit, convergence with N and the wrinkle-risk map with its
   binomial interval need independent draws: random samples only;
-- the sd map is descriptive, so a sensitivity design has it too;
+- the sd map is descriptive, so a sensitivity sample has it too;
 - a swept factor is shown against the factor (``vs_<factor>.png``), not as a distribution;
 - a blank-holder force sweep gets its line means against force whatever the kind.
 """
@@ -23,7 +23,7 @@ import xarray as xr
 
 from uqdrape.schema import FORCE, REALIZATION
 from uqdrape.stats import STUDY_KINDS, line_statistics, varying_factors
-from uqdrape.stats.headline import DESIGN, DETERMINISTIC, RANDOM, SWEPT
+from uqdrape.stats.headline import SENSITIVITY, DETERMINISTIC, RANDOM, SWEPT
 
 from . import ensemble_figures
 from .figures import plot_lines, plot_net
@@ -88,7 +88,7 @@ def _sweep(c: Context):
 
 def _mean(c: Context):
     text = ("Node shear on the node positions." if c.kind == DETERMINISTIC else
-            "Mean node shear on the mean node positions" + (" over the design's evaluations." if c.kind == DESIGN
+            "Mean node shear on the mean node positions" + (" over the sample's evaluations." if c.kind == SENSITIVITY
                                                             else "."))
     return [(ensemble_figures.plot_mean_map(c.ds, c.out / "mean_shear.png", node_stats=c.node_stats), text)]
 
@@ -96,8 +96,8 @@ def _mean(c: Context):
 def _sd(c: Context):
     return [(ensemble_figures.plot_sd_map(c.ds, c.out / "sd_shear.png", node_stats=c.node_stats),
              "Standard deviation of node shear on the mean node positions"
-             + (" over the design's evaluations (descriptive: the design is not a random sample)."
-                if c.kind == DESIGN else "."))]
+             + (" over the sample's evaluations (descriptive: the sensitivity sample is not a random sample)."
+                if c.kind == SENSITIVITY else "."))]
 
 
 def _has_risk(c: Context) -> bool:
@@ -169,12 +169,12 @@ def _sensitivity_maps(c: Context):
 
 
 ALL = STUDY_KINDS
-#: The figures of the Sensitivity section, drawn first on a sensitivity design's page.
+#: The figures of the Sensitivity section, drawn first on a sensitivity sample's page.
 SENSITIVITY_PLAN = (
-    Spec("sensitivity_vs_force", (DESIGN,), _sensitivity_vs_force,
+    Spec("sensitivity_vs_force", (SENSITIVITY,), _sensitivity_vs_force,
          when=lambda c: c.sensitivity is not None and c.sensitivity.sizes[FORCE] > 1),
-    Spec("sensitivity_bars", (DESIGN,), _sensitivity_bars, when=lambda c: c.sensitivity is not None),
-    Spec("sensitivity_maps", (DESIGN,), _sensitivity_maps, when=lambda c: c.sensitivity_maps is not None),
+    Spec("sensitivity_bars", (SENSITIVITY,), _sensitivity_bars, when=lambda c: c.sensitivity is not None),
+    Spec("sensitivity_maps", (SENSITIVITY,), _sensitivity_maps, when=lambda c: c.sensitivity_maps is not None),
 )
 #: The other figures, in page order.
 PLAN = (
@@ -183,8 +183,8 @@ PLAN = (
     Spec("vs_factor", (RANDOM, SWEPT), _vs_factor,
          when=lambda c: c.ds.sizes[FORCE] == 1 and len(varying_factors(c.ds)) == 1),
     Spec("sweep", ALL, _sweep, when=lambda c: c.ds.sizes[FORCE] > 1),
-    Spec("mean_shear", (RANDOM, DETERMINISTIC, DESIGN), _mean),
-    Spec("sd_shear", (RANDOM, DESIGN), _sd),
+    Spec("mean_shear", (RANDOM, DETERMINISTIC, SENSITIVITY), _mean),
+    Spec("sd_shear", (RANDOM, SENSITIVITY), _sd),
     Spec("wrinkle_risk", (RANDOM,), _wrinkle, when=_has_risk, otherwise=_no_risk),
     Spec("line_statistics", (RANDOM,), _line_statistics),
     Spec("histograms", (RANDOM,), _histograms, when=_has_spread, otherwise=_no_spread),

@@ -33,7 +33,7 @@ def _method(ds: xr.Dataset) -> str:
     return method
 
 
-def _design_text(ds: xr.Dataset) -> str:
+def _sample_text(ds: xr.Dataset) -> str:
     what = "base samples" if ds.attrs["method"] == "sobol" else "trajectories"
     return (f"{ds.attrs['method']}: {ds.attrs['base_samples']} {what}, {ds.attrs['n_evaluations']} drapes per level, "
             f"{100 * ds.attrs['conf_level']:g} % bootstrap intervals")
@@ -72,7 +72,7 @@ def plot_sensitivity_bars(indices: xr.Dataset, path):
                 ax.bar(x + (k - (len(pairs) - 1) / 2) * width, sel[var].values, width, yerr=sel[conf].values,
                        color=colors[k], capsize=3, label=name, error_kw={"elinewidth": 1.0})
             if bool(sel["output_constant"]):
-                ax.text(0.5, 0.5, "constant over the design", transform=ax.transAxes, ha="center", color="0.4")
+                ax.text(0.5, 0.5, "constant over the sample", transform=ax.transAxes, ha="center", color="0.4")
             ax.axhline(0.0, color="0.5", linewidth=0.8)
             ax.set_xticks(x, factors, rotation=30, ha="right")
             ax.grid(axis="y", alpha=0.3)
@@ -81,7 +81,7 @@ def plot_sensitivity_bars(indices: xr.Dataset, path):
             ax.set_title(f"{q}, {force_title(force)}")
             ax.set_ylabel(_qoi_axis_label(indices, q))
     axes[0, 0].legend(loc="upper left")
-    fig.suptitle(f"sensitivity indices per quantity of interest\n{_design_text(indices)}")
+    fig.suptitle(f"sensitivity indices per quantity of interest\n{_sample_text(indices)}")
     return save(fig, path)
 
 
@@ -113,7 +113,7 @@ def plot_sensitivity_vs_force(indices: xr.Dataset, path):
                for k, f in enumerate(indices["factor"].values)]
     handles += [Line2D([], [], color="0.2", linestyle=styles[var], label=name) for var, _, name in pairs]
     fig.legend(handles=handles, loc="outside right upper", handlelength=3.5)
-    fig.suptitle(f"sensitivity against blank-holder force, bands: confidence intervals\n{_design_text(indices)}")
+    fig.suptitle(f"sensitivity against blank-holder force, bands: confidence intervals\n{_sample_text(indices)}")
     return save(fig, path)
 
 
@@ -150,5 +150,5 @@ def plot_sensitivity_map(ds: xr.Dataset, maps: xr.Dataset, path, index: str = "S
     label = f"{index} of node shear" + (" (-)" if method == "sobol" else " (deg per unit step)")
     fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=axes, shrink=0.8, label=label)
     where = "the flat blank" if blank_view(ds) else "the mean net (x-y plan)"
-    suptitle(fig, f"{index} of node shear on {where}, {describe(ds)}", _design_text(maps))
+    suptitle(fig, f"{index} of node shear on {where}, {describe(ds)}", _sample_text(maps))
     return save(fig, path)

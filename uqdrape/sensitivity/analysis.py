@@ -1,4 +1,4 @@
-"""Sensitivity indices from a design and its model outputs, as xarray Datasets.
+"""Sensitivity indices from a sample matrix and its model outputs, as xarray Datasets.
 
 Sobol' indices of all output columns (scalar QoIs, net nodes) are computed at once by
 SALib's estimators (``first_order``, ``total_order``) on 2-D arrays, with the steps of
@@ -11,7 +11,7 @@ bootstrap of mu_star through each variable's resample counts), equal to a call o
 ``factor`` dimension holds SALib's labels: group names when the problem has groups (a
 random field is one label), otherwise variable names.
 
-Outputs that are constant over the design (range <= max(``atol``, ``CONSTANT_RTOL`` x
+Outputs that are constant over the sample (range <= max(``atol``, ``CONSTANT_RTOL`` x
 max |y|), e.g. blank-holder energy at F_BH = 0) have zero variance to apportion: their
 indices and confidence half-widths are set to 0 and ``output_constant`` is True. ``atol``
 (default 0, in the output's unit) lets a caller declare round-off-level variation
@@ -32,8 +32,8 @@ from SALib.analyze import sobol as sobol_analyze
 from SALib.util import compute_groups_matrix
 
 from ..schema import REALIZATION
-from .design import MORRIS_NUM_LEVELS, check_method, check_seed
 from .problem import check_problem
+from .sample import MORRIS_NUM_LEVELS, check_method, check_seed
 
 CONSTANT_RTOL = 1e-12
 
@@ -59,10 +59,10 @@ def _long_names(conf_level: float) -> dict[str, str]:
 
 def _sobol_columns(problem, Y, conf_level, seed, num_resamples, progress=None):
     """Sobol' S1, S1_conf, ST, ST_conf of every column of Y (n_evaluations, n_columns) of a
-    Saltelli design without second order: {variable: (n_labels, n_columns)}.
+    Saltelli sample without second order: {variable: (n_labels, n_columns)}.
 
     As ``sobol_analyze.analyze`` per column: each column standardised, A, B and AB_j
-    rows split from the design, bootstrap rows drawn once from ``seed`` (SALib draws the
+    rows split from the sample matrix, bootstrap rows drawn once from ``seed`` (SALib draws the
     same ones for every column), half-widths Z * sd of the bootstrap estimates (0 where
     the resampled outputs do not vary). Columns go in cache-sized blocks (about 2 MB of
     resamples each). ``progress(n)`` is called as n more columns are finished.
@@ -96,13 +96,13 @@ def _sobol_columns(problem, Y, conf_level, seed, num_resamples, progress=None):
 
 
 def _morris_steps(X, n_groups):
-    """Where each variable moves in a Morris design X (T (G + 1), n_vars): the step
+    """Where each variable moves in a Morris sample X (T (G + 1), n_vars): the step
     (T, n_vars; 0..G-1, or -1 if it does not move) and the direction (+1, -1 or 0). A
-    variable moving more than once in a trajectory is not a Morris design: ValueError."""
+    variable moving more than once in a trajectory is not a Morris sample: ValueError."""
     T = X.shape[0] // (n_groups + 1)
     sign = np.sign(np.diff(X.reshape(T, n_groups + 1, X.shape[1]), axis=1))  # (T, G, n_vars)
     if np.any(np.abs(sign).sum(axis=1) > 1):
-        raise ValueError("X is not a Morris trajectory design: a variable moves more than once in a trajectory")
+        raise ValueError("X is not a Morris trajectory sample: a variable moves more than once in a trajectory")
     moves = sign != 0
     return np.where(moves.any(axis=1), moves.argmax(axis=1), -1), sign.sum(axis=1)
 
@@ -202,7 +202,7 @@ def _indices(problem, X, Y, method, conf_level, seed, num_resamples, atol=0.0, p
     per_sample = len(labels) + (2 if method == "sobol" else 1)
     if X.shape[0] % per_sample:
         raise ValueError(
-            f"{X.shape[0]} evaluations do not form a {method} design for {len(labels)} "
+            f"{X.shape[0]} evaluations do not form a {method} sample for {len(labels)} "
             f"factors/groups (need a multiple of {per_sample})"
         )
 
@@ -255,7 +255,7 @@ def _dataset(labels, out, constant, attrs, dims, shape, coords) -> xr.Dataset:
     }
     data_vars["output_constant"] = (
         dims, constant.reshape(shape),
-        {"long_name": "output constant over the design (indices set to 0)"},
+        {"long_name": "output constant over the sample (indices set to 0)"},
     )
     ds = xr.Dataset(data_vars, coords={"factor": ("factor", labels, {
         "long_name": "factor, or factor group (a random field is one group)"}), **coords},

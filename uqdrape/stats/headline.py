@@ -3,9 +3,9 @@
 
 The kind decides which statistics mean anything (decisions):
 
-- ``"sensitivity design"``: the rows of a SALib design (``design_method`` attribute). Not
+- ``"sensitivity sample"``: the rows of a SALib sample matrix (``sample_method`` attribute). Not
   independent draws, so no confidence intervals, convergence or N-needed; the mean and
-  sd over the design are descriptive.
+  sd over the sample are descriptive.
 - ``"deterministic"``: one drape per blank-holder level (a single drape or a force sweep).
 - ``"swept factor"``: exactly one uncertain input, a scalar factor with a uniform
   distribution (e.g. ``skew`` over 0-55 deg, however the plan spreads it): a
@@ -29,8 +29,8 @@ from .convergence import samples_needed
 from .exceedance import exceedance_probability
 from .summary import node_statistics
 
-RANDOM, DETERMINISTIC, SWEPT, DESIGN = "random sample", "deterministic", "swept factor", "sensitivity design"
-STUDY_KINDS = (RANDOM, DETERMINISTIC, SWEPT, DESIGN)
+RANDOM, DETERMINISTIC, SWEPT, SENSITIVITY = "random sample", "deterministic", "swept factor", "sensitivity sample"
+STUDY_KINDS = (RANDOM, DETERMINISTIC, SWEPT, SENSITIVITY)
 
 
 def varying_factors(ds: xr.Dataset) -> list[str]:
@@ -50,8 +50,8 @@ def study_kind(ds: xr.Dataset) -> str:
     """One of :data:`STUDY_KINDS` for ``ds`` in the ensemble layout (``uqdrape.schema.by_force``;
     see the module docstring for the rules)."""
     ds = by_force(ds)
-    if ds.attrs.get("design_method"):
-        return DESIGN
+    if ds.attrs.get("sample_method"):
+        return SENSITIVITY
     if ds.sizes[REALIZATION] < 2:
         return DETERMINISTIC
     factors = varying_factors(ds)
@@ -123,7 +123,7 @@ def headline_numbers(ds: xr.Dataset, *, node_stats: xr.Dataset | None = None,
     ``blankholder_force_levels_N``, ``blankholder_model`` (ensembles written before the
     choice existed used "radial"), ``valid_fraction`` (valid node values / all node
     values), ``node_status`` (count of node values per status name, e.g. ``off_mould``) and ``max_abs_mean_shear_deg`` (value, node, level; the shear itself for one
-    drape per level). A random sample or a sensitivity design adds ``max_sd_deg``; a
+    drape per level). A random sample or a sensitivity sample adds ``max_sd_deg``; a
     random sample adds ``max_wrinkle_probability`` (the largest ``wrinkle_risk`` with its
     interval and ``measure``) and ``samples_needed`` (N for a ``confidence`` interval of
     the mean of half-width ``half_width_deg`` at the node of largest sd). Numbers that
@@ -142,7 +142,7 @@ def headline_numbers(ds: xr.Dataset, *, node_stats: xr.Dataset | None = None,
         "valid_fraction": float(count.sum()) / (n * count.size),
         "node_status": _status_counts(ds),
         "max_abs_mean_shear_deg": _site(abs(node_stats["mean"])),
-        "max_sd_deg": _site(node_stats["sd"]) if kind in (RANDOM, DESIGN) else None,
+        "max_sd_deg": _site(node_stats["sd"]) if kind in (RANDOM, SENSITIVITY) else None,
         "max_wrinkle_probability": None,
         "samples_needed": None,
     }

@@ -162,7 +162,7 @@ class RandomField:
 
     def build_input(self, rings: int, spacing_mm: float):
         """The exact-sampling input map (uqdrape.stochastic SpacingInput / ZeroAngleInput /
-        PrestrainInput); call ``.kl(self.kl_retained)`` on it for a design that needs a
+        PrestrainInput); call ``.kl(self.kl_retained)`` on it for a sample matrix that needs a
         finite variable set."""
         common = dict(correlation=self.correlation, length_mm=self.length_mm, **self.params)
         if self.name == "stitch_prestrain":

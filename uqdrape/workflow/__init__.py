@@ -1,6 +1,6 @@
 """The application layer: every command goes cli -> workflow -> the engines.
 
-- ``run``: run a study (its Monte Carlo ensemble, its SALib design and indices, or its
+- ``run``: run a study (its Monte Carlo ensemble, its SALib sample and indices, or its
   blank-holder design) and report a finished run;
 - ``preflight``: what a study needs of this machine and of its physics (memory, disk,
   writability, placement of the first realisation), checked at the start of every run

@@ -1,6 +1,6 @@
 """``uqdrape calibrate``: measured fibre angles -> a calibrated ``[uncertainty.zero_angle]``
 block (its figure and report); measured drapes -> the posterior of chosen study parameters
-and the study at its medians (the design's ensembles draped here, on the ensemble engine's
+and the study at its medians (the training points' ensembles draped here, on the ensemble engine's
 schedulers; the emulator and likelihood in ``uqdrape.calibration.drapes``)."""
 
 from __future__ import annotations
@@ -22,8 +22,8 @@ from .._version import __version__
 from ..calibration import block_text, calibrate_points, read_points
 from ..calibration.block import sd_dof, unidentified
 from ..errors import ParameterError
-from ..calibration.drapes import DesignRuns, Parts, PartsLikelihood, predictive_bands, sample_posterior
-from ..calibration.emulator import Emulator, design_points
+from ..calibration.drapes import TrainingRuns, Parts, PartsLikelihood, predictive_bands, sample_posterior
+from ..calibration.emulator import Emulator, latin_hypercube
 from ..calibration.fit import Estimate
 from ..ensemble import Progress, compute_tasks, drape_inputs, reach_scheduler, sampled_inputs
 from ..experimental import ExperimentalPoints, read_experimental
@@ -89,11 +89,11 @@ def calibrate_fibre_angles(points_csv, out, plot=None, *, family: str = "auto", 
 
 # -- measured drapes -> study parameters (issue 25, second half) ----------------------------------
 
-#: Design points per calibrated parameter when ``design`` is not given.
-DESIGN_PER_PARAMETER = 10
-#: Most design points (each an ensemble; the emulator's GPs factor an n x n matrix per
-#: measured point) and drapes per design point of a calibration.
-MAX_DESIGN = 1000
+#: Training points of the emulator per calibrated parameter when ``training_points`` is not given.
+TRAINING_POINTS_PER_PARAMETER = 10
+#: Most training points (each an ensemble; the emulator's GPs factor an n x n matrix per
+#: measured point) and drapes per training point of a calibration.
+MAX_TRAINING_POINTS = 1000
 MAX_REALIZATIONS = 10000
 
 
@@ -212,12 +212,12 @@ def _union(parts) -> tuple[np.ndarray, np.ndarray, Parts]:
 
 @dataclass
 class DrapeCalibration:
-    """A calibration from measured drapes: the parameters, the parts, the draped design,
+    """A calibration from measured drapes: the parameters, the parts, the draped training points,
     the likelihood (emulator inside), the posterior and its ``level``."""
 
     params: list
     parts: list
-    runs: DesignRuns
+    runs: TrainingRuns
     likelihood: PartsLikelihood
     posterior: object
     level: float
@@ -241,11 +241,11 @@ class DrapeCalibration:
         return out
 
 
-def calibrate_parts(study_path, parts, params, *, design: int | None = None, realizations: int | None = None,
-                    measurement_sd: float = 0.1, level: float = 0.9, scheduler=None, workers=None,
-                    progress: bool = False, steps: int = 1500) -> DrapeCalibration:
+def calibrate_parts(study_path, parts, params, *, training_points: int | None = None,
+                    realizations: int | None = None, measurement_sd: float = 0.1, level: float = 0.9,
+                    scheduler=None, workers=None, progress: bool = False, steps: int = 1500) -> DrapeCalibration:
     """The posterior of ``params`` given measured ``parts`` (``uqdrape.calibration.drapes``):
-    a Latin-hypercube design of ``design`` points (default 10 per parameter) in the prior
+    ``training_points`` Latin-hypercube points (default 10 per parameter) in the prior
     box, each draped as ``realizations`` (default the study's) with its own seed, the
     emulator over them and emcee; then a second round of half as many points drawn from
     that posterior, the emulator refitted on all and the posterior sampled again."""
@@ -256,9 +256,9 @@ def calibrate_parts(study_path, parts, params, *, design: int | None = None, rea
     if not 0 <= measurement_sd <= 90:
         raise ParameterError("measurement_sd", f"measurement_sd must be from 0 to 90 (deg), got {measurement_sd!r}")
     distance, sign, index = _union(parts)
-    n = DESIGN_PER_PARAMETER * len(params) if design is None else design
+    n = TRAINING_POINTS_PER_PARAMETER * len(params) if training_points is None else training_points
     r = study.realizations if realizations is None else realizations
-    for name, value, least, most in (("design", n, len(params) + 2, MAX_DESIGN),
+    for name, value, least, most in (("training_points", n, len(params) + 2, MAX_TRAINING_POINTS),
                                      ("realizations", r, 3, MAX_REALIZATIONS)):
         if not (isinstance(value, int) and least <= value <= most):
             raise ParameterError(name, f"{name} must be an integer from {least} to {most}, got {value!r}")
@@ -266,14 +266,14 @@ def calibrate_parts(study_path, parts, params, *, design: int | None = None, rea
     keys = [p.key for p in params]
     for corner in itertools.product(*zip(lower, upper)):  # a box the study refuses, before any drape
         study_at(study_path, dict(zip(keys, corner)))
-    points = design_points(lower, upper, n, study.seed)
+    points = latin_hypercube(lower, upper, n, study.seed)
     runs = None
     for _ in range(2):
         studies = [study_at(study_path, dict(zip(keys, x)), study.seed + 1 + k + (0 if runs is None else len(runs.points)),
                             r) for k, x in enumerate(points)]
         shear = np.stack(_drape_batches(studies, r, distance, sign, scheduler=scheduler, workers=workers,
-                                        progress=progress, desc=f"{study.name}: {len(points)} design points"))
-        runs = DesignRuns(points, shear) if runs is None else DesignRuns(np.vstack([runs.points, points]),
+                                        progress=progress, desc=f"{study.name}: {len(points)} training points"))
+        runs = TrainingRuns(points, shear) if runs is None else TrainingRuns(np.vstack([runs.points, points]),
                                                                          np.concatenate([runs.shear, shear]))
         mean, log_sd, var_mean, var_log_sd = runs.statistics()
         emulator = Emulator(runs.points, np.hstack([mean, log_sd]), np.hstack([var_mean, var_log_sd]), lower, upper,
@@ -282,7 +282,7 @@ def calibrate_parts(study_path, parts, params, *, design: int | None = None, rea
                                      Parts(tuple(index), tuple(p.shear_deg for p in parts), measurement_sd),
                                      lower, upper)
         posterior = sample_posterior(likelihood, keys, steps=steps, seed=study.seed)
-        # second round: half as many design points again, drawn from the first posterior, so
+        # second round: half as many training points again, drawn from the first posterior, so
         # the emulator is refined where the posterior lies (its error there is what matters)
         draws = np.column_stack([posterior.samples[k] for k in keys])
         points = draws[np.random.default_rng(study.seed).choice(len(draws), size=max(n // 2, 2), replace=False)]
@@ -302,7 +302,7 @@ def _calibrated_study(study_path, cal: DrapeCalibration, command: str, fraction:
     lines = [f"{name}: calibrated by `{command}` (uqdrape {__version__}, {date.today().isoformat()})",
              f"from {len(cal.parts)} measured part(s): " + ", ".join(Path(p.source).name for p in cal.parts)
              + f"; {len(cal.distance_mm)} distinct points, measurement sd {cal.likelihood.parts.measurement_sd:g} deg",
-             f"emulator: a GP per point's ensemble mean and log sd over {len(cal.runs.points)} design points of "
+             f"emulator: a GP per point's ensemble mean and log sd over {len(cal.runs.points)} training points of "
              f"{cal.runs.shear.shape[1] // 2} realisations (uqdrape.calibration.drapes)",
              f"posterior (emcee, {len(next(iter(post.samples.values())))} draws, acceptance {post.acceptance:.2f}, "
              f"{post.seconds:.1f} s): median and {level:g} % interval, uniform prior in the box"]
@@ -330,10 +330,10 @@ def _calibrated_study(study_path, cal: DrapeCalibration, command: str, fraction:
     return doc, "\n".join(lines)
 
 
-def calibrate_drapes(parts_csv, study_path, parameters, out, *, report=None, design: int | None = None,
-                     realizations: int | None = None, measurement_sd: float = 0.1, level: float = 0.9,
-                     scheduler=None, workers=None, progress: bool = False,
-                     command: str = "uqdrape calibrate --drapes") -> str:
+def calibrate_drapes(parts_csv, study_path, parameters, out, *, report=None,
+                     training_points: int | None = None, realizations: int | None = None,
+                     measurement_sd: float = 0.1, level: float = 0.9, scheduler=None, workers=None,
+                     progress: bool = False, command: str = "uqdrape calibrate --drapes") -> str:
     """``uqdrape calibrate --drapes``: the posterior of ``parameters`` (``KEY=LOW:HIGH``
     texts) of the study ``study_path`` given the measured parts ``parts_csv`` (one CSV a
     part, ``uqdrape.experimental``'s format); writes ``out`` (.toml: the study at the
@@ -355,9 +355,9 @@ def calibrate_drapes(parts_csv, study_path, parameters, out, *, report=None, des
         if force_free and forces.size and not np.allclose(forces, study.force_levels[0]):
             raise ValueError(f"{p.source}: measured at blankholder_force_N {forces[0]:g}, the study drapes at "
                              f"{study.force_levels[0]:g} N")
-    cal = calibrate_parts(study_path, parts, params, design=design, realizations=realizations,
-                          measurement_sd=measurement_sd, level=level, scheduler=scheduler, workers=workers,
-                          progress=progress)
+    cal = calibrate_parts(study_path, parts, params, training_points=training_points,
+                          realizations=realizations, measurement_sd=measurement_sd, level=level,
+                          scheduler=scheduler, workers=workers, progress=progress)
     lower, upper = predictive_bands(cal.likelihood, cal.posterior, level)
     inside = [(y >= lower[i]) & (y <= upper[i]) for i, y in zip(cal.likelihood.parts.index, cal.likelihood.parts.shear)]
     fraction = float(np.concatenate(inside).mean())
@@ -373,7 +373,7 @@ def calibrate_drapes(parts_csv, study_path, parameters, out, *, report=None, des
     if report is not None:
         page = _drape_report(cal, lower, upper, fraction, report, text, time.perf_counter() - clock)
     write_all(writers)
-    text = [f"wrote {out} and {sample}: {len(parts)} part(s), {len(cal.runs.points)} design points x "
+    text = [f"wrote {out} and {sample}: {len(parts)} part(s), {len(cal.runs.points)} training points x "
             f"{cal.runs.shear.shape[1] // 2} drapes"]
     text += [f"  {p.key}: median {np.median(cal.posterior.samples[p.key]):.4g}, {100 * level:g} % interval "
              f"[{cal.interval(p)[0]:.4g}, {cal.interval(p)[1]:.4g}]" for p in cal.params]
@@ -396,7 +396,7 @@ def _valid_at(tmp: Path, text: str, out: Path, study_path) -> bool:
 
 
 def posterior_dataset(cal: DrapeCalibration, lower, upper) -> xr.Dataset:
-    """The posterior sample, the draped design and the measured parts as one Dataset."""
+    """The posterior sample, the draped training points and the measured parts as one Dataset."""
     names = [p.key for p in cal.params]
     mean, log_sd, _, _ = cal.runs.statistics()
     measured = np.full((len(cal.parts), len(cal.distance_mm)), np.nan)
@@ -408,9 +408,9 @@ def posterior_dataset(cal: DrapeCalibration, lower, upper) -> xr.Dataset:
                        {"long_name": "posterior sample (emcee), in each parameter's study units"}),
          "prior_lower": ("parameter", [p.lower for p in cal.params]),
          "prior_upper": ("parameter", [p.upper for p in cal.params]),
-         "design": (("design_point", "parameter"), cal.runs.points),
-         "design_mean": (("design_point", "point"), mean, {**deg, "long_name": "ensemble mean shear"}),
-         "design_sd": (("design_point", "point"), np.exp(log_sd), {**deg, "long_name": "ensemble shear sd"}),
+         "training_points": (("training_point", "parameter"), cal.runs.points),
+         "training_mean": (("training_point", "point"), mean, {**deg, "long_name": "ensemble mean shear"}),
+         "training_sd": (("training_point", "point"), np.exp(log_sd), {**deg, "long_name": "ensemble shear sd"}),
          "measured": (("part", "point"), measured, {**deg, "long_name": "measured shear (NaN: not measured)"}),
          "predictive_lower": ("point", lower, deg), "predictive_upper": ("point", upper, deg),
          "distance": ("point", cal.distance_mm, {"units": "mm", "long_name": "distance from the crossover"}),
@@ -434,7 +434,7 @@ def _drape_report(cal: DrapeCalibration, lower, upper, fraction: float, folder: 
     rows = [("measured parts", ", ".join(str(p) for p in data["part"].values)),
             ("distinct measured points", str(len(cal.distance_mm))),
             ("measurement sd", f"{cal.likelihood.parts.measurement_sd:g} deg"),
-            ("design (Latin hypercube)", f"{len(cal.runs.points)} points x {cal.runs.shear.shape[1] // 2} drapes"),
+            ("training points (Latin hypercube)", f"{len(cal.runs.points)} points x {cal.runs.shear.shape[1] // 2} drapes"),
             *[(p.key, f"{np.median(cal.posterior.samples[p.key]):.4g} [{cal.interval(p)[0]:.4g}, "
                       f"{cal.interval(p)[1]:.4g}] ({level:g} %), prior [{p.lower:g}, {p.upper:g}]")
               for p in cal.params],

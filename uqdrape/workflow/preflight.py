@@ -22,7 +22,7 @@ import numpy as np
 
 from ..drape import placement_failures, unplaced_error
 from ..errors import ParameterError
-from ..ensemble import inputs_from_design, placement_status, sampled_inputs
+from ..ensemble import inputs_from_rows, placement_status, sampled_inputs
 from ..ensemble import at
 from ..study import load_study, study_error
 
@@ -112,15 +112,15 @@ def check_resources(study, output_dir, drapes_to_write: int, chunk_size: int | N
 WARN_UNPLACED = 0.10
 
 
-def check_placement(study, realization: int = 0, force: float | None = None, design_rows=None, *,
+def check_placement(study, realization: int = 0, force: float | None = None, sample_rows=None, *,
                     quiet: bool = False) -> None:
-    """Drape one realisation of the study (row ``realization`` of ``design_rows`` if
+    """Drape one realisation of the study (row ``realization`` of ``sample_rows`` if
     given) here, before any worker starts, and refuse the study if more than its
     ``[solver] failure_budget`` of the nodes cannot be placed: such a run would only write
     NaNs (the crossover off the mould, a net larger than the mould). Within the budget,
     more than WARN_UNPLACED of them is a warning on stderr (unless ``quiet``)."""
     r = np.arange(realization, realization + 1)
-    inputs = sampled_inputs(study, r) if design_rows is None else inputs_from_design(study, design_rows[r])
+    inputs = sampled_inputs(study, r) if sample_rows is None else inputs_from_rows(study, sample_rows[r])
     force = study.force_levels[0] if force is None else force
     status = placement_status(study, r, inputs, force=force)[0]
     failed, why = placement_failures(status)
@@ -133,7 +133,7 @@ def check_placement(study, realization: int = 0, force: float | None = None, des
         raise study_error(study.path, "solver.rings", study.solver.rings, refused)
 
 
-def run_preflight(study, output_dir, *, chunk_size: int | None = None, design_rows=None, quiet: bool = False):
+def run_preflight(study, output_dir, *, chunk_size: int | None = None, sample_rows=None, quiet: bool = False):
     """The ``preflight`` of ``uqdrape.ensemble.run_ensemble`` for a run of ``study`` into
     ``output_dir``: resources for the drapes still to write (a target run's round: also
     those its later rounds may add up to ``max_realizations``; a hierarchical run with its
@@ -143,7 +143,7 @@ def run_preflight(study, output_dir, *, chunk_size: int | None = None, design_ro
 
     def check(drapes: int, first: int, force: float) -> None:
         check_resources(study, output_dir, twice * (drapes + later), chunk_size)
-        check_placement(study, first, force, design_rows, quiet=quiet)
+        check_placement(study, first, force, sample_rows, quiet=quiet)
     return check
 
 

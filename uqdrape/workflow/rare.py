@@ -2,14 +2,14 @@
 states in standard normal space for ``uqdrape.reliability``, and the estimates a
 ``[study] rare`` asks for, kept in the run folder (``rare.json``) and shown in its report.
 
-U's columns are the study's design variables (``uqdrape.ensemble.design_variables``): a
+U's columns are the study's sample columns (``uqdrape.ensemble.sample_columns``): a
 scalar factor's u = Phi(U) (then its own ``ppf``), a random field's truncated KL modes
 as they are (``kl_retained`` of its variance). A batch of rows is one batched drape.
 
 A ``[study] rare = {qoi, threshold, cov, max_drapes}`` is estimated after the run's
 sample, at every force level, by ``uqdrape.reliability.importance_sampling`` (importance
-sampling at the design point the subset levels give, its response surface linear in the
-factors' own values; subset simulation in independent rounds where no design point
+sampling at the most probable point the subset levels give, its response surface linear in the
+factors' own values; subset simulation in independent rounds where no most probable point
 carries the probability; plain Monte Carlo where failure is not rare, P = 1 where every
 drape fails; an upper bound where no drape reaches the threshold) to CoV ``cov`` within
 ``max_drapes`` drapes, a hard limit, with the seed ``SeedSequence([study seed,
@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 from scipy.special import ndtr
 
-from ..ensemble import at, design_variables, drape_inputs, inputs_from_design, study_mould
+from ..ensemble import at, drape_inputs, inputs_from_rows, sample_columns, study_mould
 from ..files import check_input_file
 from ..reliability import importance_sampling
 from ..report import rare_rows
@@ -56,14 +56,14 @@ def drape_limit_state(study, qoi: str, threshold: float, force: float | None = N
     ``force`` (N; None: the only one): g(U) = threshold - qoi of the drapes of the rows
     of U (n, d), so failure is g <= 0. A line QoI averages the max-shear line nodes valid
     in the nominal drape (U = 0), the same nodes in every batch."""
-    names = design_variables(study)
+    names = sample_columns(study)
     factors = len(study.uncertainty.factors)
     surface, material = study_mould(study), study.fabric.card()
 
     def values(U, k_max=None):
         X = np.array(U, dtype=float, ndmin=2)
         X[:, :factors] = ndtr(X[:, :factors])
-        ds = drape_inputs(study, np.arange(len(X)), inputs_from_design(study, X), force=force, surface=surface,
+        ds = drape_inputs(study, np.arange(len(X)), inputs_from_rows(study, X), force=force, surface=surface,
                           material=material)
         return realization_qois(ds, [qoi], k_max)
 
@@ -78,7 +78,7 @@ def drape_limit_state(study, qoi: str, threshold: float, force: float | None = N
 def factor_values(study):
     """The map of U's columns (n, d) to what a response surface of the drapes is fitted in:
     a scalar factor's own value (its ``ppf`` of Phi(u): a bounded factor saturates in u),
-    the random fields' KL modes as they are (``uqdrape.reliability.design_point``)."""
+    the random fields' KL modes as they are (``uqdrape.reliability.importance.most_probable_point``)."""
     factors = list(study.uncertainty.factors.values())
 
     def features(U):

@@ -1,8 +1,8 @@
-"""Run a study: its Monte Carlo ensemble, its SALib design and indices, or its
+"""Run a study: its Monte Carlo ensemble, its SALib sample and indices, or its
 blank-holder design; and the report of a finished run.
 
 Sensitivity studies. ``run_study`` of a study with ``[sensitivity] method = "sobol" |
-"morris"`` drapes the rows of ``uqdrape.sensitivity.study_design`` as its realisations
+"morris"`` drapes the rows of ``uqdrape.sensitivity.sensitivity_sample`` as its realisations
 (same chunked, resumable engine, the same rows at every blank-holder level: common
 random numbers), then computes the quantities of interest of every drape and their
 indices per force level into ``<output_dir>/sensitivity.nc`` (dims factor, qoi,
@@ -33,10 +33,10 @@ from pathlib import Path
 import xarray as xr
 
 from ..design import DESIGN_FILE, EVALUATIONS, Evaluator, drape_design, optimise, problem, result_dataset
-from ..ensemble import (Progress, at, design_variables, local_pool, open_ensemble, read_manifest, reach_scheduler,
-                        run_ensemble)
+from ..ensemble import (Progress, at, local_pool, open_ensemble, read_manifest, reach_scheduler, run_ensemble,
+                        sample_columns)
 from ..report import write_design_report, write_report
-from ..sensitivity import map_indices, qoi_indices, study_design
+from ..sensitivity import map_indices, qoi_indices, sensitivity_sample
 from ..stats import SENSITIVITY_QOIS, realization_qois
 from ..study import SENSITIVITY_METHODS, Study, from_dict, identity, load_study
 from .preflight import check_placement, check_resources, run_preflight
@@ -55,7 +55,7 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
     """Run a study (a ``Study`` or a study file's path); return its output folder.
 
     ``method`` None: the study's [sensitivity] method; "sobol" / "morris": drape that
-    SALib design and write sensitivity.nc; "none": the Monte Carlo sample. Another method
+    SALib sample matrix and write sensitivity.nc; "none": the Monte Carlo sample. Another method
     than the study's writes to ``<output_dir>-<method>``. The other arguments are those of
     ``uqdrape.ensemble.run_ensemble``. A study with a [design] section runs its design
     (:func:`run_design`); ``method`` must then be None. A study with a ``[study] target``
@@ -73,31 +73,31 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
     method = study.sensitivity.method if method is None else method
     if method not in SENSITIVITY_METHODS:
         raise ValueError(f"method must be one of {', '.join(SENSITIVITY_METHODS)}, got {method!r}")
-    design = None if method == "none" else study_design(study, method)
-    if design is not None:
-        assert design.problem["names"] == design_variables(study), "problem and ensemble disagree on the variables"
+    matrix = None if method == "none" else sensitivity_sample(study, method)
+    if matrix is not None:
+        assert matrix.problem["names"] == sample_columns(study), "problem and ensemble disagree on the variables"
     out, provenance, attrs = study.output_dir, study.to_dict(), {}
     if method != study.sensitivity.method:
         out = at(out).sibling(f"-{method}").target
         provenance["sensitivity"]["method"] = method
         provenance["sensitivity"].pop("base_samples", None)
-    if design is not None:
-        provenance["sensitivity"]["base_samples"] = design.meta["base_samples"]
-        attrs = dict(design_method=design.method, design_base_samples=design.meta["base_samples"],
-                     design_evaluations=design.n_evaluations)
-    rows = None if design is None else design.standard
+    if matrix is not None:
+        provenance["sensitivity"]["base_samples"] = matrix.meta["base_samples"]
+        attrs = dict(sample_method=matrix.method, sample_base_samples=matrix.meta["base_samples"],
+                     sample_evaluations=matrix.n_evaluations)
+    rows = None if matrix is None else matrix.standard
 
     def run(sample, where, again, **kwargs):
         return run_ensemble(sample, output_dir=where, scheduler=scheduler, workers=workers, chunk_size=chunk_size,
                             resume=again, progress=progress, verbose=verbose, **kwargs,
                             preflight=run_preflight(sample, where, chunk_size=chunk_size, quiet=not progress,
-                                                    design_rows=kwargs.get("design_rows")))
-    if design is None and study.target is not None:
+                                                    sample_rows=kwargs.get("sample_rows")))
+    if matrix is None and study.target is not None:
         out = run_to_target(study, lambda sample, again: run(sample, out, again),
                             chunk_size=chunk_size or study.chunk_size, resume=resume, progress=progress)
     else:
-        out = run(study, out, resume, design_rows=rows, provenance=provenance, attrs=attrs)
-    done = Sampled(study, out, design, run, resume, progress)
+        out = run(study, out, resume, sample_rows=rows, provenance=provenance, attrs=attrs)
+    done = Sampled(study, out, matrix, run, resume, progress)
     for step in AFTER_SAMPLE:
         step(done)
     return out
@@ -106,12 +106,12 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
 @dataclass(frozen=True)
 class Sampled:
     """A study's finished sample, as the steps after it see it: the study, its output
-    folder, its sensitivity design (None: a Monte Carlo run), ``run(sample, where,
+    folder, its sensitivity sample matrix (None: a Monte Carlo run), ``run(sample, where,
     resume)`` to drape another study the same way, and the run's resume and progress."""
 
     study: Study
     out: Path | str
-    design: object
+    matrix: object
     run: Callable
     resume: bool
     progress: bool
@@ -121,7 +121,7 @@ def _twin(done: Sampled) -> None:
     """Drape the fixed-parameter twin of a hierarchical Monte Carlo run with as many
     realisations as the run holds (``uqdrape.workflow.twin``), if the study asks for it
     (``[report] fixed_twin``; ``fixed_twin`` is None for a study that is not hierarchical)."""
-    if done.design is not None or not done.study.report.fixed_twin:
+    if done.matrix is not None or not done.study.report.fixed_twin:
         return
     twin = fixed_twin(done.study, read_manifest(done.out)["study"]["study"]["realizations"], done.out)
     if done.progress:
@@ -134,17 +134,17 @@ def _twin(done: Sampled) -> None:
 def _indices(done: Sampled) -> None:
     """A sensitivity run's indices and maps (:func:`write_sensitivity`), unless a resumed
     run already holds them for the same drapes."""
-    design, name = done.design, done.study.name
-    if design is None:
+    matrix, name = done.matrix, done.study.name
+    if matrix is None:
         return
     if done.resume and analysed(done.out):
         if done.progress:
-            print(f"{name}: {design.method} indices already analysed in {done.out}", file=sys.stderr)
+            print(f"{name}: {matrix.method} indices already analysed in {done.out}", file=sys.stderr)
         return
     if done.progress:
-        print(f"{name}: analysing {design.method} indices of {design.n_evaluations} evaluations"
+        print(f"{name}: analysing {matrix.method} indices of {matrix.n_evaluations} evaluations"
               + (f" at {len(done.study.force_levels)} force levels" if done.study.is_sweep else ""), file=sys.stderr)
-    write_sensitivity(done.out, design, qoi=done.study.sensitivity.qoi, seed=done.study.seed, progress=done.progress)
+    write_sensitivity(done.out, matrix, qoi=done.study.sensitivity.qoi, seed=done.study.seed, progress=done.progress)
 
 
 def _rare(done: Sampled) -> None:
@@ -179,10 +179,10 @@ def analysed(output_dir) -> bool:
     return keys[0] is not None and keys[0] == keys[1] == _run_key(output_dir)
 
 
-def write_sensitivity(output_dir, design, *, qoi=None, seed: int,
+def write_sensitivity(output_dir, matrix, *, qoi=None, seed: int,
                       progress: bool = False) -> tuple[Path | str, Path | str]:
     """Analyse a finished sensitivity run in ``output_dir`` (a run folder or store URL; its realisations are the
-    design's rows): QoI indices to ``sensitivity.nc``, node-shear index maps to
+    sample matrix's rows): QoI indices to ``sensitivity.nc``, node-shear index maps to
     ``sensitivity_maps.nc`` (both written whole, then renamed, with the attribute
     ``run_key`` naming the run they are of: see :func:`analysed`). ``qoi``: names (default
     ``SENSITIVITY_QOIS``); ``progress``: count the analysed nodes on stderr. Returns the
@@ -192,11 +192,11 @@ def write_sensitivity(output_dir, design, *, qoi=None, seed: int,
         qois = realization_qois(ds, SENSITIVITY_QOIS if qoi is None else qoi)
         shear = ds["shear"].load()
         study_name = ds.attrs.get("study_name", out.name)
-    indices = qoi_indices(design, qois, seed=seed)
+    indices = qoi_indices(matrix, qois, seed=seed)
     nodes = shear.isel({dim: 0 for dim in shear.dims if dim not in ("i", "j")}).size
     bar = Progress(nodes * shear.sizes.get("blankholder_force", 1), enabled=progress, desc="index maps", unit="node")
     try:
-        maps = map_indices(design, shear, seed=seed, progress=bar.update)
+        maps = map_indices(matrix, shear, seed=seed, progress=bar.update)
     finally:
         bar.close()
     for result in (indices, maps):

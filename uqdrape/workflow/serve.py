@@ -5,7 +5,7 @@ The model, named ``forward``, takes one input vector: the study's scalar uncerta
 factors at their physical values, in the study's order and units (N, -, deg, mm, as
 the study file gives them), then each random field's truncated Karhunen-Loeve mode
 variables (standard normals, ``kl_retained`` of its variance; 0 is the field's mean),
-named as ``uqdrape.ensemble.design_variables``. Physical values rather than the SALib
+named as ``uqdrape.ensemble.sample_columns``. Physical values rather than the SALib
 standard variables, so that a caller samples the factors with its own distributions
 (the study's are printed at start); the fields have no physical coordinates of their
 own, so their standard variables are the input. The nominal input is every factor's
@@ -40,7 +40,7 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 
 import numpy as np
 
-from ..ensemble import design_variables, drape_inputs, inputs_from_design
+from ..ensemble import drape_inputs, inputs_from_rows, sample_columns
 from ..errors import ParameterError
 from ..schema import SOLVER_INPUTS
 from ..stats.qoi import check_qois, realization_qois
@@ -51,7 +51,7 @@ MODEL_NAME = "forward"
 
 def input_names(study) -> list[str]:
     """Names of the model's input vector: the factors, then ``field[k]`` KL modes."""
-    return design_variables(study)
+    return sample_columns(study)
 
 
 def nominal_input(study) -> list[float]:
@@ -73,7 +73,7 @@ def evaluate(study, x, qoi, *, surface=None, material=None) -> list[list[float]]
     factors = study.uncertainty.factors
     d = len(factors)
     X = np.concatenate([np.full(d, 0.5), x[d:]])[None]  # factor columns replaced by their values below
-    inputs = inputs_from_design(study, X)
+    inputs = inputs_from_rows(study, X)
     for k, name in enumerate(factors):
         inp = SOLVER_INPUTS[name]
         if not inp.admits(x[k]):  # the physical limits of every entry point, not the study's distribution

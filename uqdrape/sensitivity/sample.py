@@ -1,4 +1,4 @@
-"""Sensitivity designs: the SALib sample matrix for Sobol' or Morris.
+"""Sensitivity samples: the SALib sample matrix for Sobol' or Morris.
 
 Rows of the returned matrix are model evaluations, columns the problem's variables in
 physical units (the distributions' inverse CDFs are applied by SALib).
@@ -32,7 +32,7 @@ def check_seed(seed) -> int:
 
 
 def sample(problem: Mapping, method: str = "sobol", *, base_samples: int, seed: int):
-    """Design matrix (n_evaluations, num_vars) and its metadata.
+    """Sample matrix (n_evaluations, num_vars) and its metadata.
 
     sobol: SALib.sample.sobol with calc_second_order=False, n = N (G + 2) rows for G
     groups (or factors). morris: SALib.sample.morris with ``MORRIS_NUM_LEVELS`` levels,
