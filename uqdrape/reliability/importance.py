@@ -21,7 +21,10 @@ in independent rounds where it does not, plain Monte Carlo where failure is not 
    samples without gradients: a linear response surface g ~ a0 + a . u, fitted by least
    squares to every distinct sample, gives the direction alpha = -a / |a|; a root search
    of g along it (``scipy.optimize.brentq`` on g(c alpha)) gives beta. The fit's R^2 is
-   kept (near 1 where failure is a half-space).
+   kept (near 1 where failure is a half-space). With more columns than the pilot can fit
+   (a random field's thousand modes: the surface interpolates, R^2 1) and beta refused
+   by the check below, a second surface is fitted on the columns that correlate with g,
+   the rest one noise term (:func:`screened_point`), and its point is checked instead.
 3. Importance sampling with the density N(u*, I) (Au & Beck 2003: a moved mean, not a
    fitted covariance, keeps the weights bounded in high dimension), in rounds:
    P = mean(1[g(V) <= 0] w(V)), w(v) = phi(v) / phi(v - u*) = exp(-u* . v + |u*|^2 / 2),
@@ -72,6 +75,10 @@ OPPOSITE = 0.01
 #: |beta - Phi^-1(1 - P_sus)| allowed beyond the pilot's own scatter: FORM's index of a
 #: moderately curved surface differs by a few tenths; more puts the point out of place.
 BETA_GAP = 0.5
+#: A response surface takes at most one column per SCREEN pilot samples before the
+#: screened one is tried; that one keeps the columns whose correlation with g over
+#: level 0's n independent samples passes SCREENED / sqrt(n) (3.5 sd of a zero one).
+SCREEN, SCREENED = 4, 3.5
 #: Samples of the first importance-sampling round.
 FIRST_ROUND = 200
 #: Independent subset-simulation rounds where no most probable point carries the probability,
@@ -118,9 +125,7 @@ def most_probable_point(g, samples, features=None) -> tuple[np.ndarray | None, f
     y = np.concatenate([v for _, v in samples])
     U, first = np.unique(U, axis=0, return_index=True)
     y = y[first]
-    A = np.column_stack([np.ones(len(U)), U if features is None else features(U)])
-    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
-    r2 = 1 - np.sum((y - A @ coef) ** 2) / np.sum((y - y.mean()) ** 2)
+    coef, r2 = _fit(U if features is None else features(U), y)
     u_fit = surface_point(coef[0], coef[1:], features, U.shape[1])
     c = max(float(np.linalg.norm(u_fit)), 0.5)
     alpha = u_fit / np.linalg.norm(u_fit)
@@ -142,6 +147,41 @@ def most_probable_point(g, samples, features=None) -> tuple[np.ndarray | None, f
             return beta * alpha, float(r2), len(calls)
         low, high = high, 1.5 * high
     return c * alpha, float(r2), len(calls)  # no root along alpha: the surface's point (the checks judge it)
+
+
+def screened_point(samples, features=None) -> tuple[np.ndarray, float, float]:
+    """(u*, beta, R^2) of a response surface fitted where the columns outnumber what the
+    pilot's ``samples`` can fit: over the independent level-0 samples (n of them), on
+    the columns that correlate with g (|r| > SCREENED / sqrt(n); the strongest one at
+    least), the other columns one normal noise term of the residuals' sd, a standard
+    variable e of its own. FORM on that surface (:func:`surface_point`) gives (u_kept*,
+    e*): u* moves the kept columns only (zero elsewhere) and beta is |(u_kept*, e*)|. No
+    root search: along the kept columns alone g may never reach 0."""
+    U0, y0 = samples[0]
+    d = U0.shape[1]
+    X0 = U0 if features is None else features(U0)
+    r = np.nan_to_num([np.corrcoef(x, y0)[0, 1] if x.std() > 0 else 0.0 for x in X0.T])
+    keep = np.flatnonzero(np.abs(r) > SCREENED / math.sqrt(len(y0)))
+    keep = keep if keep.size else np.array([int(np.argmax(np.abs(r)))])
+    coef, r2 = _fit(X0[:, keep], y0)
+    noise = float(np.std(y0 - np.column_stack([np.ones(len(y0)), X0[:, keep]]) @ coef))
+
+    def kept(u_e):  # the features of (u_kept, e): the kept columns' own, then e as it is
+        full = np.zeros((len(u_e), d))
+        full[:, keep] = u_e[:, :-1]
+        return np.column_stack([(full if features is None else features(full))[:, keep], u_e[:, -1]])
+
+    point = surface_point(coef[0], np.append(coef[1:], noise), kept, keep.size + 1)
+    u_star = np.zeros(d)
+    u_star[keep] = point[:-1]
+    return u_star, float(np.linalg.norm(point)), r2
+
+
+def _fit(X, y) -> tuple[np.ndarray, float]:
+    """(coefficients [a0, a...], R^2) of the least-squares fit y ~ a0 + X a."""
+    A = np.column_stack([np.ones(len(X)), X])
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    return coef, float(1 - np.sum((y - A @ coef) ** 2) / np.sum((y - y.mean()) ** 2))
 
 
 def surface_point(a0: float, a: np.ndarray, features, d: int) -> np.ndarray:
@@ -219,6 +259,11 @@ def importance_sampling(g, d: int, *, seed: int, cov: float = 0.1, max_calls: in
         return _subset_rounds(g, d, sus, samples[0][1], spent, cov, max_calls, p0, max_levels, rng,
                               lambda *a, **k: result(*a, **k, r2=r2), "the origin fails")
     beta = float(np.linalg.norm(u_star))
+    if not beta_agrees(beta, sus) and d + 1 > sum(len(u) for u, _ in samples) / SCREEN:
+        screened, form, fit = screened_point(samples, features)
+        if beta_agrees(form, sus):  # FORM's index of the screened surface; the shift is u* alone
+            u_star, beta, r2 = screened, form, fit
+    shift = float(np.linalg.norm(u_star))
     opposite = float(np.mean(u_last[y_last <= 0] @ u_star <= 0))
 
     def subset_again(importance_calls: int, why: str) -> RareResult:
@@ -237,7 +282,7 @@ def importance_sampling(g, d: int, *, seed: int, cov: float = 0.1, max_calls: in
         take = max(min(n - terms.size, max_calls - spent - terms.size), 0)
         v = u_star + rng.standard_normal((take, d))
         fails = np.asarray(g(v), dtype=float) <= 0 if take else np.zeros(0, bool)
-        weights = np.exp(-v @ u_star + beta**2 / 2)
+        weights = np.exp(-v @ u_star + shift**2 / 2)
         terms = np.concatenate([terms, np.where(fails, weights, 0.0)])
         p = float(terms.mean()) if terms.size else 0.0
         delta = float(terms.std(ddof=1) / math.sqrt(terms.size) / p) if p > 0 and terms.size > 1 else math.inf
