@@ -76,9 +76,10 @@ def wait_for(condition, what: str, timeout: float = PATIENCE, every: float = 0.0
 
 
 def markers(s3, prefix) -> set[str]:
+    """The regions marked done (a marker's .part is one being put, as the store reads it)."""
     s3.invalidate_cache()
     try:
-        return {p.rsplit("/", 1)[-1] for p in s3.ls(f"{prefix}/{DONE}", detail=False)}
+        return {p.rsplit("/", 1)[-1] for p in s3.ls(f"{prefix}/{DONE}", detail=False) if not p.endswith(".part")}
     except FileNotFoundError:
         return set()
 

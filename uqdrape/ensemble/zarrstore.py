@@ -69,7 +69,7 @@ ZARR_FORMAT = 3
 _KEPT = ("dtype", "_FillValue", "units", "calendar")
 #: regions checked at once when a store is opened: their objects are read in one call
 #: (concurrent on an object store) and held in memory together
-CHECK_BATCH = 16
+CHECK_BATCH = 4
 
 
 class ZarrStore(Location):
@@ -201,12 +201,14 @@ class ZarrStore(Location):
         self._put(MANIFEST, json.dumps(manifest, indent=1).encode())
 
     def done(self) -> set[str]:
-        """The chunk names whose region is marked done."""
+        """The chunk names whose region is marked done (a marker's ``.part``, being put or
+        left by a killed writer, is not one)."""
         fs, root = _fs(self.target)
         try:
-            return {p.rstrip("/").rsplit("/", 1)[-1] for p in fs.ls(f"{root}/{DONE}", detail=False)}
+            names = {p.rstrip("/").rsplit("/", 1)[-1] for p in fs.ls(f"{root}/{DONE}", detail=False)}
         except FileNotFoundError:
             return set()
+        return {name for name in names if not name.endswith(".part")}
 
     # -- the run loop's operations (``uqdrape.ensemble.run``)
 
