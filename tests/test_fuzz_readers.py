@@ -87,10 +87,16 @@ def _read(parse, data: bytes):
         return None
 
 
-@pytest.mark.slow
-@seed(SEED)
-@settings(max_examples=3000, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(data=_inputs(RECORD))
+def _fuzzed(base):
+    """The slow suite's fuzz of a reader: 3,000 inputs made from ``base``, seeded with SEED."""
+    def wrap(test):
+        return pytest.mark.slow(seed(SEED)(settings(max_examples=3000, deadline=None,
+                                                    suppress_health_check=[HealthCheck.too_slow])(
+            given(data=_inputs(base))(test))))
+    return wrap
+
+
+@_fuzzed(RECORD)
 def test_fuzzed_rare_records_give_the_record_or_one_line(fuzz_seed, data):
     note(f"hypothesis seed {SEED} (FUZZ_SEED={SEED} replays it)")
     record = _read(parse_rare, data)
@@ -100,10 +106,7 @@ def test_fuzzed_rare_records_give_the_record_or_one_line(fuzz_seed, data):
             untrusted(record, level)
 
 
-@pytest.mark.slow
-@seed(SEED)
-@settings(max_examples=3000, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(data=_inputs(MANIFEST))
+@_fuzzed(MANIFEST)
 def test_fuzzed_run_manifests_give_the_manifest_or_one_line(fuzz_seed, data):
     note(f"hypothesis seed {SEED} (FUZZ_SEED={SEED} replays it)")
     _read(parse_manifest, data)

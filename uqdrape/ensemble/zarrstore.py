@@ -255,7 +255,8 @@ class ZarrStore(Location):
                 _write_template(study, self.target, chunks, n, manifest["chunk_size"], attrs, title, sample_rows)
                 self.write_manifest(manifest)
             else:
-                damaged = [c for c in chunks if c.name in done and c.name in self.damaged([c.name], key)]
+                bad = set(self.damaged(sorted(done), key))  # one pass over the kept regions
+                damaged = [c for c in chunks if c.name in bad]
                 for name in self.done() - done | {c.name for c in damaged}:  # regions cut anew, or to draw again
                     fs.rm(f"{root}/{DONE}/{name}")
                 # the manifest first: a store killed while it grows reads as incomplete, not as the smaller run
