@@ -35,6 +35,12 @@ REALIZATION = "realization"
 FORCE = "blankholder_force"
 #: The per-realisation force (N) each drape of an ensemble was run with (see the module docstring).
 APPLIED_FORCE = "applied_blankholder_force"
+#: A laminate's plies: the dimension ``ply`` (after the force level, before ``realization``;
+#: coordinate: the ply names in stacking order, the first on the tool) and its coordinate
+#: ``ply_angle``, each ply's nominal fibre-1 angle (deg) from the rosette's 0 deg direction,
+#: which lies at the plan angle ``rosette_deg`` (a Dataset attribute, deg from +x).
+PLY = "ply"
+PLY_ANGLE = "ply_angle"
 
 #: The design record's draw-in statistic (mm): the 95 % quantile of the largest draw-in.
 DRAW_IN = "q95_max_draw_in"
