@@ -41,6 +41,8 @@ APPLIED_FORCE = "applied_blankholder_force"
 #: which lies at the plan angle ``rosette_deg`` (a Dataset attribute, deg from +x).
 PLY = "ply"
 PLY_ANGLE = "ply_angle"
+#: Prefix of a per-ply coordinate holding a drape attribute that differs between plies.
+PLY_ATTR = "ply_"
 
 #: The design record's draw-in statistic (mm): the 95 % quantile of the largest draw-in.
 DRAW_IN = "q95_max_draw_in"
@@ -155,6 +157,15 @@ def at_level(ds: xr.Dataset, force: float) -> xr.Dataset:
     out = ds.rename_vars({FORCE: APPLIED_FORCE}).expand_dims({FORCE: [float(force)]})
     out[FORCE].attrs.update(units="N", long_name="blank-holder force level")
     return out
+
+
+def ply_dataset(ds: xr.Dataset, ply) -> xr.Dataset:
+    """Ply ``ply`` (a name) of a laminate ensemble as a single-ply ensemble: the ply
+    selected, its per-ply attributes (``PLY_ATTR`` coordinates) back as attributes."""
+    one = ds.sel({PLY: ply})
+    own = [name for name in one.coords if name.startswith(PLY_ATTR) and name != PLY_ANGLE]
+    attrs = {name.removeprefix(PLY_ATTR): one[name].values.item() for name in own}
+    return one.drop_vars(own).assign_attrs(attrs)
 
 
 def by_force(ds: xr.Dataset) -> xr.Dataset:

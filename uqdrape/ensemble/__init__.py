@@ -20,7 +20,8 @@ from __future__ import annotations
 import importlib
 
 _EXPORTS = {
-    "chunk": ("drape_inputs", "placement_status", "study_mould", "write_atomic", "write_netcdf"),
+    "chunk": ("drape_inputs", "drape_laminate", "placement_status", "ply_inputs", "study_mould", "write_atomic",
+              "write_netcdf"),
     "inputs": ("inputs_from_rows", "sample_columns", "sampled_inputs"),
     "progress": ("Progress", "ring_progress"),
     "run": ("compute_tasks", "reach_scheduler", "run_ensemble"),

@@ -28,7 +28,7 @@ from .. import files
 from .. import geometry as _geometry
 from ..drape import drape, drape_status
 from ..material.scatter import card_scatter, scattered
-from ..schema import REALIZATION, SOLVER_INPUTS, at_level
+from ..schema import PLY, PLY_ANGLE, PLY_ATTR, REALIZATION, SOLVER_INPUTS, at_level
 from ..study.spec import CARD
 from .inputs import inputs_from_rows, sampled_inputs
 
@@ -60,8 +60,75 @@ def drape_chunk(study, realizations, force: float, sample_rows=None) -> xr.Datas
     the sample rows ``sample_rows`` (one per realisation), at force level ``force`` (N),
     in the ensemble layout (``uqdrape.schema.at_level``)."""
     r = np.asarray(realizations)
+    if study.plies:
+        return at_level(drape_laminate(study, r, force=force), force)
     inputs = sampled_inputs(study, r) if sample_rows is None else inputs_from_rows(study, sample_rows)
     return at_level(drape_inputs(study, r, inputs, force=force), force)
+
+
+def ply_inputs(study, k: int, realizations, shared: dict | None = None) -> dict:
+    """Solver inputs of ply ``k`` of a laminate for the given realisations: the ply's own
+    draws (:meth:`Study.ply_study`), with the factors every ply shares (``shared``:
+    ``sampled_inputs(study.shared, realizations)``) put in; a drawn rosette angle turns
+    the ply by its difference from the nominal ``fabric.orientation_deg``."""
+    r = np.asarray(realizations, dtype=np.int64)
+    shared = sampled_inputs(study.shared, r) if shared is None else shared
+    ply = study.ply_study(k)
+    inputs = sampled_inputs(ply, r)
+    for name, value in shared.items():
+        if name == "orientation":
+            own = inputs.get("orientation", np.full(r.size, ply.fabric.orientation_deg))
+            inputs["orientation"] = own + (value - study.fabric.orientation_deg)
+        else:
+            inputs[name] = value
+    return inputs
+
+
+def drape_laminate(study, realizations, *, force=None) -> xr.Dataset:
+    """Every ply of a laminate for the given realisations, each ply a member of one batched
+    drape per card and spacing (so a laminate costs what its plies cost): the solver's
+    Dataset with a ``ply`` dimension before ``realization`` (``uqdrape.schema.PLY``), the
+    ply names and ``ply_angle`` (deg from the rosette) as coordinates; an attribute whose
+    value differs between plies (a ply's card, its spacing) becomes a coordinate along
+    ``ply`` named ``ply_<attribute>`` (``uqdrape.schema.ply_dataset`` puts it back). A drape in the batch is the
+    one a single-ply study of ``study.ply_study(k)`` gives, bitwise, when no factor is shared."""
+    import xarray as xr
+
+    r = np.asarray(realizations, dtype=np.int64)
+    shared = sampled_inputs(study.shared, r)
+    parts, groups = {}, {}
+    for k, ply in enumerate(study.plies):
+        groups.setdefault((ply.material, ply.spacing_mm), []).append(k)
+    for members in groups.values():
+        plies = [study.ply_study(k) for k in members]
+        inputs = [ply_inputs(study, k, r, shared) for k in members]
+        batch = {name: np.concatenate([_filled(ply, i, name, r.size, force) for ply, i in zip(plies, inputs)])
+                 for name in set(SOLVER_INPUTS).union(*inputs)}
+        ds = drape_inputs(plies[0], np.tile(r, len(members)), batch, force=force)
+        for m, k in enumerate(members):
+            parts[k] = ds.isel({REALIZATION: slice(m * r.size, (m + 1) * r.size)})
+    parts = [parts[k] for k in range(len(study.plies))]
+    ds = xr.concat(parts, dim=PLY, data_vars="all", coords="minimal", compat="override", join="override",
+                   combine_attrs="drop_conflicts")
+    differ = {f"{PLY_ATTR}{name}": (PLY, [p.attrs[name] for p in parts]) for name in parts[0].attrs
+              if name not in ds.attrs}
+    return ds.assign_coords({
+        PLY: [p.name for p in study.plies],
+        PLY_ANGLE: (PLY, [p.angle_deg for p in study.plies], {"units": "degree",
+                                                                "long_name": "ply angle from the rosette"}),
+        **differ}).assign_attrs(rosette_deg=study.fabric.orientation_deg)
+
+
+def _filled(ply, inputs: dict, name: str, R: int, force) -> np.ndarray:
+    """Input ``name`` of one ply's ``inputs`` for a batch with other plies: as drawn, or the
+    ply's fixed value where it does not draw it (nominal segments, zero gamma0)."""
+    if name in inputs:
+        return np.asarray(inputs[name], dtype=float)
+    n, s = ply.solver.rings, ply.fabric.spacing_mm
+    shapes = {"seg_i": (R, 2 * n, 2 * n + 1), "seg_j": (R, 2 * n + 1, 2 * n), "gamma0": (R, 2 * n, 2 * n)}
+    if name in shapes:
+        return np.full(shapes[name], 0.0 if name == "gamma0" else s)
+    return np.full(R, ply.setting(name, force))
 
 
 def drape_inputs(study, realizations, inputs: dict, *, force=None, surface=None, material=None) -> xr.Dataset:

@@ -56,9 +56,10 @@ def parse_manifest(text: bytes, where) -> dict:
     if not isinstance(manifest, dict):
         raise corrupt_manifest(where, "not a JSON object")
     study, chunks, size = manifest.get("study"), manifest.get("chunks"), manifest.get("chunk_size")
-    if not (isinstance(study, dict) and all(isinstance(v, dict) for v in study.values())
+    if not (isinstance(study, dict) and all(isinstance(v, dict) or (isinstance(v, list) and all(
+            isinstance(p, dict) for p in v)) for v in study.values())
             and isinstance(study.get("study"), dict)):
-        raise corrupt_manifest(where, '"study" must be the study record, a table of sections')
+        raise corrupt_manifest(where, '"study" must be the study record, a table of sections (the ply book an array of them)')
     if not (isinstance(chunks, list) and all(isinstance(c, str) and CHUNK_NAME.match(c) for c in chunks)):
         raise corrupt_manifest(where, '"chunks" must be a list of chunk file names such as r0000000-0000063.nc')
     if isinstance(size, bool) or not isinstance(size, int) or size < 1:

@@ -24,6 +24,7 @@ from .design import write_design_report
 from ..experimental import ExperimentalPoints, read_experimental
 from .figures import plot_lines, plot_net
 from .html import rare_rows, write_report
+from .laminate import write_laminate_report
 from .sensitivity_figures import plot_sensitivity_bars, plot_sensitivity_map, plot_sensitivity_vs_force
 
 __all__ = [
@@ -45,4 +46,5 @@ __all__ = [
     "read_experimental",
     "ExperimentalPoints",
     "write_design_report",
+    "write_laminate_report",
 ]

@@ -13,11 +13,15 @@ from .convergence import convergence, samples_needed
 from .exceedance import clopper_pearson_interval, exceedance_probability, wilson_interval
 from .headline import STUDY_KINDS, dominant_factors, headline_numbers, study_kind, varying_factors, wrinkle_risk
 from .histogram import node_histogram
+from .laminate import fibre_deviation, laminate_lock, tool_lock_map
 from .lines import line_means, line_scalars, line_statistics, shear_at_points
 from .qoi import QOI_ATTRS, QOIS, SENSITIVITY_QOIS, check_qois, realization_qois
 from .summary import inner_outer_sd, mean_statistics, node_statistics, quantile_statistics, ring_sd
 
 __all__ = [
+    "fibre_deviation",
+    "laminate_lock",
+    "tool_lock_map",
     "node_statistics",
     "mean_statistics",
     "quantile_statistics",

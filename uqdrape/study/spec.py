@@ -42,7 +42,7 @@ FIELDS = tuple(FIELD_KEYS)
 SENSITIVITY_METHODS = ("sobol", "morris", "none")
 SECTIONS = (
     "study", "geometry", "fabric", "process", "solver",
-    "uncertainty", "sampling", "sensitivity", "design", "report", "output",
+    "uncertainty", "sampling", "sensitivity", "design", "report", "ply", "output",
 )
 #: Decision variables of a [design]: one total blank-holder force, or one force per sector.
 DESIGN_VARIABLES = ("force", "sectors")
@@ -192,6 +192,33 @@ class Uncertainty:
 
 
 @dataclass(frozen=True)
+class Ply:
+    """One ply of a laminate's ply book (``[[ply]]``): its ``name``; ``angle_deg``, its
+    fibre-1 angle from the rosette's 0 deg direction (``fabric.orientation_deg``); its card,
+    fibre spacing (mm) and seed point ``crossover`` (plan mm, the ply's first contact);
+    ``misalignment_sd_deg``, the sd of its own normal misalignment (deg; 0: none); and its
+    random fields by name (``RandomField``; a ply without its own takes the study's).
+    Each ply draws its own fields and misalignment."""
+
+    name: str
+    angle_deg: float
+    material: str
+    spacing_mm: float
+    crossover: tuple[float, float]
+    misalignment_sd_deg: float
+    fields: dict
+
+
+def ply_seed(seed: int, k: int) -> int:
+    """The seed ply ``k`` (0-based) of a study seeded ``seed`` draws its fields and its
+    misalignment with: a single-ply study with this seed, the ply's fabric and variability
+    drapes the ply's realisations bitwise (:meth:`Study.ply_study`)."""
+    import numpy as np
+
+    return int(np.random.SeedSequence([seed, k]).generate_state(1, np.uint64)[0] >> np.uint64(1))
+
+
+@dataclass(frozen=True)
 class Sampling:
     """The plan (``uqdrape.stochastic.sampling.STUDY_PLANS``); ``randomizations`` K of an
     rqmc plan (its realisations are K scramblings of one Sobol' net), else None."""
@@ -317,6 +344,9 @@ class Study:
     max_realizations: int | None = None
     #: [study] rare: a rare exceedance probability estimated after the run
     rare: Rare | None = None
+    #: the ply book of a laminate (``[[ply]]``, in stacking order, the first on the tool);
+    #: empty for a single ply
+    plies: tuple[Ply, ...] = ()
 
     @property
     def force_levels(self) -> tuple[float, ...]:
@@ -336,6 +366,28 @@ class Study:
         value = getattr(getattr(self, section), key)
         return value if index is None else value[index]
 
+    @property
+    def shared(self) -> Study:
+        """The laminate's process as a study of its own: the factors every ply of a
+        realisation shares (blank-holder force, friction, the rosette's angle as
+        ``orientation``), drawn from the study's seed; no fields, no plies."""
+        return dataclasses.replace(self, uncertainty=Uncertainty({}, self.uncertainty.factors), plies=())
+
+    def ply_study(self, k: int) -> Study:
+        """Ply ``k`` of a laminate as a single-ply study: the ply's card, spacing and seed
+        point, fibre 1 at the rosette's angle + the ply's angle, the ply's fields and
+        misalignment (a normal factor on ``orientation``) drawn with ``ply_seed``."""
+        ply = self.plies[k]
+        fabric = dataclasses.replace(self.fabric, material=ply.material, spacing_mm=ply.spacing_mm,
+                                     orientation_deg=self.fabric.orientation_deg + ply.angle_deg,
+                                     crossover=ply.crossover)
+        factors = {}
+        if ply.misalignment_sd_deg > 0:
+            factors["orientation"] = _stochastic.make_factor("normal", mean=fabric.orientation_deg,
+                                                             sd=ply.misalignment_sd_deg)
+        return dataclasses.replace(self, seed=ply_seed(self.seed, k), fabric=fabric,
+                                   uncertainty=Uncertainty(ply.fields, factors), plies=())
+
     def to_dict(self) -> dict:
         """The study with defaults filled, in the file's own layout, as plain JSON types
         (``json.dumps`` it for a netCDF attribute or a provenance record)."""
@@ -347,9 +399,7 @@ class Study:
                             if getattr(getattr(self, section), f.name) is not None}
         if not self.is_sweep:
             doc["process"]["blankholder_force_N"] = self.force_levels[0]
-        doc["uncertainty"] = {name: _plain({**dataclasses.asdict(f), "name": None, "params": None, "material": None,
-                                            **f.params})
-                              for name, f in self.uncertainty.fields.items()}
+        doc["uncertainty"] = fields_table(self.uncertainty.fields)
         for name, factor in self.uncertainty.factors.items():
             p = dict(factor.params)
             if "lower" in p:
@@ -358,6 +408,9 @@ class Study:
         if self.design is not None:
             doc["design"] = {f.name: _plain(getattr(self.design, f.name)) for f in dataclasses.fields(Design)
                              if getattr(self.design, f.name) is not None}
+        if self.plies:
+            doc["ply"] = [{**{f.name: _plain(getattr(ply, f.name)) for f in dataclasses.fields(Ply) if f.name != "fields"},
+                           "uncertainty": fields_table(ply.fields)} for ply in self.plies]
         doc["output"] = {"directory": str(self.output_dir), **({"float32": True} if self.float32 else {})}
         return doc
 
@@ -368,6 +421,12 @@ _PLAIN = ("fabric", "process", "solver", "sampling", "sensitivity", "report")
 _HEADER = tuple(f for f in dataclasses.fields(Study) if f.name in ("name", "seed", "realizations", "chunk_size",
                                                                     "description", "target", "max_realizations",
                                                                     "rare"))
+
+
+def fields_table(fields: dict) -> dict:
+    """Random fields by name in their study-file layout."""
+    return {name: _plain({**dataclasses.asdict(f), "name": None, "params": None, "material": None, **f.params})
+            for name, f in fields.items()}
 
 
 def _plain(value):
@@ -417,14 +476,20 @@ def from_dict(doc: dict, path) -> Study:
     force = process["blankholder_force_N"]
     process["blankholder_force_N"] = list(force) if isinstance(force, list) else [force]
     report = doc["report"]
-    fields, factors = {}, {}
-    for name, entry in doc["uncertainty"].items():
-        entry = dict(entry)
-        if name in FIELDS:
+    def random_fields(entries, material):
+        out = {}
+        for name, entry in entries.items():
+            entry = dict(entry)
             params = {k: entry.pop(k) for k in FIELD_KEYS[name]}
-            material = doc["fabric"]["material"] if name == "stitch_prestrain" else None
-            fields[name] = section(RandomField, entry, name=name, params=params, material=material)
-        else:
+            out[name] = section(RandomField, entry, name=name, params=params,
+                                material=material if name == "stitch_prestrain" else None)
+        return out
+
+    fields = random_fields({k: v for k, v in doc["uncertainty"].items() if k in FIELDS}, doc["fabric"]["material"])
+    factors = {}
+    for name, entry in doc["uncertainty"].items():
+        if name not in FIELDS:
+            entry = dict(entry)
             dist = entry.pop("dist")
             if "bounds" in entry:
                 entry["lower"], entry["upper"] = entry.pop("bounds")
@@ -450,4 +515,5 @@ def from_dict(doc: dict, path) -> Study:
         design=section(Design, doc["design"], rare=RareLimit(**doc["design"]["rare"]) if "rare" in doc["design"]
                        else None) if "design" in doc else None,
         float32=doc["output"].get("float32", False),
+        plies=tuple(section(Ply, p, fields=random_fields(p["uncertainty"], p["material"])) for p in doc.get("ply", ())),
     )

@@ -61,8 +61,8 @@ from ..schema import (BLANKHOLDER_MODELS, MAX_RINGS, MAX_TOLERANCE_DEG, MODES, Q
 from ..material.scatter import card_scatter
 from .spec import (CARD, DESIGN_OBJECTIVES, DESIGN_STATISTICS, DESIGN_VARIABLES, DIST_KEYS, FACTOR_SETTINGS, FIELD_KEYS,
                    FIELDS, RARE_QOIS, SECTIONS, SENSITIVITY_METHODS, TARGET_STATISTICS, Design, Fabric, Geometry,
-                   Process, RandomField, Rare, RareLimit, Report, Sampling, Sensitivity, Solver, Study, Target,
-                   Uncertainty, prestrain_map)
+                   Ply, Process, RandomField, Rare, RareLimit, Report, Sampling, Sensitivity, Solver, Study,
+                   Target, Uncertainty, fields_table, prestrain_map)
 
 
 class StudyError(FileFormatError):
@@ -101,6 +101,7 @@ KEYS = {
                "max_draw_in_mm", "rare"),
     "design.rare": ("qoi", "threshold", "max_probability", "cov", "max_drapes"),
     "report": ("histogram_nodes", "experimental_csv", "fixed_twin"),
+    "ply": ("name", "angle_deg", "material", "spacing_mm", "crossover", "misalignment_sd_deg", "uncertainty"),
     "output": ("directory", "float32"),
 }
 
@@ -239,20 +240,7 @@ def _geometry_section(src: _Source, doc: dict):
 
 def _fabric(src: _Source, doc: dict, mould) -> Fabric:
     t = Table(src, "fabric", doc.get("fabric", {}), KEYS["fabric"])
-    shipped = _material.available_materials()
-    hint = (f"material must be a shipped card ({', '.join(shipped)}) "
-            "or the path of a .toml/.csv card relative to the study file")
-    name = t.string("material", hint=hint)
-    if name in shipped:
-        material = name
-    elif Path(name).suffix.lower() in (".toml", ".csv"):
-        material = str(src.relative_file("fabric.material", name))
-    else:
-        t.invalid("material", hint)
-    try:
-        card = _material.load_material(material)
-    except ValueError as err:
-        t.invalid("material", str(err))
+    material, card = _material_card(t, REQUIRED)
     spacing = t.number("spacing_mm", ge=SPACING_RANGE_MM[0], lt=SPACING_RANGE_MM[1])
     orientation = t.number("orientation_deg", 0.0)
     if not SOLVER_INPUTS["orientation"].admits(orientation):
@@ -278,6 +266,27 @@ def _fabric(src: _Source, doc: dict, mould) -> Fabric:
         except ValueError as err:
             t.invalid("imbalance_Nm", str(err))
     return Fabric(material, spacing, orientation, pre_shear, crossover, skew, imbalance)
+
+
+def _material_card(t: Table, default) -> tuple:
+    """(material as a Study holds it, its loaded card) of ``t``'s ``material`` key: a
+    shipped card's name or a card file relative to the study file."""
+    shipped = _material.available_materials()
+    hint = (f"material must be a shipped card ({', '.join(shipped)}) "
+            "or the path of a .toml/.csv card relative to the study file")
+    name = t.string("material", default, hint=hint)
+    if name in shipped:
+        material = name
+    elif Path(name).suffix.lower() in (".toml", ".csv") and t.has("material"):
+        material = str(t.doc.relative_file(t.dotted("material"), name))
+    elif not t.has("material"):
+        material = name  # the fabric's, checked there
+    else:
+        t.invalid("material", hint)
+    try:
+        return material, _material.load_material(material)
+    except ValueError as err:
+        t.invalid("material", str(err))
 
 
 def _process(src: _Source, doc: dict) -> Process:
@@ -327,9 +336,10 @@ def _solver(src: _Source, doc: dict) -> Solver:
     return solver
 
 
-def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, material: str) -> RandomField:
-    section = f"uncertainty.{name}"
-    t = Table(src, section, data, KEYS[section])
+def _field(src: _Source, name: str, data, rings: int, spacing_mm: float, material: str,
+           section: str | None = None) -> RandomField:
+    section = section or f"uncertainty.{name}"
+    t = Table(src, section, data, KEYS[f"uncertainty.{name}"])
     if name == "spacing":
         params = {"cv": t.number("cv")}  # its range is checked by SpacingInput
     elif name == "zero_angle":
@@ -697,6 +707,79 @@ def _output(src: _Source, doc: dict, name: str) -> tuple[Path | str, bool]:
     return location(directory), float32
 
 
+#: Study-level factors a laminate's plies share in each realisation: the process, and the
+#: rosette's angle (``orientation``, a common rosette error); a ply's own misalignment is
+#: its ``misalignment_sd_deg``.
+SHARED_FACTORS = ("blankholder_force", "friction", "orientation")
+
+
+def _plies(src: _Source, doc: dict, fabric: Fabric, solver: Solver, uncertainty: Uncertainty, mould,
+           refused: dict) -> tuple[Ply, ...]:
+    """The ply book ``[[ply]]`` (empty for a single-ply study). ``refused`` maps dotted keys
+    present in the file to what a laminate does not combine with (checked first)."""
+    if "ply" not in doc:
+        return ()
+    data = doc["ply"]
+    if not isinstance(data, list) or not data or not all(isinstance(p, dict) for p in data):
+        src.invalid("ply", data, "the ply book is an array of tables: one [[ply]] per ply, in stacking order "
+                                 "(the first on the tool)")
+    for key, why in refused.items():
+        src.fail(f"{key} is not supported in a laminate (a study with [[ply]]): {why}", key)
+    for name in uncertainty.factors:
+        if name not in SHARED_FACTORS:
+            src.fail(f"uncertainty.{name} is not supported in a laminate: its plies share only "
+                     f"{', '.join(SHARED_FACTORS)} (orientation: the rosette's angle); give each ply its own "
+                     "misalignment_sd_deg or fields", f"uncertainty.{name}")
+    plies, seen = [], {}
+    for k, entry in enumerate(data):
+        name = Table(src, f"ply[{k}]", entry).string(
+            "name", hint="name must be a non-empty string of letters, digits, '-' and '_'", valid=_NAME_RE.match)
+        if name in seen:
+            src.invalid(f"ply[{k}].name", name, f"ply[{seen[name]}] has the same name; ply names must differ")
+        seen[name] = k
+        plies.append(_ply(src, Table(src, f"ply.{name}", entry, KEYS["ply"]), name, fabric, solver, uncertainty,
+                          mould))
+    return tuple(plies)
+
+
+def _ply(src: _Source, t: Table, name: str, fabric: Fabric, solver: Solver, uncertainty: Uncertainty,
+         mould) -> Ply:
+    """One [[ply]]: its keys default to the [fabric]'s, its fields to the study's."""
+    angle = t.number("angle_deg")
+    material, card = _material_card(t, fabric.material)
+    locked = card.blank_shear_error(fabric.pre_shear_deg)
+    if locked:
+        t.invalid("material", f"the blank's pre-shear fabric.pre_shear_deg = {fabric.pre_shear_deg:g} deg is {locked}")
+    spacing = t.number("spacing_mm", fabric.spacing_mm, ge=SPACING_RANGE_MM[0], lt=SPACING_RANGE_MM[1])
+    crossover = t.numbers("crossover", fabric.crossover, length=2,
+                          hint="crossover (the ply's seed point) must be two numbers [x, y] in mm")
+    off = mould.crossover_error(*crossover)
+    if off:
+        src.invalid(t.dotted("crossover"), list(crossover), f"the ply's seed point is off the tool: {off}")
+    sd = t.number("misalignment_sd_deg", 0.0, ge=0)
+    reach = [fabric.orientation_deg + angle + s * REACH_SD * sd for s in (-1, 1)]
+    if not all(SOLVER_INPUTS["orientation"].admits(a) for a in reach):
+        t.invalid("misalignment_sd_deg", f"the ply's angle reaches [{reach[0]:g}, {reach[1]:g}] deg at {REACH_SD:g} sd; "
+                                         f"orientation {SOLVER_INPUTS['orientation'].describe_range()}")
+    own = t.table("uncertainty", FIELDS)
+    if "stitch_prestrain" in own.data and "zero_angle" in own.data:
+        own.invalid("stitch_prestrain", "the stitch pre-strain sets each cell's zero-energy angle itself: give one "
+                                        "of zero_angle and stitch_prestrain")
+    given = own.data or {f: _plain_field(uncertainty.fields[f]) for f in uncertainty.fields}
+    fields = {f: _field(src, f, entry, solver.rings, spacing, material,
+                        own.dotted(f) if own.data else f"uncertainty.{f}") for f, entry in given.items()}
+    for field in fields.values():
+        if field.sd_dof is not None or field.length_log_sd is not None:
+            src.fail(f"{field.name}: a sd or length drawn per realisation (sd_dof, length_log_sd) is not supported "
+                     "in a laminate; remove it", f"uncertainty.{field.name}")
+    return Ply(name, angle, material, spacing, crossover, sd, fields)
+
+
+def _plain_field(field: RandomField) -> dict:
+    """A validated field as its study-file table (to check it again for a ply's card and spacing)."""
+    return next(iter(fields_table({field.name: field}).values()))
+
+
 # ----------------------------------------------------------------------------- public API
 
 
@@ -734,7 +817,17 @@ def load_study(path, overrides: dict | None = None) -> Study:
     _target_rules(src, head, sampling, sensitivity, design)
     _rare_rules(src, head, uncertainty, design)
     report = _report(src, doc, solver.rings, uncertainty, design)
+    refused = {key: why for key, present, why in (
+        ("sensitivity.method", sensitivity.method != "none", "a sensitivity sample is of one ply; remove it"),
+        ("design", design is not None, "a blank-holder design is of one ply; remove [design]"),
+        ("study.target", "target" in head, "give a number of realizations"),
+        ("study.rare", "rare" in head, "a rare probability is of one ply; remove it"),
+        ("fabric.imbalance_Nm", fabric.imbalance_Nm is not None, "each ply's card is used as it is; remove it"),
+        ("uncertainty", any(f.sd_dof is not None or f.length_log_sd is not None
+                            for f in uncertainty.fields.values()),
+         "a sd or length drawn per realisation (sd_dof, length_log_sd) is of one ply; remove it")) if present}
+    plies = _plies(src, doc, fabric, solver, uncertainty, mould, refused)
     output_dir, float32 = _output(src, doc, head["name"])  # checked last, as the sections are ordered
     return Study(path=path, **head, geometry=geometry, fabric=fabric, process=process, solver=solver,
                  uncertainty=uncertainty, sampling=sampling, sensitivity=sensitivity, report=report,
-                 output_dir=output_dir, design=design, float32=float32)
+                 output_dir=output_dir, design=design, float32=float32, plies=plies)

@@ -34,14 +34,8 @@ def describe_study(s) -> str:
         material += f" with dN(30 deg) = {s.fabric.imbalance_Nm:g} N/m"
     levels_ = ", ".join(f"{f:g}" for f in s.force_levels)
     force = f"sweep {levels_} N" if s.is_sweep else f"{levels_} N"
-    varying = []
-    for name, f in s.uncertainty.fields.items():
-        what = ", ".join(f"{k} {v:g}" for k, v in f.params.items())
-        length = f", L = {f.length_mm[0]:g} x {f.length_mm[1]:g} mm" if f.length_mm else ""
-        drawn = "".join(f", {key} {getattr(f, key):g}" for key in ("sd_dof", "length_log_sd")
-                        if getattr(f, key, None) is not None)
-        varying.append(f"{name} field ({what}; {f.correlation}{length}{drawn})")
-    varying += [f"{name} ~ {factor.describe()}" for name, factor in s.uncertainty.factors.items()]
+    varying = _fields(s.uncertainty.fields) + [f"{name} ~ {factor.describe()}"
+                                               for name, factor in s.uncertainty.factors.items()]
     sens = s.sensitivity.method
     if sens != "none":
         sens += f", {s.sensitivity.base_samples} base samples"
@@ -53,4 +47,31 @@ def describe_study(s) -> str:
         f"  varying: {'; '.join(varying) if varying else 'nothing (deterministic)'}",
         f"  sensitivity: {sens}; output: {s.output_dir}"
         + (" and its fixed-parameter twin in fixed/ (twice the drapes)" if s.report.fixed_twin else ""),
+        *_ply_book(s),
     ])
+
+
+def _fields(fields: dict) -> list[str]:
+    """One phrase per random field."""
+    out = []
+    for name, f in fields.items():
+        what = ", ".join(f"{k} {v:g}" for k, v in f.params.items())
+        length = f", L = {f.length_mm[0]:g} x {f.length_mm[1]:g} mm" if f.length_mm else ""
+        drawn = "".join(f", {key} {getattr(f, key):g}" for key in ("sd_dof", "length_log_sd")
+                        if getattr(f, key, None) is not None)
+        out.append(f"{name} field ({what}; {f.correlation}{length}{drawn})")
+    return out
+
+
+def _ply_book(s) -> list[str]:
+    """A laminate's plies, one line each (the study's lines then describe the rosette and
+    the process every ply shares)."""
+    if not s.plies:
+        return []
+    lines = [f"  laminate of {len(s.plies)} plies, rosette at {s.fabric.orientation_deg:g} deg, formed one by one "
+             "(no inter-ply friction, no ply thickness):"]
+    for p in s.plies:
+        own = _fields(p.fields) + ([f"misalignment sd {p.misalignment_sd_deg:g} deg"] if p.misalignment_sd_deg else [])
+        lines.append(f"    {p.name}: {p.angle_deg:+g} deg, {Path(p.material).name}, {p.spacing_mm:g} mm, seed point "
+                     f"({p.crossover[0]:g}, {p.crossover[1]:g}) mm; {'; '.join(own) or 'no own variability'}")
+    return lines

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..drape import placement_failures, unplaced_error
 from ..errors import ParameterError
-from ..ensemble import inputs_from_rows, placement_status, sampled_inputs
+from ..ensemble import inputs_from_rows, placement_status, ply_inputs, sampled_inputs
 from ..ensemble import at
 from ..study import load_study, study_error
 
@@ -120,17 +120,29 @@ def check_placement(study, realization: int = 0, force: float | None = None, sam
     NaNs (the crossover off the mould, a net larger than the mould). Within the budget,
     more than WARN_UNPLACED of them is a warning on stderr (unless ``quiet``)."""
     r = np.arange(realization, realization + 1)
-    inputs = sampled_inputs(study, r) if sample_rows is None else inputs_from_rows(study, sample_rows[r])
     force = study.force_levels[0] if force is None else force
+    if study.plies:  # each ply from its seed point: a ply that cannot be placed is named
+        for k, ply in enumerate(study.plies):
+            status = placement_status(study.ply_study(k), r, ply_inputs(study, k, r), force=force)[0]
+            _placed(study, status, realization, f"ply.{ply.name}.crossover", list(ply.crossover), quiet,
+                    f"ply {ply.name}: ")
+        return
+    inputs = sampled_inputs(study, r) if sample_rows is None else inputs_from_rows(study, sample_rows[r])
     status = placement_status(study, r, inputs, force=force)[0]
+    _placed(study, status, realization, "solver.rings", study.solver.rings, quiet)
+
+
+def _placed(study, status, realization: int, key: str, value, quiet: bool, what: str = "") -> None:
+    """Warn of, or refuse (``key = value`` blamed), the unplaced nodes of ``status``."""
     failed, why = placement_failures(status)
     if not quiet and WARN_UNPLACED < failed <= study.solver.failure_budget:
-        print(f"{study.name}: warning: {failed:.0%} of the nodes of realisation {realization} cannot be placed "
+        print(f"{study.name}: warning: {what}{failed:.0%} of the nodes of realisation {realization} cannot be placed "
               f"({why}); within solver.failure_budget = {study.solver.failure_budget:g}, so the run goes on "
               "and those nodes are NaN in its results", file=sys.stderr)
-    refused = unplaced_error(status, study.solver.failure_budget, "solver.failure_budget", f"realisation {realization}")
+    refused = unplaced_error(status, study.solver.failure_budget, "solver.failure_budget",
+                             f"{what}realisation {realization}")
     if refused:
-        raise study_error(study.path, "solver.rings", study.solver.rings, refused)
+        raise study_error(study.path, key, value, refused)
 
 
 def run_preflight(study, output_dir, *, chunk_size: int | None = None, sample_rows=None, quiet: bool = False):

@@ -35,7 +35,7 @@ import xarray as xr
 from ..design import DESIGN_FILE, EVALUATIONS, Evaluator, drape_design, optimise, problem, result_dataset
 from ..ensemble import (Progress, at, local_pool, open_ensemble, read_manifest, reach_scheduler, run_ensemble,
                         sample_columns)
-from ..report import write_design_report, write_report
+from ..report import write_design_report, write_laminate_report, write_report
 from ..sensitivity import map_indices, qoi_indices, sensitivity_sample
 from ..stats import SENSITIVITY_QOIS, realization_qois
 from ..study import SENSITIVITY_METHODS, Study, from_dict, identity, load_study
@@ -266,8 +266,12 @@ def run_report(output_dir, out_dir=None, formats=()) -> Path | str:
     report = Path(out_dir)
     if design is not None:
         return write_design_report(ds, report, surface=study.geometry.build_mould(), formats=formats)
-    sensitivity = open_sensitivity(output_dir)
     manifest = read_manifest(output_dir)
+    if study.plies:
+        return write_laminate_report(ds, report, title=study.name, description=study.description or None,
+                                     study_text=ds.attrs.get("study_toml"), wall_time_s=manifest.get("wall_time_s"),
+                                     formats=formats)
+    sensitivity = open_sensitivity(output_dir)
     target = manifest.get("target") or {}  # a target run: what stopped it, for the page's attributes
     ds.attrs.update({f"target_{k}": v for k, v in target.items() if k not in ("forces", "rounds")})
     if target:
