@@ -102,6 +102,26 @@ def _header(prefix: str, source: str, what: list[str]) -> list[str]:
     return [f"{prefix} {line}" for line in lines]
 
 
+#: The distribution table of the yarn orientations (two coordinates a row).
+ABAQUS_TABLE = "*DISTRIBUTION TABLE, NAME=UQDRAPE_FIBRE_TABLE"
+
+
+def abaqus_orientations(prefix: str, labels: np.ndarray, yarn1: np.ndarray, yarn2: np.ndarray) -> list[str]:
+    """The ``*DISTRIBUTION`` lines (on ``ABAQUS_TABLE``) and ``*ORIENTATION`` lines
+    ``PREFIX_YARN1_ORIENTATION`` (local 1 = ``yarn1`` (M, 3), local 2 towards ``yarn2``) and
+    ``PREFIX_YARN2_ORIENTATION`` (local 1 = ``yarn2``, local 2 = -``yarn1``) of the elements
+    ``labels`` (see the module doc)."""
+    table = ABAQUS_TABLE.rpartition("=")[2]
+    lines = []
+    for name, a, b, default in ((f"{prefix}_YARN2", yarn2, -yarn1, ", 0.0, 1.0, 0.0, -1.0, 0.0, 0.0"),
+                                (f"{prefix}_YARN1", yarn1, yarn2, ", 1.0, 0.0, 0.0, 0.0, 1.0, 0.0")):
+        lines += [f"*DISTRIBUTION, NAME={name}, LOCATION=ELEMENT, TABLE={table}", default]
+        lines += [", ".join([str(label)] + [repr(float(x)) for x in (*a[k], *b[k])]) for k, label in enumerate(labels)]
+    for name in (f"{prefix}_YARN1", f"{prefix}_YARN2"):
+        lines += [f"*ORIENTATION, NAME={name}_ORIENTATION, DEFINITION=COORDINATES, SYSTEM=RECTANGULAR", name]
+    return lines
+
+
 def abaqus(tmp: Path, cards) -> None:
     """The Abaqus include (see the module doc)."""
     v, labels = cards.values, cards.labels
@@ -112,13 +132,7 @@ def abaqus(tmp: Path, cards) -> None:
         "<t/2>, 3, <UD material>, UQDRAPE_YARN1_ORIENTATION",
         "<t/2>, 3, <UD material>, UQDRAPE_YARN2_ORIENTATION",
         "vectors: unit, global axes, in the element's plane; default rows (global x, y): elements not in this mesh"])
-    lines += ["*DISTRIBUTION TABLE, NAME=UQDRAPE_FIBRE_TABLE", "COORD3D, COORD3D"]
-    for name, a, b, default in (("UQDRAPE_YARN2", v["yarn2"], -v["yarn1"], ", 0.0, 1.0, 0.0, -1.0, 0.0, 0.0"),
-                                ("UQDRAPE_YARN1", v["yarn1"], v["yarn2"], ", 1.0, 0.0, 0.0, 0.0, 1.0, 0.0")):
-        lines += [f"*DISTRIBUTION, NAME={name}, LOCATION=ELEMENT, TABLE=UQDRAPE_FIBRE_TABLE", default]
-        lines += [", ".join([str(label)] + [repr(float(x)) for x in (*a[k], *b[k])]) for k, label in enumerate(labels)]
-    for name in ("UQDRAPE_YARN1", "UQDRAPE_YARN2"):
-        lines += [f"*ORIENTATION, NAME={name}_ORIENTATION, DEFINITION=COORDINATES, SYSTEM=RECTANGULAR", name]
+    lines += [ABAQUS_TABLE, "COORD3D, COORD3D"] + abaqus_orientations("UQDRAPE", labels, v["yarn1"], v["yarn2"])
     unmapped = labels[v["map_status"] != 0]
     if unmapped.size:
         lines.append(f"** {unmapped.size} elements not on the draped net: yarn 1 = e1, yarn 2 = e2 of their frame")
@@ -126,6 +140,12 @@ def abaqus(tmp: Path, cards) -> None:
         lines += [", ".join(map(str, unmapped[a:a + PER_LINE])) for a in range(0, unmapped.size, PER_LINE)]
     lines += field_table("**", v, labels)
     tmp.write_text("\n".join(lines) + "\n", encoding="ascii")
+
+
+def lsdyna_nodes(points: np.ndarray) -> list[str]:
+    """The ``*NODE`` lines of the mesh ``points`` (P, 3) mm, numbered 1.. in order."""
+    return ["*NODE", "$#   nid               x               y               z"] + [
+        f"{k + 1:8d}{x:16.9e}{y:16.9e}{z:16.9e}" for k, (x, y, z) in enumerate(points)]
 
 
 def lsdyna(tmp: Path, cards) -> None:
@@ -137,8 +157,7 @@ def lsdyna(tmp: Path, cards) -> None:
          f"yarn 2 (eid = label + {offset}); BETA = the yarn angle, deg, AOPT = 0"),
         ("give parts 1 and 2 a *SECTION_SHELL of half the ply thickness and a unidirectional material; "
          "nodes are 1-based positions in the mesh file")])
-    lines += ["*NODE", "$#   nid               x               y               z"]
-    lines += [f"{k + 1:8d}{x:16.9e}{y:16.9e}{z:16.9e}" for k, (x, y, z) in enumerate(cards.points)]
+    lines += lsdyna_nodes(cards.points)
     lines += ["*ELEMENT_SHELL_BETA", "$#   eid     pid      n1      n2      n3      n4",
               "$#          thic1           thic2           thic3           thic4            beta"]
     for pid, shift, theta in ((1, 0, v["theta1"]), (2, offset, v["theta2"])):
@@ -171,13 +190,19 @@ def nastran_real(x: float) -> str:
     raise ValueError(f"{x!r} does not fit a Nastran large field")
 
 
-def _large(name: str, fields: list[str]) -> list[str]:
+def large(name: str, fields: list[str]) -> list[str]:
     """A large-field entry: ``name*`` and 4 fields of 16 characters a line, continuation
     lines starting ``*``."""
     lines = []
     for a in range(0, len(fields), 4):
         lines.append(f"{(name + '*') if a == 0 else '*':8s}" + "".join(f"{f:>16s}" for f in fields[a:a + 4]))
     return lines
+
+
+def nastran_grids(points: np.ndarray) -> list[str]:
+    """The ``GRID*`` entries of the mesh ``points`` (P, 3) mm, numbered 1.. in order."""
+    return [line for k, p in enumerate(points)
+            for line in large("GRID", [str(k + 1), "", *map(nastran_real, p)])]
 
 
 def nastran(tmp: Path, cards) -> None:
@@ -190,15 +215,14 @@ def nastran(tmp: Path, cards) -> None:
          f"{offset}); material axis by MCID = EID, a CORD2R whose x axis is the yarn, z the element normal"),
         ("give PID 1 and 2 a PSHELL of half the ply thickness and a unidirectional material; "
          "grids are 1-based positions in the mesh file")])
-    for k, (x, y, z) in enumerate(cards.points):
-        lines += _large("GRID", [str(k + 1), "", nastran_real(x), nastran_real(y), nastran_real(z)])
+    lines += nastran_grids(cards.points)
     for pid, shift, yarn in ((1, 0, v["yarn1"]), (2, offset, v["yarn2"])):
         for k, label in enumerate(labels):
             eid, n = int(label) + shift, [str(int(g) + 1) for g in cards.corners[k] if g >= 0]
-            lines += _large("CORD2R", [str(eid), "0", "0.0", "0.0", "0.0",
+            lines += large("CORD2R", [str(eid), "0", "0.0", "0.0", "0.0",
                                        *map(nastran_real, e3[k]), *map(nastran_real, yarn[k])])
             kind = "CQUAD4" if len(n) == 4 else "CTRIA3"
-            lines += _large(kind, [str(eid), str(pid), *n, str(eid)])
+            lines += large(kind, [str(eid), str(pid), *n, str(eid)])
     unmapped = labels[v["map_status"] != 0]
     if unmapped.size:
         lines.append(f"$ {unmapped.size} elements of each layer not on the draped net (default axes):")
