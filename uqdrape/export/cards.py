@@ -92,18 +92,24 @@ def layer_offset(labels: np.ndarray) -> int:
     return 10 ** max(1, math.ceil(math.log10(int(labels.max()) + 1)))
 
 
-def _header(prefix: str, source: str, what: list[str]) -> list[str]:
+#: The header lines on the single drape's fields, after the element frame's.
+FIELD_NOTES = ("unmapped elements (map_status 1 off the net, 2 off the mould): theta1 = 0, theta2 = 90, shear 0",
+               "area_ratio = cos(shear): an inextensible fabric's sheared area over its flat area (thickness at "
+               "constant fibre volume x 1/area_ratio)")
+
+
+def header(prefix: str, source: str, what: list[str], notes=FIELD_NOTES) -> list[str]:
+    """The comment lines (``prefix``) opening a file: ``source``, the lines ``what``, the
+    element frame and the ``notes``."""
     lines = [f"fibre orientations of {source}, written by uqdrape {__version__}", *what,
              ("element frame: e3 = element normal by node order, e1 = edge node 1 -> node 2 made orthogonal to e3, "
-              "e2 = e3 x e1; angles from e1 about e3"),
-             "unmapped elements (map_status 1 off the net, 2 off the mould): theta1 = 0, theta2 = 90, shear 0",
-             ("area_ratio = cos(shear): an inextensible fabric's sheared area over its flat area (thickness at "
-              "constant fibre volume x 1/area_ratio)")]
+              "e2 = e3 x e1; angles from e1 about e3"), *notes]
     return [f"{prefix} {line}" for line in lines]
 
 
-#: The distribution table of the yarn orientations (two coordinates a row).
-ABAQUS_TABLE = "*DISTRIBUTION TABLE, NAME=UQDRAPE_FIBRE_TABLE"
+#: The distribution table of the yarn orientations (two coordinates a row), its name and lines.
+ABAQUS_TABLE = "UQDRAPE_FIBRE_TABLE"
+ABAQUS_TABLE_LINES = [f"*DISTRIBUTION TABLE, NAME={ABAQUS_TABLE}", "COORD3D, COORD3D"]
 
 
 def abaqus_orientations(prefix: str, labels: np.ndarray, yarn1: np.ndarray, yarn2: np.ndarray) -> list[str]:
@@ -111,33 +117,48 @@ def abaqus_orientations(prefix: str, labels: np.ndarray, yarn1: np.ndarray, yarn
     ``PREFIX_YARN1_ORIENTATION`` (local 1 = ``yarn1`` (M, 3), local 2 towards ``yarn2``) and
     ``PREFIX_YARN2_ORIENTATION`` (local 1 = ``yarn2``, local 2 = -``yarn1``) of the elements
     ``labels`` (see the module doc)."""
-    table = ABAQUS_TABLE.rpartition("=")[2]
     lines = []
     for name, a, b, default in ((f"{prefix}_YARN2", yarn2, -yarn1, ", 0.0, 1.0, 0.0, -1.0, 0.0, 0.0"),
                                 (f"{prefix}_YARN1", yarn1, yarn2, ", 1.0, 0.0, 0.0, 0.0, 1.0, 0.0")):
-        lines += [f"*DISTRIBUTION, NAME={name}, LOCATION=ELEMENT, TABLE={table}", default]
+        lines += [f"*DISTRIBUTION, NAME={name}, LOCATION=ELEMENT, TABLE={ABAQUS_TABLE}", default]
         lines += [", ".join([str(label)] + [repr(float(x)) for x in (*a[k], *b[k])]) for k, label in enumerate(labels)]
     for name in (f"{prefix}_YARN1", f"{prefix}_YARN2"):
         lines += [f"*ORIENTATION, NAME={name}_ORIENTATION, DEFINITION=COORDINATES, SYSTEM=RECTANGULAR", name]
     return lines
 
 
+def elset(name: str, labels: np.ndarray) -> list[str]:
+    """An Abaqus ``*ELSET`` of the element ``labels``."""
+    return [f"*ELSET, ELSET={name}"] + [", ".join(map(str, labels[a:a + PER_LINE]))
+                                        for a in range(0, labels.size, PER_LINE)]
+
+
+def shell_set(sid: int, ids: np.ndarray) -> list[str]:
+    """An LS-DYNA ``*SET_SHELL_LIST`` ``sid`` of the element ``ids``."""
+    return ["*SET_SHELL_LIST", f"{sid:10d}"] + ["".join(f"{e:10d}" for e in ids[a:a + PER_SET_LINE])
+                                                 for a in range(0, ids.size, PER_SET_LINE)]
+
+
+def comment_list(prefix: str, ids: np.ndarray) -> list[str]:
+    """The element ``ids`` as comment lines (``prefix``)."""
+    return [f"{prefix} " + " ".join(map(str, ids[a:a + PER_LINE])) for a in range(0, ids.size, PER_LINE)]
+
+
 def abaqus(tmp: Path, cards) -> None:
     """The Abaqus include (see the module doc)."""
     v, labels = cards.values, cards.labels
-    lines = _header("**", cards.source, [
+    lines = header("**", cards.source, [
         "element labels: those of an Abaqus input mesh, else 1-based positions in the mesh file",
         "two orientations, one per yarn; use each for a ply of half the ply thickness, e.g.",
         "*SHELL SECTION, ELSET=<preform>, COMPOSITE",
         "<t/2>, 3, <UD material>, UQDRAPE_YARN1_ORIENTATION",
         "<t/2>, 3, <UD material>, UQDRAPE_YARN2_ORIENTATION",
         "vectors: unit, global axes, in the element's plane; default rows (global x, y): elements not in this mesh"])
-    lines += [ABAQUS_TABLE, "COORD3D, COORD3D"] + abaqus_orientations("UQDRAPE", labels, v["yarn1"], v["yarn2"])
+    lines += ABAQUS_TABLE_LINES + abaqus_orientations("UQDRAPE", labels, v["yarn1"], v["yarn2"])
     unmapped = labels[v["map_status"] != 0]
     if unmapped.size:
         lines.append(f"** {unmapped.size} elements not on the draped net: yarn 1 = e1, yarn 2 = e2 of their frame")
-        lines.append("*ELSET, ELSET=UQDRAPE_UNMAPPED")
-        lines += [", ".join(map(str, unmapped[a:a + PER_LINE])) for a in range(0, unmapped.size, PER_LINE)]
+        lines += elset("UQDRAPE_UNMAPPED", unmapped)
     lines += field_table("**", v, labels)
     tmp.write_text("\n".join(lines) + "\n", encoding="ascii")
 
@@ -152,7 +173,7 @@ def lsdyna(tmp: Path, cards) -> None:
     """The LS-DYNA keyword file (see the module doc)."""
     v, labels = cards.values, cards.labels
     offset = layer_offset(labels)
-    lines = ["*KEYWORD"] + _header("$", cards.source, [
+    lines = ["*KEYWORD"] + header("$", cards.source, [
         (f"two layers of *ELEMENT_SHELL_BETA sharing the nodes: part 1 = yarn 1 (eid = element label), part 2 = "
          f"yarn 2 (eid = label + {offset}); BETA = the yarn angle, deg, AOPT = 0"),
         ("give parts 1 and 2 a *SECTION_SHELL of half the ply thickness and a unidirectional material; "
@@ -170,8 +191,7 @@ def lsdyna(tmp: Path, cards) -> None:
     if unmapped.size:
         ids = np.concatenate([unmapped, unmapped + offset])
         lines += [f"$ {unmapped.size} elements of each layer not on the draped net: BETA the default",
-                  "*SET_SHELL_LIST", f"{1:10d}"]
-        lines += ["".join(f"{e:10d}" for e in ids[a:a + PER_SET_LINE]) for a in range(0, ids.size, PER_SET_LINE)]
+                  *shell_set(1, ids)]
     lines += field_table("$", v, labels) + ["*END"]
     tmp.write_text("\n".join(lines) + "\n", encoding="ascii")
 
@@ -210,7 +230,7 @@ def nastran(tmp: Path, cards) -> None:
     v, labels = cards.values, cards.labels
     offset = layer_offset(labels)
     e3 = cards.frame[2]
-    lines = _header("$", cards.source, [
+    lines = header("$", cards.source, [
         (f"two layers sharing the grids: PID 1 = yarn 1 (EID = element label), PID 2 = yarn 2 (EID = label + "
          f"{offset}); material axis by MCID = EID, a CORD2R whose x axis is the yarn, z the element normal"),
         ("give PID 1 and 2 a PSHELL of half the ply thickness and a unidirectional material; "
@@ -226,7 +246,7 @@ def nastran(tmp: Path, cards) -> None:
     unmapped = labels[v["map_status"] != 0]
     if unmapped.size:
         lines.append(f"$ {unmapped.size} elements of each layer not on the draped net (default axes):")
-        lines += ["$ " + " ".join(map(str, unmapped[a:a + PER_LINE])) for a in range(0, unmapped.size, PER_LINE)]
+        lines += comment_list("$", unmapped)
     lines += field_table("$", v, labels)
     tmp.write_text("\n".join(lines) + "\n", encoding="ascii")
 
