@@ -21,13 +21,17 @@ Written per force level (``STEM[-LEVEL]``; the level's label as ``uqdrape export
   of each yarn angle over the realisations that reach it (about their axial mean);
 - ``realizations`` = N Monte Carlo decks ``-rNNNN-laminate.*``, the same files with the
   angles of the ensemble's first N realisations (NNNN its realisation index);
-- ``-laminate.nc`` (CF-1.8): the samples ``yarn_angle`` (realization, ply, yarn, element),
-  the nominal, the fraction of realisations reaching each element, and their
-  Karhunen-Loeve (PCA) reduction: the SVD of the centred samples over the (ply, yarn,
-  element) entries that every realisation reaches, the fewest leading modes holding the
-  fraction ``variance`` of the total variance, with their unit mode shapes, eigenvalues
-  (deg^2), variance fractions and the samples' scores (deg); samples = mean + scores x
-  modes, to within the variance left out.
+- ``-laminate.nc`` (CF-1.8): the samples ``yarn_angle`` (realization, ply, yarn, element;
+  a ``yarn`` dimension, as a woven ply's two yarns scatter apart when it shears), the
+  nominal, the fraction of realisations reaching each element, and their Karhunen-Loeve
+  (PCA) reduction: the SVD of the centred samples over the (ply, yarn, element) entries
+  that every realisation reaches (an entry some drape misses has no sample to centre),
+  the fewest leading modes holding the fraction ``variance`` of the total variance, with
+  their unit mode shapes, eigenvalues (deg^2), variance fractions and the samples'
+  scores (deg); samples = mean + scores x modes, to within the variance left out.
+
+The samples are held in memory: P x 2 x R x M floats (4 plies, 1000 drapes, 10^5
+elements: 6.4 GB), and each drape is mapped in turn.
 
 Decisions, per solver (each ply a woven or non-crimp fabric: its two yarns are two
 unidirectional layers of half the ply thickness, yarn 1 first, as ``cards`` does):
@@ -40,12 +44,14 @@ unidirectional layers of half the ply thickness, yarn 1 first, as ``cards`` does
   thickness and angle B per layer (``*PART_COMPOSITE`` has one angle per part, and two
   layers of ``*ELEMENT_SHELL_BETA`` would not stack through the thickness); B is from
   the element's n1 -> n2 edge: give the materials (MID = K) AOPT = 0 and part 1 a
-  ``*SECTION_SHELL``. Written to the keyword manual's card layout (10-character fields,
-  B to 1e-5 deg), not run through LS-DYNA here.
+  ``*SECTION_SHELL``. Its fields are 10 characters: B to 1e-5 deg.
 - Nastran: a ``PCOMP`` per element (PID = element id; a PCOMP's THETA is per property, so
   per-element angles need per-element properties), its THETA from the material x axis
   that ``MCID`` sets: a ``CORD2R`` per element (CID = element id) whose x axis is e1 and
   z axis e3, so no element x-axis convention is involved. MID = K.
+
+The cards follow each solver's manual; no deck was run through a solver here (the tests
+read them back with parsers of their own).
 
 Layers run from the tool outwards: ply 1 (the first in the ply book, on the tool) at the
 bottom of an element whose normal e3 points away from the tool, at the top of one whose
