@@ -347,3 +347,19 @@ def test_bad_input_is_a_one_line_error_naming_the_argument(case, tmp_path):
     assert_one_line_error(str(err.value))
     assert word in str(err.value)
     assert not list(tmp_path.glob("out*"))
+
+
+def test_each_force_level_gets_its_own_files(tmp_path):
+    """Two force levels (0 and 126 N) concatenated along blankholder_force: files per level,
+    labelled as ``uqdrape export`` labels levels, each with its own level's angles."""
+    surface = build("plate", half_width=300.0)
+    ds = xr.concat([laminate(surface, 5.0, 4, angles=(0.0, 90.0), rosette=rosette, force=force)
+                    for force, rosette in ((0.0, 0.0), (126.0, 30.0))], dim=schema.FORCE)
+    mesh = grid_mesh(tmp_path / "part.inp", lambda x, y: np.column_stack([x, y, 0 * x]),
+                     np.linspace(-10, 10, 3), np.linspace(-10, 10, 3), roll=False)
+    paths = export_laminate(ds, mesh, tmp_path / "lam", flavours=("lsdyna",))
+    assert sorted(p.name for p in paths) == ["lam-0N-laminate.k", "lam-0N-laminate.nc",
+                                             "lam-126N-laminate.k", "lam-126N-laminate.nc"]
+    for label, rosette in (("0N", 0.0), ("126N", 30.0)):
+        nominal = xr.load_dataset(tmp_path / f"lam-{label}-laminate.nc").nominal_yarn_angle.sel(yarn=1).values
+        assert np.abs(line_diff(nominal, np.array([[rosette], [90.0 + rosette]]))).max() < 1e-9
