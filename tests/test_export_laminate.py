@@ -316,6 +316,56 @@ def test_mapping_error_is_second_order_in_the_spacing(tmp_path):
     assert abs(order - 2.0) <= 0.3, (errors, order)
 
 
+# ----------------------------------------------------------------------------- mesh formats
+
+
+def keyword_mesh(path, points, quads, eids, solid=False):
+    """An LS-DYNA keyword mesh written here: *NODE with node ids 11, 12, ... in fixed
+    columns, *ELEMENT_SHELL_THICKNESS (a second card per element) with ``eids``, every
+    other element in free format; an *ELEMENT_SOLID if ``solid``."""
+    lines = ["*KEYWORD", "$ a hand-made mesh", "*NODE"]
+    lines += [f"{k + 11:8d}{x:16.8f}{y:16.8f}{z:16.8f}" for k, (x, y, z) in enumerate(points)]
+    lines.append("*ELEMENT_SHELL_THICKNESS")
+    for k, (eid, q) in enumerate(zip(eids, quads + 11)):
+        lines.append(", ".join(map(str, [eid, 1, *q])) if k % 2 else "".join(f"{v:8d}" for v in [eid, 1, *q]))
+        lines.append(f"{0.5:16.3f}{0.5:16.3f}{0.5:16.3f}{0.5:16.3f}")
+    if solid:
+        lines += ["*ELEMENT_SOLID", "".join(f"{v:8d}" for v in [999, 2, *range(11, 19)])]
+    path.write_text("\n".join(lines + ["*END"]) + "\n")
+    return path
+
+
+def test_keyword_and_nastran_meshes_map_as_the_abaqus_one(tmp_path):
+    """The same plate mesh as Abaqus .inp, Nastran .bdf and LS-DYNA .k (written here;
+    meshio reads no .k): the same angles per element, the .k's elements
+    under their EIDs; a .k with solid elements is refused as a volume mesh."""
+    surface = build("plate", half_width=300.0)
+    ds = laminate(surface, 5.0, 6, angles=(30.0, -60.0), misalignment=(0.0, 2.0))
+    inp = grid_mesh(tmp_path / "part.inp", lambda x, y: np.column_stack([x, y, 0 * x]),
+                    np.linspace(-20, 20, 5), np.linspace(-20, 20, 4))
+    mesh = meshio.read(inp)
+    quads = mesh.cells_dict["quad"]
+    eids = 100 + 7 * np.arange(len(quads))
+    (tmp_path / "part.bdf").write_text("\n".join(  # free-field bulk data (meshio's writer overflows a field)
+        ["BEGIN BULK"] + [f"GRID,{k + 1},,{','.join(map(repr, map(float, p)))}" for k, p in enumerate(mesh.points)]
+        + [f"CQUAD4,{k + 1},1,{','.join(str(n + 1) for n in q)}" for k, q in enumerate(quads)] + ["ENDDATA\n"]))
+    keyword_mesh(tmp_path / "part.k", mesh.points, quads, eids)
+    angles = {}
+    for suffix in (".inp", ".bdf", ".k"):
+        export_laminate(ds, tmp_path / f"part{suffix}", tmp_path / suffix[1:], flavours=("lsdyna",), realizations=2)
+        nc = xr.load_dataset(tmp_path / f"{suffix[1:]}-laminate.nc")
+        angles[suffix] = nc.yarn_angle.values
+        shells, _ = read_lsdyna_composite(tmp_path / f"{suffix[1:]}-laminate.k")
+        assert list(nc.element.values) == list(shells) == (list(eids) if suffix == ".k" else
+                                                           list(range(1, len(quads) + 1)))
+    assert np.isfinite(angles[".inp"]).all() and np.ptp(angles[".inp"][:, 0, 0]) > 1.0
+    np.testing.assert_allclose(angles[".bdf"], angles[".inp"], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(angles[".k"], angles[".inp"], rtol=0, atol=1e-9)
+    solid = keyword_mesh(tmp_path / "solid.k", mesh.points, quads, eids, solid=True)
+    with pytest.raises(ValueError, match="volume mesh"):
+        export_laminate(ds, solid, tmp_path / "no")
+
+
 # ----------------------------------------------------------------------------- bad input
 
 

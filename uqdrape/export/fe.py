@@ -30,6 +30,7 @@ from .directions import dot, fibre_directions, fibre_frame
 from .elements import ANGLE_QUANTILES, axial_quantiles, corner_nodes, element_frames, with_defaults, yarn_angles
 from ..files import check_input_file, write_all
 from ..geometry.mesh import MAX_MESH_BYTES, UnreadableMesh, read_meshio
+from .keyword import LABELS, SUFFIXES as KEYWORD_SUFFIXES, read_keyword
 from .result import Level, surface_of
 
 SURFACE_CELLS = {"triangle": 3, "triangle6": 3, "triangle7": 3, "quad": 4, "quad8": 4, "quad9": 4}
@@ -41,14 +42,15 @@ CANDIDATES = 16
 
 
 def read_surface_mesh(path) -> tuple[meshio.Mesh, list]:
-    """The mesh at ``path`` (any format meshio reads) and its surface cell blocks; raises
-    FileNotFoundError / ValueError naming the path for a missing, unreadable or volume mesh."""
+    """The mesh at ``path`` (any format meshio reads, or an LS-DYNA keyword file: ``keyword``)
+    and its surface cell blocks; raises FileNotFoundError / ValueError naming the path for a
+    missing, unreadable or volume mesh."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such mesh file")
     check_input_file(path, "mesh file", MAX_MESH_BYTES, error=ValueError)
     try:
-        mesh = read_meshio(path)
+        mesh = read_keyword(path) if path.suffix.lower() in KEYWORD_SUFFIXES else read_meshio(path)
     except UnreadableMesh as err:
         raise ValueError(f"{path}: cannot read it as a mesh ({err})") from None
     volume = sorted({b.type for b in mesh.cells if b.type.startswith(VOLUME_CELLS)})
@@ -65,8 +67,11 @@ def read_surface_mesh(path) -> tuple[meshio.Mesh, list]:
 def element_labels(path, mesh: meshio.Mesh, blocks) -> np.ndarray:
     """Labels (M,) of the elements of the surface ``blocks``: an Abaqus input's own element
     numbers (its ``*ELEMENT`` data lines, which meshio reads in order, one cell block per
-    keyword, but does not keep), else 1-based positions in the mesh file's order."""
+    keyword, but does not keep), an LS-DYNA keyword file's EIDs, else 1-based positions in
+    the mesh file's order."""
     path = Path(path)
+    if LABELS in mesh.cell_data:
+        return np.concatenate([ids for ids, b in zip(mesh.cell_data[LABELS], mesh.cells) if b.type in SURFACE_CELLS])
     if path.suffix.lower() != ".inp":
         return np.arange(1, sum(len(b.data) for b in blocks) + 1)
     numbers, current = [], None

@@ -194,7 +194,7 @@ def nastran(tmp: Path, layup: Layup) -> None:
     for k, label in enumerate(on.labels):
         eid, n = str(label), [str(g + 1) for g in on.corners[k] if g >= 0]
         lines += large("CORD2R", [eid, "0", "0.0", "0.0", "0.0", *map(nastran_real, e3[k]), *map(nastran_real, e1[k])])
-        plies = [field for p, _, t, b in layup.layers(k) for field in (str(p + 1), nastran_real(t), nastran_real(b), "")]
+        plies = [f for p, _, t, b in layup.layers(k) for f in (str(p + 1), nastran_real(t), nastran_real(b), "")]
         lines += large("PCOMP", [eid, "", "", "", "", "", "", "", *plies])
         lines += large("CQUAD4" if len(n) == 4 else "CTRIA3", [eid, eid, *n, eid])
     for p in range(len(layup.plies)):
@@ -248,8 +248,10 @@ def _statistics(level: xr.Dataset, labels: np.ndarray, samples: np.ndarray, vari
          "variance_fraction": ("mode", kl["fraction"], {"units": "1", "long_name": "fraction of the total variance"}),
          "score": ((REALIZATION, "mode"), kl["scores"], {**deg, "long_name": "the realisation's mode coefficient"})},
         coords={REALIZATION: level[REALIZATION].values, PLY: level[PLY].values,
-                PLY_ANGLE: (PLY, level[PLY_ANGLE].values, {**deg, "long_name": "nominal fibre-1 angle from the rosette"}),
-                "yarn": ("yarn", np.array(YARNS, np.int32), {"units": "1", "long_name": "yarn (1: fibre 1, 2: fibre 2)"}),
+                PLY_ANGLE: (PLY, level[PLY_ANGLE].values,
+                            {**deg, "long_name": "nominal fibre-1 angle from the rosette"}),
+                "yarn": ("yarn", np.array(YARNS, np.int32),
+                         {"units": "1", "long_name": "yarn (1: fibre 1, 2: fibre 2)"}),
                 "element": ("element", labels.astype(np.int64), {"units": "1", "long_name": "element label"}),
                 "mode": ("mode", np.arange(1, K + 1, dtype=np.int32), {"units": "1", "long_name": "mode number"})},
         attrs={"variance_target": variance, "variance_retained": float(kl["fraction"].sum()),
