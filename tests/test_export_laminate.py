@@ -270,8 +270,11 @@ def test_netcdf_is_cf_and_holds_the_ply_thicknesses_median_and_samples(dome, tmp
     assert nc.ply_angle.attrs["units"] == "degree" and list(nc.ply_angle.values) == list(ANGLES)
     median = nc.yarn_angle.median("realization")  # the samples lie within 90 deg of it: a plain median
     np.testing.assert_allclose(nc.nominal_yarn_angle, median.where(nc.p_reached > 0), rtol=0, atol=1e-9)
-    shells, _ = read_lsdyna_composite(folder / "dome-laminate.k")
+    shells, sets = read_lsdyna_composite(folder / "dome-laminate.k")
     assert {round(t, 6) for layer in shells.values() for _, t, _ in layer} == {0.1, 0.15}
+    for p in range(4):  # the nominal's unmapped: the elements no realisation's net reaches
+        assert sets.get(p + 1, []) == list(nc.element.values[nc.p_reached.values[p] == 0])
+    assert sets
     assert_cf_compliant(folder / "dome-laminate.nc", tmp_path)
 
 

@@ -294,8 +294,10 @@ def laminate_files(ds: xr.Dataset, mesh_path, stem, *, flavours=("abaqus",), thi
     dict
         Target path -> writer.
     """
-    if PLY not in ds.dims:
-        raise ValueError(f"ds: no {PLY!r} dimension (dims {tuple(ds.dims)}); a laminate ensemble has one")
+    missing = [d for d in (FORCE, PLY, REALIZATION, "i", "j") if d not in ds.dims]
+    if missing:
+        raise ValueError(f"ds: no {', '.join(map(repr, missing))} dimension (dims {tuple(ds.dims)}); a laminate "
+                         f"ensemble has ({FORCE}, {PLY}, {REALIZATION}, i, j)")
     check_flavours(flavours)
     plies = [str(p) for p in ds[PLY].values]
     try:
