@@ -26,13 +26,18 @@ FLAVOURS = ("abaqus", "lsdyna", "nastran")
 
 
 def laminate(surface, spacing, rings, angles=ANGLES, rosette=0.0, misalignment=(0.0,), force=0.0):
-    """A laminate ensemble of one force level: ply k draped at rosette + angles[k] + misalignment[r]."""
-    plies = [schema.at_level(drape(surface, spacing, rings, orientation=rosette + a + np.asarray(misalignment)), force)
-             for a in angles]
-    ds = xr.concat(plies, dim=schema.PLY).assign_coords(
-        {schema.PLY: [f"ply{k}" for k in range(len(angles))], schema.PLY_ANGLE: (schema.PLY, list(angles))})
-    ds.attrs["rosette_deg"] = rosette
-    return ds
+    """A laminate ensemble of one force level: ply k draped at rosette + angles[k] +
+    misalignment[r] (``spacing``: one, or one per ply), laid out as the run lays one out
+    (``uqdrape.ensemble.chunk.drape_laminate``): an attribute that differs between plies
+    becomes a ``ply_<attribute>`` coordinate."""
+    spacings = np.broadcast_to(spacing, (len(angles),))
+    plies = [schema.at_level(drape(surface, s, rings, orientation=rosette + a + np.asarray(misalignment)), force)
+             for a, s in zip(angles, spacings)]
+    ds = xr.concat(plies, dim=schema.PLY, join="override", combine_attrs="drop_conflicts")
+    differ = {f"{schema.PLY_ATTR}{name}": (schema.PLY, [p.attrs[name] for p in plies]) for name in plies[0].attrs
+              if name not in ds.attrs}
+    return ds.assign_coords({schema.PLY: [f"ply{k}" for k in range(len(angles))],
+                             schema.PLY_ANGLE: (schema.PLY, list(angles)), **differ}).assign_attrs(rosette_deg=rosette)
 
 
 def grid_mesh(path, lift, u, v, roll=True):
@@ -205,12 +210,13 @@ def test_developable_layup_has_the_nominal_angles_in_every_element(mould, tmp_pa
 @pytest.fixture(scope="module")
 def dome(tmp_path_factory):
     """A hemisphere (R = 50 mm) laminate [0/45/90/-45] at rosette 10 deg, 6 realisations
-    misaligned by up to 3 deg, on a triangulated disc reaching past the nets (s = 5 mm,
-    5 rings: some elements off some plies' nets), exported with 3 decks."""
+    misaligned by up to 3 deg, on a triangulated disc reaching past the nets (s = 5 and 4
+    mm, 5 rings: some elements off some plies' nets), exported with 3 decks."""
     folder = tmp_path_factory.mktemp("lam")
     surface = build("hemisphere", radius=50.0)
     misalignment = np.random.default_rng(7).uniform(-3.0, 3.0, 6)
-    ds = laminate(surface, 5.0, 5, rosette=10.0, misalignment=misalignment)
+    ds = laminate(surface, (5.0, 4.0, 5.0, 4.0), 5, rosette=10.0, misalignment=misalignment)
+    assert "spacing_mm" not in ds.attrs and list(ds.ply_spacing_mm.values) == [5.0, 4.0, 5.0, 4.0]
     mesh = tmp_path_factory.mktemp("mesh") / "dome.inp"
     hemisphere_mesh(surface, mesh, radius_mm=34.0, rings=8)
     paths = export_laminate(ds, mesh, folder / "dome", flavours=FLAVOURS, thickness_mm=[0.2, 0.3, 0.2, 0.3],

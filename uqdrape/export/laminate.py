@@ -72,7 +72,7 @@ import numpy as np
 import xarray as xr
 
 from ..files import write_all
-from ..schema import FORCE, PLY, PLY_ANGLE, REALIZATION
+from ..schema import FORCE, PLY, PLY_ANGLE, REALIZATION, ply_dataset
 from .cards import (ABAQUS_TABLE_LINES, abaqus_orientations, comment_list, elset, header, large, lsdyna_nodes,
                     nastran_grids, nastran_real, shell_set)
 from .elements import DEFAULT_THETA, axial_mean, axial_quantiles
@@ -208,11 +208,13 @@ def nastran(tmp: Path, layup: Layup) -> None:
 WRITERS = {"abaqus": abaqus, "lsdyna": lsdyna, "nastran": nastran}
 
 
-def _samples(level: xr.Dataset, surface, on, tol: float) -> np.ndarray:
-    """Yarn angles (P, 2, R, M) deg of every drape of every ply of ``level``."""
+def _samples(level: xr.Dataset, surface, on, tolerance_mm: float | None) -> np.ndarray:
+    """Yarn angles (P, 2, R, M) deg of every drape of every ply of ``level``, each ply mapped
+    with ``tolerance_mm`` (default its own spacing)."""
     out = []
-    for p in range(level.sizes[PLY]):
-        angles = drape_angles(level.isel({PLY: p}), surface, on.foot, tol, on.solver_frame)
+    for name in level[PLY].values:
+        ply = ply_dataset(level, name)
+        angles = drape_angles(ply, surface, on.foot, tolerance_of(ply, tolerance_mm), on.solver_frame)
         out.append([angles["theta1"], angles["theta2"]])
     return np.array(out)
 
@@ -285,7 +287,8 @@ def laminate_files(ds: xr.Dataset, mesh_path, stem, *, flavours=("abaqus",), thi
     variance : float
         Fraction (0, 1] of the yarn angles' total variance the kept modes hold.
     tolerance_mm : float, optional
-        How far (mm) from the mould an element may lie; default the fibre spacing.
+        How far (mm) from the mould an element may lie; default each ply's fibre spacing
+        (a mesh whose median element lies farther than the largest is refused).
     history : str
         The command that made the files, for the netCDF's ``history``.
 
@@ -313,7 +316,7 @@ def laminate_files(ds: xr.Dataset, mesh_path, stem, *, flavours=("abaqus",), thi
         raise ValueError(f"variance: a fraction in (0, 1], got {variance!r}")
     stem = Path(stem)
     surface = surface_of(ds)
-    tol = tolerance_of(ds, tolerance_mm)
+    tol = max(tolerance_of(ply_dataset(ds, name), tolerance_mm) for name in ds[PLY].values)
     on = mesh_on_mould(mesh_path, surface, tol)
     flipped = np.einsum("ij,ij->i", on.solver_frame[2], on.normal) < 0
     ds = ds.transpose(FORCE, PLY, REALIZATION, ...)
@@ -322,7 +325,7 @@ def laminate_files(ds: xr.Dataset, mesh_path, stem, *, flavours=("abaqus",), thi
         level = ds.sel({FORCE: force})
         label = f"{float(force):g}N" if ds.sizes[FORCE] > 1 else ""
         base = f"{stem.name}-{label}" if label else stem.name
-        samples = _samples(level, surface, on, tol)
+        samples = _samples(level, surface, on, tolerance_mm)
         statistics, nominal = _statistics(level, on.labels, samples, variance)
         writers.update(netcdf_file(statistics, stem.with_name(f"{base}-laminate.nc"), history))
         source = f"{ds.attrs.get('geometry', 'a laminate')}{' at ' + label if label else ''}"
