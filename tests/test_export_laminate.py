@@ -15,10 +15,12 @@ import xarray as xr
 
 from uqdrape import schema
 from uqdrape.drape import drape
+from uqdrape.ensemble import open_ensemble
 from uqdrape.export.laminate import export_laminate
 from uqdrape.geometry import build
+from uqdrape.workflow import run_study
 
-from conftest import assert_cf_compliant, assert_one_line_error
+from conftest import assert_cf_compliant, assert_one_line_error, write_study
 from test_fe_flavours import frame, nastran_float, read_nastran
 
 ANGLES = (0.0, 45.0, 90.0, -45.0)
@@ -422,3 +424,20 @@ def test_each_force_level_gets_its_own_files(tmp_path):
     for label, rosette in (("0N", 0.0), ("126N", 30.0)):
         nominal = xr.load_dataset(tmp_path / f"lam-{label}-laminate.nc").nominal_yarn_angle.sel(yarn=1).values
         assert np.abs(line_diff(nominal, np.array([[rosette], [90.0 + rosette]]))).max() < 1e-9
+
+
+def test_a_laminate_runs_ensemble_exports(tmp_path):
+    """End to end: a study with a [[ply]] book (plies 0 and 45 deg on a plate, the second at
+    4 mm spacing) run, its ensemble opened and exported: every element of every
+    realisation has the ply's angle."""
+    path = write_study(tmp_path, "lam", geometry={"kind": "plate", "radius": None, "half_width": 300.0})
+    path.write_text(path.read_text() + '\n[[ply]]\nname = "zero"\nangle_deg = 0.0\n\n'
+                    '[[ply]]\nname = "bias"\nangle_deg = 45.0\nspacing_mm = 4.0\n')
+    ds = open_ensemble(run_study(path, scheduler="synchronous", progress=False))
+    mesh = grid_mesh(tmp_path / "part.inp", lambda x, y: np.column_stack([x, y, 0 * x]),
+                     np.linspace(-10, 10, 4), np.linspace(-10, 10, 4), roll=False)
+    export_laminate(ds, mesh, tmp_path / "out", flavours=("nastran",), realizations=1)
+    nc = xr.load_dataset(tmp_path / "out-laminate.nc")
+    assert list(nc.ply_label.values.astype(str)) == ["zero", "bias"] and (nc.p_reached == 1).all()
+    expected = np.array([0.0, 45.0])[None, :, None, None] + np.array([0.0, 90.0])[None, None, :, None]
+    assert np.abs(line_diff(nc.yarn_angle.values, expected)).max() < 1e-9
