@@ -10,7 +10,9 @@ the 2-core machine. The caches go to the ``__pycache__`` folders, beside numba's
 from __future__ import annotations
 
 import copy
+import os
 import re
+import subprocess
 import sys
 from pathlib import Path
 
@@ -178,3 +180,43 @@ def no_s3_credentials(s3, monkeypatch):
     s3fs.S3FileSystem.clear_instance_cache()
     yield
     s3fs.S3FileSystem.clear_instance_cache()
+
+
+def _cf_tables(tmp_path) -> list[str]:
+    """Empty CF tables (no standard names are used) so the checker needs no download."""
+    tables = {"-s": ("std.xml", "standard_name_table", "last_modified"),
+              "-a": ("area.xml", "area_type_table", "date"),
+              "-r": ("region.xml", "standardized_region_list", "date")}
+    args = []
+    for flag, (name, root, date) in tables.items():
+        (tmp_path / name).write_text(f'<?xml version="1.0"?><{root}><version_number>0</version_number>'
+                                     f"<{date}>2026-01-01</{date}></{root}>")
+        args += [flag, str(tmp_path / name)]
+    return args
+
+
+def _cf_checker_missing(why: str):
+    """Skip where the CF checker cannot run; in CI (``CI`` set, as ``.ci/run`` runs) fail:
+    there the README's CF claim must be checked, not skipped."""
+    if os.environ.get("CI"):
+        pytest.fail(f"{why}: .ci/run installs it (Debian's libudunits2-0, the test extra's cfchecker)")
+    pytest.skip(why)
+
+
+def assert_cf_compliant(path, tmp_path) -> None:
+    """The CF checker (cfchecker's ``cfchecks``, CF-1.8) finds no error or warning in the
+    netCDF file ``path``; skipped where it cannot run (see ``_cf_checker_missing``)."""
+    try:
+        import cfchecker  # noqa: F401
+        import cfunits  # noqa: F401  (needs the UDUNITS-2 C library)
+    except (ImportError, FileNotFoundError, OSError) as err:
+        _cf_checker_missing(f"the CF checker cannot be imported ({type(err).__name__}: {str(err).splitlines()[0]}); "
+                            "install the UDUNITS-2 library (Debian: apt install libudunits2-0) and "
+                            "pip install 'uqdrape[test]'")
+    # the checker's script sits next to the interpreter running the tests, venv or not
+    cfchecks = Path(sys.executable).parent / "cfchecks"
+    if not cfchecks.is_file():
+        _cf_checker_missing(f"{cfchecks} does not exist")
+    out = subprocess.run([cfchecks, *_cf_tables(tmp_path), "-v", "1.8", str(path)], capture_output=True, text=True,
+                         timeout=120).stdout
+    assert "ERRORS detected: 0" in out and "WARNINGS given: 0" in out, out

@@ -2,9 +2,6 @@
 rule on a drape file and on ensemble chunks, plus the CF checker where it installs."""
 
 import datetime
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import netCDF4
@@ -21,7 +18,7 @@ from uqdrape.geometry import build
 from uqdrape.material import load_material
 from uqdrape.study import StudyError, load_study
 
-from conftest import write_study
+from conftest import assert_cf_compliant, write_study
 
 
 @pytest.fixture(scope="module")
@@ -123,42 +120,9 @@ def test_float32_chunks_are_smaller_and_rounded_only(tmp_path):
         load_study(_study(tmp_path, "bad", "yes"))
 
 
-def _tables(tmp_path):
-    """Empty CF tables (no standard names are used) so the checker needs no download."""
-    tables = {"-s": ("std.xml", "standard_name_table", "last_modified"),
-              "-a": ("area.xml", "area_type_table", "date"),
-              "-r": ("region.xml", "standardized_region_list", "date")}
-    args = []
-    for flag, (name, root, date) in tables.items():
-        (tmp_path / name).write_text(f'<?xml version="1.0"?><{root}><version_number>0</version_number>'
-                                     f"<{date}>2026-01-01</{date}></{root}>")
-        args += [flag, str(tmp_path / name)]
-    return args
-
-
-def _missing(why: str):
-    """Skip where the CF checker cannot run; in CI (``CI`` set, as ``.ci/run`` runs) fail:
-    there the README's CF claim must be checked, not skipped."""
-    if os.environ.get("CI"):
-        pytest.fail(f"{why}: .ci/run installs it (Debian's libudunits2-0, the test extra's cfchecker)")
-    pytest.skip(why)
-
-
 @pytest.mark.slow
 def test_cf_checker_finds_no_errors_or_warnings(written, tmp_path):
-    try:
-        import cfchecker  # noqa: F401
-        import cfunits  # noqa: F401  (needs the UDUNITS-2 C library)
-    except (ImportError, FileNotFoundError, OSError) as err:
-        _missing(f"the CF checker cannot be imported ({type(err).__name__}: {str(err).splitlines()[0]}); install "
-                 "the UDUNITS-2 library (Debian: apt install libudunits2-0) and pip install 'uqdrape[test]'")
-    # the checker's script sits next to the interpreter running the tests, venv or not
-    cfchecks = Path(sys.executable).parent / "cfchecks"
-    if not cfchecks.is_file():
-        _missing(f"{cfchecks} does not exist")
     study = run_study(_study(tmp_path, "chunks"), scheduler="synchronous", progress=False)
     statistics = Path(run_report(study)).parent / "statistics.nc"  # the report's per-node statistics
     for path in (written[1], next((study / "chunks").glob("*.nc")), statistics):
-        out = subprocess.run([cfchecks, *_tables(tmp_path), "-v", "1.8", str(path)], capture_output=True, text=True,
-                             timeout=120).stdout
-        assert "ERRORS detected: 0" in out and "WARNINGS given: 0" in out, out
+        assert_cf_compliant(path, tmp_path)

@@ -92,53 +92,93 @@ def layer_offset(labels: np.ndarray) -> int:
     return 10 ** max(1, math.ceil(math.log10(int(labels.max()) + 1)))
 
 
-def _header(prefix: str, source: str, what: list[str]) -> list[str]:
+#: The header lines on the single drape's fields, after the element frame's.
+FIELD_NOTES = ("unmapped elements (map_status 1 off the net, 2 off the mould): theta1 = 0, theta2 = 90, shear 0",
+               "area_ratio = cos(shear): an inextensible fabric's sheared area over its flat area (thickness at "
+               "constant fibre volume x 1/area_ratio)")
+
+
+def header(prefix: str, source: str, what: list[str], notes=FIELD_NOTES) -> list[str]:
+    """The comment lines (``prefix``) opening a file: ``source``, the lines ``what``, the
+    element frame and the ``notes``."""
     lines = [f"fibre orientations of {source}, written by uqdrape {__version__}", *what,
              ("element frame: e3 = element normal by node order, e1 = edge node 1 -> node 2 made orthogonal to e3, "
-              "e2 = e3 x e1; angles from e1 about e3"),
-             "unmapped elements (map_status 1 off the net, 2 off the mould): theta1 = 0, theta2 = 90, shear 0",
-             ("area_ratio = cos(shear): an inextensible fabric's sheared area over its flat area (thickness at "
-              "constant fibre volume x 1/area_ratio)")]
+              "e2 = e3 x e1; angles from e1 about e3"), *notes]
     return [f"{prefix} {line}" for line in lines]
+
+
+#: The distribution table of the yarn orientations (two coordinates a row), its name and lines.
+ABAQUS_TABLE = "UQDRAPE_FIBRE_TABLE"
+ABAQUS_TABLE_LINES = [f"*DISTRIBUTION TABLE, NAME={ABAQUS_TABLE}", "COORD3D, COORD3D"]
+
+
+def abaqus_orientations(prefix: str, labels: np.ndarray, yarn1: np.ndarray, yarn2: np.ndarray) -> list[str]:
+    """The ``*DISTRIBUTION`` lines (on ``ABAQUS_TABLE``) and ``*ORIENTATION`` lines
+    ``PREFIX_YARN1_ORIENTATION`` (local 1 = ``yarn1`` (M, 3), local 2 towards ``yarn2``) and
+    ``PREFIX_YARN2_ORIENTATION`` (local 1 = ``yarn2``, local 2 = -``yarn1``) of the elements
+    ``labels`` (see the module doc)."""
+    lines = []
+    for name, a, b, default in ((f"{prefix}_YARN2", yarn2, -yarn1, ", 0.0, 1.0, 0.0, -1.0, 0.0, 0.0"),
+                                (f"{prefix}_YARN1", yarn1, yarn2, ", 1.0, 0.0, 0.0, 0.0, 1.0, 0.0")):
+        lines += [f"*DISTRIBUTION, NAME={name}, LOCATION=ELEMENT, TABLE={ABAQUS_TABLE}", default]
+        lines += [", ".join([str(label)] + [repr(float(x)) for x in (*a[k], *b[k])]) for k, label in enumerate(labels)]
+    for name in (f"{prefix}_YARN1", f"{prefix}_YARN2"):
+        lines += [f"*ORIENTATION, NAME={name}_ORIENTATION, DEFINITION=COORDINATES, SYSTEM=RECTANGULAR", name]
+    return lines
+
+
+def elset(name: str, labels: np.ndarray) -> list[str]:
+    """An Abaqus ``*ELSET`` of the element ``labels``."""
+    return [f"*ELSET, ELSET={name}"] + [", ".join(map(str, labels[a:a + PER_LINE]))
+                                        for a in range(0, labels.size, PER_LINE)]
+
+
+def shell_set(sid: int, ids: np.ndarray) -> list[str]:
+    """An LS-DYNA ``*SET_SHELL_LIST`` ``sid`` of the element ``ids``."""
+    return ["*SET_SHELL_LIST", f"{sid:10d}"] + ["".join(f"{e:10d}" for e in ids[a:a + PER_SET_LINE])
+                                                 for a in range(0, ids.size, PER_SET_LINE)]
+
+
+def comment_list(prefix: str, ids: np.ndarray) -> list[str]:
+    """The element ``ids`` as comment lines (``prefix``)."""
+    return [f"{prefix} " + " ".join(map(str, ids[a:a + PER_LINE])) for a in range(0, ids.size, PER_LINE)]
 
 
 def abaqus(tmp: Path, cards) -> None:
     """The Abaqus include (see the module doc)."""
     v, labels = cards.values, cards.labels
-    lines = _header("**", cards.source, [
+    lines = header("**", cards.source, [
         "element labels: those of an Abaqus input mesh, else 1-based positions in the mesh file",
         "two orientations, one per yarn; use each for a ply of half the ply thickness, e.g.",
         "*SHELL SECTION, ELSET=<preform>, COMPOSITE",
         "<t/2>, 3, <UD material>, UQDRAPE_YARN1_ORIENTATION",
         "<t/2>, 3, <UD material>, UQDRAPE_YARN2_ORIENTATION",
         "vectors: unit, global axes, in the element's plane; default rows (global x, y): elements not in this mesh"])
-    lines += ["*DISTRIBUTION TABLE, NAME=UQDRAPE_FIBRE_TABLE", "COORD3D, COORD3D"]
-    for name, a, b, default in (("UQDRAPE_YARN2", v["yarn2"], -v["yarn1"], ", 0.0, 1.0, 0.0, -1.0, 0.0, 0.0"),
-                                ("UQDRAPE_YARN1", v["yarn1"], v["yarn2"], ", 1.0, 0.0, 0.0, 0.0, 1.0, 0.0")):
-        lines += [f"*DISTRIBUTION, NAME={name}, LOCATION=ELEMENT, TABLE=UQDRAPE_FIBRE_TABLE", default]
-        lines += [", ".join([str(label)] + [repr(float(x)) for x in (*a[k], *b[k])]) for k, label in enumerate(labels)]
-    for name in ("UQDRAPE_YARN1", "UQDRAPE_YARN2"):
-        lines += [f"*ORIENTATION, NAME={name}_ORIENTATION, DEFINITION=COORDINATES, SYSTEM=RECTANGULAR", name]
+    lines += ABAQUS_TABLE_LINES + abaqus_orientations("UQDRAPE", labels, v["yarn1"], v["yarn2"])
     unmapped = labels[v["map_status"] != 0]
     if unmapped.size:
         lines.append(f"** {unmapped.size} elements not on the draped net: yarn 1 = e1, yarn 2 = e2 of their frame")
-        lines.append("*ELSET, ELSET=UQDRAPE_UNMAPPED")
-        lines += [", ".join(map(str, unmapped[a:a + PER_LINE])) for a in range(0, unmapped.size, PER_LINE)]
+        lines += elset("UQDRAPE_UNMAPPED", unmapped)
     lines += field_table("**", v, labels)
     tmp.write_text("\n".join(lines) + "\n", encoding="ascii")
+
+
+def lsdyna_nodes(points: np.ndarray) -> list[str]:
+    """The ``*NODE`` lines of the mesh ``points`` (P, 3) mm, numbered 1.. in order."""
+    return ["*NODE", "$#   nid               x               y               z"] + [
+        f"{k + 1:8d}{x:16.9e}{y:16.9e}{z:16.9e}" for k, (x, y, z) in enumerate(points)]
 
 
 def lsdyna(tmp: Path, cards) -> None:
     """The LS-DYNA keyword file (see the module doc)."""
     v, labels = cards.values, cards.labels
     offset = layer_offset(labels)
-    lines = ["*KEYWORD"] + _header("$", cards.source, [
+    lines = ["*KEYWORD"] + header("$", cards.source, [
         (f"two layers of *ELEMENT_SHELL_BETA sharing the nodes: part 1 = yarn 1 (eid = element label), part 2 = "
          f"yarn 2 (eid = label + {offset}); BETA = the yarn angle, deg, AOPT = 0"),
         ("give parts 1 and 2 a *SECTION_SHELL of half the ply thickness and a unidirectional material; "
          "nodes are 1-based positions in the mesh file")])
-    lines += ["*NODE", "$#   nid               x               y               z"]
-    lines += [f"{k + 1:8d}{x:16.9e}{y:16.9e}{z:16.9e}" for k, (x, y, z) in enumerate(cards.points)]
+    lines += lsdyna_nodes(cards.points)
     lines += ["*ELEMENT_SHELL_BETA", "$#   eid     pid      n1      n2      n3      n4",
               "$#          thic1           thic2           thic3           thic4            beta"]
     for pid, shift, theta in ((1, 0, v["theta1"]), (2, offset, v["theta2"])):
@@ -151,8 +191,7 @@ def lsdyna(tmp: Path, cards) -> None:
     if unmapped.size:
         ids = np.concatenate([unmapped, unmapped + offset])
         lines += [f"$ {unmapped.size} elements of each layer not on the draped net: BETA the default",
-                  "*SET_SHELL_LIST", f"{1:10d}"]
-        lines += ["".join(f"{e:10d}" for e in ids[a:a + PER_SET_LINE]) for a in range(0, ids.size, PER_SET_LINE)]
+                  *shell_set(1, ids)]
     lines += field_table("$", v, labels) + ["*END"]
     tmp.write_text("\n".join(lines) + "\n", encoding="ascii")
 
@@ -171,7 +210,7 @@ def nastran_real(x: float) -> str:
     raise ValueError(f"{x!r} does not fit a Nastran large field")
 
 
-def _large(name: str, fields: list[str]) -> list[str]:
+def large(name: str, fields: list[str]) -> list[str]:
     """A large-field entry: ``name*`` and 4 fields of 16 characters a line, continuation
     lines starting ``*``."""
     lines = []
@@ -180,29 +219,34 @@ def _large(name: str, fields: list[str]) -> list[str]:
     return lines
 
 
+def nastran_grids(points: np.ndarray) -> list[str]:
+    """The ``GRID*`` entries of the mesh ``points`` (P, 3) mm, numbered 1.. in order."""
+    return [line for k, p in enumerate(points)
+            for line in large("GRID", [str(k + 1), "", *map(nastran_real, p)])]
+
+
 def nastran(tmp: Path, cards) -> None:
     """The Nastran bulk data (see the module doc)."""
     v, labels = cards.values, cards.labels
     offset = layer_offset(labels)
     e3 = cards.frame[2]
-    lines = _header("$", cards.source, [
+    lines = header("$", cards.source, [
         (f"two layers sharing the grids: PID 1 = yarn 1 (EID = element label), PID 2 = yarn 2 (EID = label + "
          f"{offset}); material axis by MCID = EID, a CORD2R whose x axis is the yarn, z the element normal"),
         ("give PID 1 and 2 a PSHELL of half the ply thickness and a unidirectional material; "
          "grids are 1-based positions in the mesh file")])
-    for k, (x, y, z) in enumerate(cards.points):
-        lines += _large("GRID", [str(k + 1), "", nastran_real(x), nastran_real(y), nastran_real(z)])
+    lines += nastran_grids(cards.points)
     for pid, shift, yarn in ((1, 0, v["yarn1"]), (2, offset, v["yarn2"])):
         for k, label in enumerate(labels):
             eid, n = int(label) + shift, [str(int(g) + 1) for g in cards.corners[k] if g >= 0]
-            lines += _large("CORD2R", [str(eid), "0", "0.0", "0.0", "0.0",
+            lines += large("CORD2R", [str(eid), "0", "0.0", "0.0", "0.0",
                                        *map(nastran_real, e3[k]), *map(nastran_real, yarn[k])])
             kind = "CQUAD4" if len(n) == 4 else "CTRIA3"
-            lines += _large(kind, [str(eid), str(pid), *n, str(eid)])
+            lines += large(kind, [str(eid), str(pid), *n, str(eid)])
     unmapped = labels[v["map_status"] != 0]
     if unmapped.size:
         lines.append(f"$ {unmapped.size} elements of each layer not on the draped net (default axes):")
-        lines += ["$ " + " ".join(map(str, unmapped[a:a + PER_LINE])) for a in range(0, unmapped.size, PER_LINE)]
+        lines += comment_list("$", unmapped)
     lines += field_table("$", v, labels)
     tmp.write_text("\n".join(lines) + "\n", encoding="ascii")
 

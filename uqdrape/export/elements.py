@@ -77,15 +77,24 @@ def yarn_angles(d1: np.ndarray, d2: np.ndarray, normal: np.ndarray, frame) -> di
             "theta2": np.degrees(np.arctan2(dot(y2, e2), dot(y2, e1)))}
 
 
-def axial_quantiles(samples: np.ndarray, about: np.ndarray) -> np.ndarray:
-    """Quantiles ANGLE_QUANTILES (Q, M) deg over the realisations (axis 0, NaN skipped) of
-    yarn angles ``samples`` (R, M): a yarn is a line, so each sample is first taken
-    within +-90 deg of the nominal angle ``about`` (M,)."""
+def axial_quantiles(samples: np.ndarray, about: np.ndarray, quantiles=ANGLE_QUANTILES) -> np.ndarray:
+    """``quantiles`` (Q, M) deg over the realisations (axis 0, NaN skipped) of yarn angles
+    ``samples`` (R, M): a yarn is a line, so each sample is first taken within +-90 deg of
+    the nominal angle ``about`` (M,)."""
     dev = (samples - about + 90.0) % 180.0 - 90.0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # an element no realisation places: all NaN
-        q = np.nanquantile(dev, ANGLE_QUANTILES, axis=0)
+        q = np.nanquantile(dev, quantiles, axis=0)
     return q + about
+
+
+def axial_mean(samples: np.ndarray) -> np.ndarray:
+    """Mean direction (M,) deg over axis 0 (NaN skipped) of the lines at angles ``samples``
+    (R, M) deg: half the angle of the mean of the doubled angles."""
+    doubled = np.radians(2.0 * samples)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an element no realisation places: all NaN
+        return 0.5 * np.degrees(np.arctan2(np.nanmean(np.sin(doubled), axis=0), np.nanmean(np.cos(doubled), axis=0)))
 
 
 def with_defaults(values: dict, frame, on_net: np.ndarray) -> dict:

@@ -16,6 +16,7 @@ of each yarn angle over its drapes, each drape mapped as the nominal net is.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 
@@ -29,6 +30,7 @@ from .directions import dot, fibre_directions, fibre_frame
 from .elements import ANGLE_QUANTILES, axial_quantiles, corner_nodes, element_frames, with_defaults, yarn_angles
 from ..files import check_input_file, write_all
 from ..geometry.mesh import MAX_MESH_BYTES, UnreadableMesh, read_meshio
+from .keyword import LABELS, SUFFIXES as KEYWORD_SUFFIXES, read_keyword
 from .result import Level, surface_of
 
 SURFACE_CELLS = {"triangle": 3, "triangle6": 3, "triangle7": 3, "quad": 4, "quad8": 4, "quad9": 4}
@@ -40,14 +42,15 @@ CANDIDATES = 16
 
 
 def read_surface_mesh(path) -> tuple[meshio.Mesh, list]:
-    """The mesh at ``path`` (any format meshio reads) and its surface cell blocks; raises
-    FileNotFoundError / ValueError naming the path for a missing, unreadable or volume mesh."""
+    """The mesh at ``path`` (any format meshio reads, or an LS-DYNA keyword file: ``keyword``)
+    and its surface cell blocks; raises FileNotFoundError / ValueError naming the path for a
+    missing, unreadable or volume mesh."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such mesh file")
     check_input_file(path, "mesh file", MAX_MESH_BYTES, error=ValueError)
     try:
-        mesh = read_meshio(path)
+        mesh = read_keyword(path) if path.suffix.lower() in KEYWORD_SUFFIXES else read_meshio(path)
     except UnreadableMesh as err:
         raise ValueError(f"{path}: cannot read it as a mesh ({err})") from None
     volume = sorted({b.type for b in mesh.cells if b.type.startswith(VOLUME_CELLS)})
@@ -64,8 +67,11 @@ def read_surface_mesh(path) -> tuple[meshio.Mesh, list]:
 def element_labels(path, mesh: meshio.Mesh, blocks) -> np.ndarray:
     """Labels (M,) of the elements of the surface ``blocks``: an Abaqus input's own element
     numbers (its ``*ELEMENT`` data lines, which meshio reads in order, one cell block per
-    keyword, but does not keep), else 1-based positions in the mesh file's order."""
+    keyword, but does not keep), an LS-DYNA keyword file's EIDs, else 1-based positions in
+    the mesh file's order."""
     path = Path(path)
+    if LABELS in mesh.cell_data:
+        return np.concatenate([ids for ids, b in zip(mesh.cell_data[LABELS], mesh.cells) if b.type in SURFACE_CELLS])
     if path.suffix.lower() != ".inp":
         return np.arange(1, sum(len(b.data) for b in blocks) + 1)
     numbers, current = [], None
@@ -206,25 +212,81 @@ def _vtu(tmp: Path, mesh: meshio.Mesh, blocks, values: dict) -> None:
     meshio.write(tmp, meshio.Mesh(mesh.points, blocks, cell_data=cell_data), file_format="vtu")
 
 
-def _ensemble_angles(level: Level, surface, foot, tolerance_mm: float, frame, nominal: dict) -> dict:
-    """P5/P50/P95 (``theta1_q05`` ...) of each yarn angle (deg, element frame) over the
-    level's drapes, each drape mapped onto the elements as the nominal net is."""
-    data = level.data
+def drape_angles(data, surface, foot, tolerance_mm: float, frame) -> dict:
+    """Yarn angles ``theta1``, ``theta2`` (R, M) deg in the element ``frame`` (solver axes)
+    of each drape of ``data`` (a drape Dataset, dims realization, i, j), each mapped onto
+    the elements at their ``foot`` points as the nominal net is; NaN where a drape's net
+    does not reach an element."""
     placed = data.status.values == 0
     P = np.stack([np.where(placed, data[c].values, np.nan) for c in ("x", "y", "z")], axis=-1)
     shear = np.where(placed, data.shear.values, np.nan)
     normal = foot_normal(surface, foot)
-    samples = {"theta1": [], "theta2": []}
+    rows = []
     for r in range(P.shape[0]):
         one = _interpolate(P[r], shear[r], surface, foot, tolerance_mm)
-        angles = yarn_angles(one["fibre1"], one["fibre2"], normal, frame)
-        for name, rows in samples.items():
-            rows.append(angles[name])
+        rows.append(yarn_angles(one["fibre1"], one["fibre2"], normal, frame))
+    return {name: np.array([row[name] for row in rows]) for name in ("theta1", "theta2")}
+
+
+def _ensemble_angles(level: Level, surface, foot, tolerance_mm: float, frame, nominal: dict) -> dict:
+    """P5/P50/P95 (``theta1_q05`` ...) of each yarn angle (deg, element frame) over the
+    level's drapes (``drape_angles``)."""
     out = {}
-    for name, rows in samples.items():
-        q = axial_quantiles(np.array(rows), nominal[name])
+    for name, rows in drape_angles(level.data, surface, foot, tolerance_mm, frame).items():
+        q = axial_quantiles(rows, nominal[name])
         out.update({f"{name}_q{round(100 * p):02d}": q[k] for k, p in enumerate(ANGLE_QUANTILES)})
     return out
+
+
+def check_flavours(flavours) -> None:
+    """ValueError naming the argument unless ``flavours`` is a non-empty list of ``cards.FLAVOURS``."""
+    unknown = [f for f in flavours if f not in FLAVOURS]
+    if unknown or not flavours:
+        raise ValueError(f"flavours: FE flavour {', '.join(map(str, unknown)) or '(none)'} is not one of "
+                         f"{', '.join(FLAVOURS)}")
+
+
+@dataclass
+class MeshOnMould:
+    """A surface mesh placed on the mould: the meshio ``mesh`` and its surface ``blocks``,
+    element ``labels`` (M,) and ``corners`` (M, 4), the element ``frame`` (e1, e2, e3) in
+    the tool's axes and ``solver_frame`` in the solver's, the centroids' ``foot`` points
+    (``onto_mould``) and the mould's unit ``normal`` (M, 3) there (solver axes)."""
+
+    mesh: meshio.Mesh
+    blocks: list
+    labels: np.ndarray
+    corners: np.ndarray
+    frame: tuple
+    solver_frame: tuple
+    foot: tuple
+    normal: np.ndarray
+
+
+def tolerance_of(ds, tolerance_mm: float | None) -> float:
+    """How far (mm) from the mould an element may lie: ``tolerance_mm``, by default the
+    fibre spacing of result ``ds``; ValueError unless a distance > 0."""
+    tol = float(ds.attrs["spacing_mm"]) if tolerance_mm is None else float(tolerance_mm)
+    if not (np.isfinite(tol) and tol > 0):
+        raise ValueError(f"tolerance must be a distance > 0 mm, got {tolerance_mm!r}")
+    return tol
+
+
+def mesh_on_mould(mesh_path, surface, tolerance_mm: float) -> MeshOnMould:
+    """The surface mesh at ``mesh_path`` (tool frame, mm) on ``surface``; ValueError if its
+    median element lies farther than ``tolerance_mm`` from the mould along its normal."""
+    mesh, blocks = read_surface_mesh(mesh_path)
+    corners = corner_nodes(blocks)
+    frame = element_frames(mesh.points, corners)
+    # the FE mesh is in the tool's frame; mapping runs in the solver's, results go back
+    foot = onto_mould(surface, surface.to_solver(centroids(mesh, blocks)))
+    far = np.median(np.abs(foot[1]))
+    if not far <= tolerance_mm:
+        raise ValueError(f"{mesh_path}: its elements lie {far:.4g} mm (median) from the mould along its "
+                         f"normal, more than the tolerance {tolerance_mm:g} mm: is the mesh in mm and in the "
+                         "mould's coordinates?")
+    return MeshOnMould(mesh, blocks, element_labels(mesh_path, mesh, blocks), corners, frame,
+                       tuple(surface.to_solver(e) for e in frame), foot, foot_normal(surface, foot))
 
 
 def fe_files(levels: list[Level], ds, mesh_path, stem, tolerance_mm: float | None = None,
@@ -238,42 +300,25 @@ def fe_files(levels: list[Level], ds, mesh_path, stem, tolerance_mm: float | Non
     whose median element lies farther (wrong units or placement) is an error. The mesh is
     in the tool's frame (a mesh mould's file frame, mm) and so are the vectors written. Returns
     (writers, map_status of each level)."""
-    unknown = [f for f in flavours if f not in FLAVOURS]
-    if unknown or not flavours:
-        raise ValueError(f"FE flavour {', '.join(unknown) or '(none)'} is not one of {', '.join(FLAVOURS)}")
+    check_flavours(flavours)
     stem = Path(stem)
     surface = surface_of(ds)
-    tol = float(ds.attrs["spacing_mm"]) if tolerance_mm is None else float(tolerance_mm)
-    if not (np.isfinite(tol) and tol > 0):
-        raise ValueError(f"tolerance must be a distance > 0 mm, got {tolerance_mm!r}")
-    mesh, blocks = read_surface_mesh(mesh_path)
-    labels = element_labels(mesh_path, mesh, blocks)
-    # the FE mesh is in the tool's frame; mapping runs in the solver's, results go back
-    c = surface.to_solver(centroids(mesh, blocks))
-    corners = corner_nodes(blocks)
-    frame = element_frames(mesh.points, corners)
-    solver_frame = tuple(surface.to_solver(e) for e in frame)
-    foot = onto_mould(surface, c)
-    normal = foot_normal(surface, foot)
+    tol = tolerance_of(ds, tolerance_mm)
+    on = mesh_on_mould(mesh_path, surface, tol)
     writers, statuses = {}, []
     for level in levels:
-        values = map_level(level, surface, c, tol, foot)
-        far = np.median(np.abs(values["distance_mm"]))
-        if not far <= tol:
-            raise ValueError(f"{mesh_path}: its elements lie {far:.4g} mm (median) from the mould along its "
-                             f"normal, more than the tolerance {tol:g} mm: is the mesh in mm and in the mould's "
-                             "coordinates?")
-        values.update(yarn_angles(values["fibre1"], values["fibre2"], normal, solver_frame))
+        values = map_level(level, surface, None, tol, on.foot)
+        values.update(yarn_angles(values["fibre1"], values["fibre2"], on.normal, on.solver_frame))
         values["area_ratio"] = np.cos(np.radians(values["shear"]))
         if level.is_ensemble:
-            values.update(_ensemble_angles(level, surface, foot, tol, solver_frame, values))
+            values.update(_ensemble_angles(level, surface, on.foot, tol, on.solver_frame, values))
         for name in ("fibre1", "fibre2", "yarn1", "yarn2"):
             values[name] = surface.to_tool(values[name])
         base = f"{stem.name}-{level.label}" if level.label else stem.name
-        writers[stem.with_name(f"{base}-fe.vtu")] = partial(_vtu, mesh=mesh, blocks=blocks, values=values)
+        writers[stem.with_name(f"{base}-fe.vtu")] = partial(_vtu, mesh=on.mesh, blocks=on.blocks, values=values)
         source = f"{ds.attrs.get('geometry', 'a drape')}{' at ' + level.label if level.label else ''}"
-        cards = Cards(labels, corners, mesh.points, frame, with_defaults(values, frame, values["map_status"] == ON_NET),
-                      source)
+        cards = Cards(on.labels, on.corners, on.mesh.points, on.frame,
+                      with_defaults(values, on.frame, values["map_status"] == ON_NET), source)
         for flavour in dict.fromkeys(flavours):
             writers[stem.with_name(base + FLAVOURS[flavour])] = partial(WRITERS[flavour], cards=cards)
         statuses.append(values["map_status"])
