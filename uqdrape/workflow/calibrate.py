@@ -3,7 +3,10 @@ block (its figure and report); measured drapes -> the posterior of chosen study 
 and the study at its medians. This is the step that opens the files, drapes the training
 points (on the ensemble engine's schedulers) and writes the outputs; what the data,
 likelihood and posterior are is ``uqdrape.calibration`` (``.drapes``, ``.parameters``), the
-report pages ``uqdrape.report.calibration``."""
+report pages ``uqdrape.report.calibration``. What stays here loads study files or drapes
+(``study_at``, ``part_shear``, ``synthetic_parts``): ``calibration`` imports neither the
+study layer nor the ensemble engine, so that ``report``, which imports it, never reaches
+the engine."""
 
 from __future__ import annotations
 
