@@ -302,7 +302,8 @@ def main(argv=None) -> int:
     findings = sum(1 for row in table if row[2] == "FINDING")
     reasons = set()
     for item, detail in grouped(rows):
-        reason = next((why for _, pattern, why in INTENDED if re.search(pattern, f"{item} {detail}")), None)
+        reason = next((f"{what}: {why}" for what, pattern, why in INTENDED if re.search(pattern, f"{item} {detail}")),
+                      None)
         table.append((item, detail, "intended" if reason else "FINDING"))
         reasons.add(reason)
         findings += reason is None
