@@ -31,6 +31,7 @@ import argparse
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -297,6 +298,8 @@ def main(argv=None) -> int:
     finally:
         for checkout in trees:
             subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(checkout)], check=False)
+        if args.keep is None:
+            shutil.rmtree(base, ignore_errors=True)
     table = [(label, f"exit {codes[0][label]} / {codes[1][label]}", "same" if codes[0][label] == codes[1][label]
               else "FINDING") for label in codes[0]]
     findings = sum(1 for row in table if row[2] == "FINDING")
