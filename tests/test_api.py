@@ -55,8 +55,8 @@ def test_the_public_names_are_the_documented_list():
     assert len(set(ud.__all__)) == len(ud.__all__) and 20 <= len(ud.__all__) <= 30
     # what IDEs follow (the TYPE_CHECKING import) names the same
     tree = ast.parse(Path(ud.__file__).read_text(encoding="utf-8"))
-    typed = [alias.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom) and node.level == 1
-             for alias in node.names if alias.name != "__version__"]
+    typing = next(node for node in tree.body if isinstance(node, ast.If) and getattr(node.test, "id", "") == "TYPE_CHECKING")
+    typed = [alias.name for node in ast.walk(typing) if isinstance(node, ast.ImportFrom) for alias in node.names]
     assert sorted(typed) == sorted(ud.__all__)
     assert set(ud.__all__) <= set(dir(ud))
     with pytest.raises(AttributeError, match="no attribute 'nope'"):

@@ -12,10 +12,11 @@ import xarray as xr
 import uqdrape.material
 from conftest import assert_one_line_error, write_study
 from uqdrape.calibration.emulator import Emulator, latin_hypercube
+from uqdrape.calibration.parameters import Parameter
 from uqdrape.cli import main
 from uqdrape.stats import shear_at_points
 from uqdrape.study import load_study
-from uqdrape.workflow.calibrate import Parameter, calibrate_parts, synthetic_parts
+from uqdrape.workflow.calibrate import calibrate_parts, synthetic_parts
 
 pytest.importorskip("sklearn")
 pytest.importorskip("emcee")
@@ -144,7 +145,8 @@ def test_a_calibrated_study_that_would_not_find_its_files_is_refused_before_any_
 
 
 def test_the_card_imbalance_is_a_parameter_once_the_study_sets_it(tmp_path):
-    from uqdrape.workflow.calibrate import parse_parameters, study_at
+    from uqdrape.calibration.parameters import parse_parameters
+    from uqdrape.workflow.calibrate import study_at
 
     path = write_study(tmp_path, **{**SMALL, "fabric": {"material": "ebxhd936_like", "imbalance_Nm": 20.0}})
     assert parse_parameters(["fabric.imbalance_Nm=2:50"], load_study(path)) == [Parameter("fabric.imbalance_Nm", 2.0, 50.0)]

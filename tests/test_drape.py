@@ -406,7 +406,7 @@ def test_netcdf_round_trip(tmp_path):
                 "gamma0": "degree", "turn": "degree", "energy_shear": "J", "energy_bending": "J",
                 "energy_blankholder": "J", "energy_blankholder_quadrant": "J", "energy_total": "J",
                 "orientation": "degree", "pre_shear": "degree", "skew": "degree", "crossover_x": "mm",
-                "crossover_y": "mm", "blankholder_force": "N", "friction": "1"}
+                "crossover_y": "mm", "applied_blankholder_force": "N", "friction": "1"}
     for name, units in expected.items():
         assert back[name].attrs["units"] == units, name
     floats = [v for v in back.data_vars if back[v].dtype.kind == "f"]

@@ -23,6 +23,7 @@ from uqdrape.ensemble import (
     drape_inputs, inputs_from_rows, open_ensemble, sample_columns, sampled_inputs,
 )
 from uqdrape.ensemble import read_manifest
+from uqdrape.schema import SOLVER_INPUTS
 from uqdrape.stats import varying_factors
 from uqdrape.study import FACTOR_SETTINGS, load_study
 from uqdrape.workflow import run_study
@@ -136,7 +137,7 @@ def test_every_study_factor_reaches_the_solver(tmp_path):
     ds = drape_inputs(study, [3, 4], {k: np.array(v) for k, v in values.items()})
     np.testing.assert_array_equal(ds.realization, [3, 4])
     for name, value in values.items():
-        np.testing.assert_array_equal(ds[name], value)
+        np.testing.assert_array_equal(ds[SOLVER_INPUTS[name].variable], value)  # the force: as applied
     np.testing.assert_allclose(ds.x.sel(i=0, j=0), [1.0, 0.0], atol=1e-9)  # the crossover node
     # fibre 1 leaves the crossover at the orientation + half the skew (in plan; off the
     # pole of the hemisphere the plan angle of the first segment drifts a little)

@@ -123,6 +123,24 @@ def test_one_vtk_file_per_force_level(tmp_path):
         np.testing.assert_array_equal(meshio.read(p).point_data["shear"], ds.shear.values[r][ds.status.values[r] == 0])
 
 
+def test_a_drape_file_with_the_old_force_name_still_reads(tmp_path):
+    """Issue 35: an older ``uqdrape drape`` file kept the force each drape saw as
+    ``blankholder_force``, now an ensemble's level dimension; it reads as
+    ``applied_blankholder_force`` (``conventions.RENAMED_VARIABLES``) and its levels are
+    still named by force."""
+    import netCDF4
+
+    ds = drape(build("hemisphere", radius=R), S, 3, blankholder_force=[0.0, 100.0])
+    assert "blankholder_force" not in ds.variables and ds.applied_blankholder_force.attrs["units"] == "N"
+    ds.to_netcdf(tmp_path / "old.nc")
+    with netCDF4.Dataset(tmp_path / "old.nc", "a") as nc:
+        nc.renameVariable("applied_blankholder_force", "blankholder_force")
+    back, is_ensemble = open_result(tmp_path / "old.nc")
+    assert not is_ensemble and "blankholder_force" not in back.variables
+    np.testing.assert_array_equal(back.applied_blankholder_force, [0.0, 100.0])
+    assert [level.label for level in levels(back, False)] == ["0N", "100N"]
+
+
 # ----------------------------------------------------------------------------- FE mapping
 
 

@@ -69,7 +69,8 @@ def sweep(material):
     rng = np.random.default_rng(6)
     R, n, forces = 8, 4, [0.0, 300.0]
     parts = [drape(NoseCone(), 5.0, n, gamma0=rng.normal(0.0, 5.0, (R, 2 * n, 2 * n)), mode="energy",
-                   material=material, blankholder_force=f).drop_vars("blankholder_force") for f in forces]
+                   material=material, blankholder_force=f).drop_vars("applied_blankholder_force")
+             for f in forces]
     force = xr.DataArray(forces, dims="blankholder_force", name="blankholder_force", attrs={"units": "N"})
     return xr.concat(parts, dim=force)
 

@@ -20,7 +20,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from conftest import write_study  # noqa: E402  (the tests' study builder)
 from test_calibration_drapes import DISTANCES, SD_KEY, SMALL  # noqa: E402
 
-from uqdrape.workflow.calibrate import Parameter, calibrate_parts, synthetic_parts  # noqa: E402
+from uqdrape.calibration.parameters import Parameter  # noqa: E402
+from uqdrape.workflow.calibrate import calibrate_parts, synthetic_parts  # noqa: E402
 
 
 def main() -> None:

@@ -34,6 +34,7 @@ The names are imported on first use (PEP 562), so ``import uqdrape`` and ``uqdra
 
 from typing import TYPE_CHECKING
 
+from ._lazy import lazy_exports
 from ._version import __version__  # noqa: F401  (the package's version, written once in _version)
 
 #: The public API: the names of the module docstring, in its order (a test holds them equal).
@@ -54,19 +55,6 @@ if TYPE_CHECKING:  # what IDEs and type checkers follow; at run time __getattr__
     from .study import Study, StudyError
     from .workflow.examples import copy_example, list_examples
 
-#: Where the names not written in uqdrape.api live.
-_HOME = {"Study": "study", "StudyError": "study", "list_examples": "workflow.examples",
-         "copy_example": "workflow.examples"}
-
-
-def __getattr__(name: str):
-    if name not in __all__:
-        raise AttributeError(f"module 'uqdrape' has no attribute {name!r}")
-    import importlib
-
-    value = globals()[name] = getattr(importlib.import_module(f".{_HOME.get(name, 'api')}", __name__), name)
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *__all__})
+#: Where the names live: uqdrape.api, but for four.
+__getattr__, __dir__ = lazy_exports(__name__, {".api": __all__, ".study": ("Study", "StudyError"),
+                                               ".workflow.examples": ("list_examples", "copy_example")})

@@ -76,14 +76,14 @@ def cmd_materials(args) -> int:
                          "RIG.toml --out CARD.toml` take a second argument or --out")
     if args.plot is True:
         raise ValueError("--plot needs a PNG path when showing a card")
-    if not args.name:
-        cards = material_list()
-        width = max(len(name) for name, _ in cards)
-        for name, description in cards:
-            print(f"{name:{width}s}  {description}")
-        return 0
-    print(material_text(args.name, args.plot))
+    print(_listing(material_list()) if not args.name else material_text(args.name, args.plot))
     return 0
+
+
+def _listing(rows) -> str:
+    """(name, description) rows as two aligned columns."""
+    width = max(len(name) for name, _ in rows)
+    return "\n".join(f"{name:{width}s}  {description}" for name, description in rows)
 
 
 def cmd_validate(args) -> int:
@@ -223,10 +223,7 @@ def cmd_examples(args) -> int:
     from .workflow.examples import copy_example, list_examples
 
     if args.name is None:
-        examples = list_examples()
-        width = max(len(name) for name, _ in examples)
-        for name, description in examples:
-            print(f"{name:{width}s}  {description}")
+        print(_listing(list_examples()))
         return 0
     try:
         print(f"wrote {copy_example(args.name, args.dest, overwrite=args.overwrite)}")

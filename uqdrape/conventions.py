@@ -14,8 +14,9 @@ and its numbers are unchanged unless ``float32`` is asked for.
 - global ``title``, ``history``, ``source`` (package and git version), ``date_created``
 - optional: float variables stored as float32 with zlib (the 127-drape nose-cone
   ensemble: 9.8 MB instead of 27.6 MB; numbers rounded to float32, relative 6e-8)
-- global attributes an older uqdrape wrote under another name (:data:`RENAMED_ATTRS`)
-  are read under their current name: the one place where old names are read
+- global attributes and variables an older uqdrape wrote under another name
+  (:data:`RENAMED_ATTRS`, :data:`RENAMED_VARIABLES`) are read under their current name:
+  the one place where old names are read
 """
 
 from __future__ import annotations
@@ -43,6 +44,10 @@ LABEL = "_label"
 #: Written under the current names; :func:`cf_decode` reads either.
 RENAMED_ATTRS = {"design_method": "sample_method", "design_base_samples": "sample_base_samples",
                  "design_evaluations": "sample_evaluations"}
+#: Variables an older uqdrape wrote, by their current names (issue 35: a drape file kept the
+#: force each drape saw as ``blankholder_force``, the name of an ensemble's level dimension;
+#: it is ``uqdrape.schema.APPLIED_FORCE``). :func:`cf_decode` reads either.
+RENAMED_VARIABLES = {"blankholder_force": "applied_blankholder_force"}
 #: Attributes of the index coordinates a drape Dataset can have.
 INDEX_ATTRS = {
     "realization": ("realisation index (global within the study)", "1"),
@@ -121,8 +126,11 @@ def cf_decode(ds: xr.Dataset) -> xr.Dataset:
     """The Dataset layout of ``uqdrape.drape``: node positions that a CF-aware reader made
     coordinates (from the ``coordinates`` attributes) become data variables again, and
     string coordinates get their labels back; attributes an older uqdrape wrote get their
-    current names (:data:`RENAMED_ATTRS`; where a file holds both, the current one)."""
+    current names (:data:`RENAMED_ATTRS`; where a file holds both, the current one), and so
+    do data variables (:data:`RENAMED_VARIABLES`; an ensemble's level coordinate is no data
+    variable)."""
     ds = ds.reset_coords([p for p in POSITIONS if p in ds.coords])
+    ds = ds.rename_vars({k: v for k, v in RENAMED_VARIABLES.items() if k in ds.data_vars and v not in ds})
     if RENAMED_ATTRS.keys() & ds.attrs.keys():
         ds.attrs = {RENAMED_ATTRS.get(k, k): v for k, v in ds.attrs.items()
                     if not (k in RENAMED_ATTRS and RENAMED_ATTRS[k] in ds.attrs)}

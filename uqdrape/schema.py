@@ -8,15 +8,16 @@ uqdrape: it sits below the solver and the study file. The names here are the sol
 and the analysis's own; where a study file sets each of them is the study spec's
 business (``uqdrape.study.spec``).
 
-The ensemble layout. An ensemble (as the ensemble engine writes it, ``open_ensemble``
-opens it and stats and report read it) has the dims (``blankholder_force``,
-``realization``, ...): ``blankholder_force`` is the set force level (N), always a
-dimension, of length 1 unless the study sweeps the force. Every drape also keeps the force
-it was run with in ``applied_blankholder_force`` (blankholder_force, realization; N): the
-level itself, or the sampled value when the force is an ``[uncertainty]`` factor (the
-level is then the study's fixed setting, the nominal force). The solver's own drape
-Dataset has the force per realisation under the input's name; :func:`by_force` puts it
-in the ensemble layout.
+The force has two names, one per meaning. ``blankholder_force`` (:data:`FORCE`) is the
+study's set force level (N), always a dimension of an ensemble (as the ensemble engine
+writes it, ``open_ensemble`` opens it and stats and report read it; dims
+(``blankholder_force``, ``realization``, ...), of length 1 unless the study sweeps the
+force) and the solver's input argument. ``applied_blankholder_force``
+(:data:`APPLIED_FORCE`; N) is the force a drape was run with, a per-realisation variable
+of every drape Dataset the solver makes and of every ensemble: the level itself, or the
+sampled value when the force is an ``[uncertainty]`` factor (the level is then the
+study's fixed setting, the nominal force). :func:`at_level` and :func:`by_force` put a
+drape Dataset in the ensemble layout.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ if TYPE_CHECKING:  # annotations only: xarray is imported where a Dataset is mad
 #: Ensemble dimensions: realisations, and the blank-holder force level (N; length 1 without a sweep).
 REALIZATION = "realization"
 FORCE = "blankholder_force"
-#: The per-realisation force (N) each drape of an ensemble was run with (see the module docstring).
+#: The per-realisation force (N) each drape was run with (see the module docstring).
 APPLIED_FORCE = "applied_blankholder_force"
 #: A laminate's plies: the dimension ``ply`` (after the force level, before ``realization``;
 #: coordinate: the ply names in stacking order, the first on the tool) and its coordinate
@@ -68,8 +69,8 @@ def site_dims(da: xr.DataArray) -> tuple[str, str]:
 class SolverInput:
     """A scalar input of ``uqdrape.drape.drape`` that a study fixes or samples per realisation.
 
-    ``name`` is the drape argument, the drape Dataset's variable (an ensemble's is
-    ``variable``) and the ``[uncertainty.<name>]`` factor; ``lower``/``upper`` its physical
+    ``name`` is the drape argument and the ``[uncertainty.<name>]`` factor, ``variable``
+    its per-realisation variable in a drape or ensemble Dataset; ``lower``/``upper`` its physical
     range, exclusive where ``open_range`` (a value at an open end would make the net
     degenerate).
     """
@@ -83,7 +84,7 @@ class SolverInput:
 
     @property
     def variable(self) -> str:
-        """The input's per-realisation variable in an ensemble (the force's name is the dimension's)."""
+        """The input's per-realisation variable: its name, but :data:`APPLIED_FORCE` for the force."""
         return APPLIED_FORCE if self.name == FORCE else self.name
 
     def admits(self, value: float) -> bool:
@@ -151,10 +152,9 @@ SENSITIVITY_QOIS = ("max_abs_shear", "mean_shear_positive", "mean_shear_negative
 
 
 def at_level(ds: xr.Dataset, force: float) -> xr.Dataset:
-    """Drape Dataset ``ds`` (the force per realisation) as force level ``force`` (N) of an
-    ensemble: the force variable renamed ``applied_blankholder_force``, every variable
+    """Drape Dataset ``ds`` as force level ``force`` (N) of an ensemble: every variable
     given the leading length-1 dimension ``blankholder_force``."""
-    out = ds.rename_vars({FORCE: APPLIED_FORCE}).expand_dims({FORCE: [float(force)]})
+    out = ds.expand_dims({FORCE: [float(force)]})
     out[FORCE].attrs.update(units="N", long_name="blank-holder force level")
     return out
 
@@ -177,11 +177,11 @@ def by_force(ds: xr.Dataset) -> xr.Dataset:
 
     if FORCE in ds.dims:
         return ds
-    forces = ds[FORCE].values
+    forces = ds[APPLIED_FORCE].values
     parts = [ds.isel({REALIZATION: np.flatnonzero(forces == f)}) for f in np.unique(forces)]
     sizes = sorted({p.sizes[REALIZATION] for p in parts})
     if len(sizes) > 1:
         raise ValueError(f"the drapes have blank-holder forces {np.unique(forces).tolist()} N in different numbers "
                          f"({sizes} drapes per force); select drapes of one force first")
-    return xr.concat([at_level(p.assign_coords({REALIZATION: np.arange(sizes[0])}), p[FORCE].values[0])
+    return xr.concat([at_level(p.assign_coords({REALIZATION: np.arange(sizes[0])}), p[APPLIED_FORCE].values[0])
                       for p in parts], dim=FORCE)

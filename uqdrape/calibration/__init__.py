@@ -23,9 +23,10 @@ IMAGE --mm-per-px``).
 profile interval, or a posterior piling against the prior's bound).
 
 Measured drapes -> study parameters: :mod:`.emulator` (a GP per ensemble statistic over a
-Latin-hypercube training points, scikit-learn) and :mod:`.drapes` (the parts' likelihood, its
-posterior by emcee, the posterior-predictive bands); the drapes themselves are run by
-``uqdrape.workflow.calibrate``.
+Latin-hypercube training points, scikit-learn), :mod:`.drapes` (the parts' likelihood, the
+two-round design of training points, its posterior by emcee, the posterior-predictive
+bands) and :mod:`.parameters` (the calibrated study keys and the study at their medians);
+the drapes themselves are run by ``uqdrape.workflow.calibrate``.
 """
 
 from __future__ import annotations

@@ -19,11 +19,13 @@ trip in the tests: stripes bent by a known field).
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from ..errors import ParameterError
 from ..files import check_input_file
-from .points import AnglePoints, PointsError
+from .points import AnglePoints, PointsError, read_points
 
 
 def _skimage_feature():
@@ -114,3 +116,19 @@ def image_points(image, mm_per_px: float, *, window_px: float = 4.0, derivative_
     n = r.size
     return AnglePoints(c * mm_per_px, -r * mm_per_px, theta[r, c], np.full(n, fibre_set), np.zeros(n),
                        np.arange(1, n + 1), source)
+
+
+def measured_points(path, mm_per_px: float | None, *, window_px: float = 8.0, fibre_set: int = 1) -> AnglePoints:
+    """The fibre-angle points of the file ``path``: an image (a suffix of IMAGE_SUFFIXES)
+    read as tows of ``fibre_set`` at scale ``mm_per_px`` (mm per pixel) through the
+    structure tensor (window ``window_px``, px), any other file a points CSV
+    (``points.read_points``; no ``mm_per_px`` then)."""
+    path = Path(path)
+    if path.suffix.lower() not in IMAGE_SUFFIXES:
+        if mm_per_px is not None:
+            raise ParameterError("mm_per_px", f"mm_per_px is the scale of an image ({', '.join(IMAGE_SUFFIXES)}); "
+                                 f"{path} is read as a points CSV")
+        return read_points(path)
+    if mm_per_px is None:
+        raise ParameterError("mm_per_px", f"{path} is an image: give its scale, mm_per_px (mm per pixel, > 0)")
+    return image_points(read_image(path), mm_per_px, window_px=window_px, fibre_set=fibre_set, source=str(path))

@@ -107,7 +107,8 @@ def drape(surface, spacing, rings, *, orientation=0.0, pre_shear=0.0, skew=0.0,
     material           a ``uqdrape.material.Material``, or one per realisation (a sequence
                        of R, e.g. a card's specimen scatter sampled per drape) sharing
                        locking angles, phi0 and bending stiffness; needed for mode="energy"
-    blankholder_force  total blank-holder force F_BH (N); friction: mu_BH (-)
+    blankholder_force  total blank-holder force F_BH (N), stored as ``applied_blankholder_force``
+                       (``uqdrape.schema.APPLIED_FORCE``); friction: mu_BH (-)
     sectors            relative blank-holder force per equal angular sector (None: uniform)
     blankholder_model  "slip" (friction on the held fabric's whole plan slip, the default) or
                        "radial" (thesis Eq 5.1-5.5: radial draw-in only); see ``BlankHolder``
@@ -339,10 +340,10 @@ def _dataset(prob, P, status, turns, bending, iterations, converged, mode, facto
         "iterations": (REALIZATION, iterations, {"long_name": "minimiser iterations, all steps", "units": "1"}),
         "converged": (REALIZATION, converged, {"long_name": "minimiser converged at every step", "units": "1"}),
     }
-    for name, value in factors.items():  # the per-realisation inputs
+    for name, value in factors.items():  # the per-realisation inputs (the force: uqdrape.schema.APPLIED_FORCE)
         inp = SOLVER_INPUTS.get(name)
         attrs = {"units": inp.units, "long_name": inp.long_name} if inp else {"units": "1", "long_name": f"sampled input {name}"}
-        variables[name] = (REALIZATION, np.asarray(value, dtype=float), attrs)
+        variables[inp.variable if inp else name] = (REALIZATION, np.asarray(value, dtype=float), attrs)
     coords = _coords(prob.R, n)
     return xr.Dataset(
         variables, coords=coords,

@@ -17,32 +17,19 @@ does not load dask, the run loop or the progress bar.
 
 from __future__ import annotations
 
-import importlib
+from .._lazy import lazy_exports
 
 _EXPORTS = {
-    "chunk": ("drape_inputs", "drape_laminate", "placement_status", "ply_inputs", "study_mould", "write_atomic",
-              "write_netcdf"),
-    "inputs": ("inputs_from_rows", "sample_columns", "sampled_inputs"),
-    "progress": ("Progress", "ring_progress"),
-    "run": ("compute_tasks", "reach_scheduler", "run_ensemble"),
-    "storage": ("at", "open_ensemble", "read_manifest"),
+    ".chunk": ("drape_inputs", "drape_laminate", "placement_status", "ply_inputs", "study_mould", "write_atomic",
+               "write_netcdf"),
+    ".inputs": ("inputs_from_rows", "sample_columns", "sampled_inputs"),
+    ".progress": ("Progress", "ring_progress"),
+    ".run": ("compute_tasks", "reach_scheduler", "run_ensemble"),
+    ".storage": ("at", "open_ensemble", "read_manifest"),
+    "..pool": ("local_pool",),  # the worker pool's, re-exported
 }
-_MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
 
 __all__ = ["run_ensemble", "open_ensemble", "sampled_inputs", "inputs_from_rows", "sample_columns",
-           "drape_inputs", "placement_status", "study_mould", "write_atomic", "write_netcdf", "read_manifest",
+           "drape_inputs", "drape_laminate", "placement_status", "ply_inputs", "study_mould", "write_atomic", "write_netcdf", "read_manifest",
            "compute_tasks", "reach_scheduler", "Progress", "ring_progress", "local_pool", "at"]
-
-
-def __getattr__(name: str):
-    if name == "local_pool":  # the worker pool's, re-exported
-        from ..pool import local_pool
-
-        return local_pool
-    if name not in _MODULE_OF:
-        raise AttributeError(f"module 'uqdrape.ensemble' has no attribute {name!r}")
-    return getattr(importlib.import_module(f".{_MODULE_OF[name]}", __name__), name)
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *__all__})
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -31,9 +31,8 @@ from ..stochastic.sampling import extension_problem
 from ..study import Study, identity
 from .chunk import HDF5_LOCK, write_atomic
 
-#: The manifest and the lock of a run, in a folder or a store alike.
+#: The manifest of a run, in a folder or a store alike (its lock: ``lock.LOCK``).
 MANIFEST = "run.json"
-LOCK = "run.lock"
 
 #: A chunk file's name: ``r<first>-<last>.nc``, prefixed ``f<level>-`` in a sweep (and never a path).
 CHUNK_NAME = re.compile(r"^(f\d{3}-)?r\d{7}-\d{7}\.nc$")

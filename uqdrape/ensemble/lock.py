@@ -27,7 +27,7 @@ from pathlib import Path
 from ..errors import naming
 
 
-#: The lock file in a run folder.
+#: The lock of a run, in a folder or a store alike.
 LOCK = "run.lock"
 
 

@@ -55,8 +55,8 @@ from ..conventions import cf_decode, cf_encode
 from ..files import check_unlinked, claim, url_problem
 from ..schema import FORCE, REALIZATION
 from .chunk import drape_chunk
-from .lock import hold_lock
-from .location import (LOCK, MANIFEST, MAX_MANIFEST_BYTES, Location, changed, check_growth, check_same_study,
+from .lock import LOCK, hold_lock
+from .location import (MANIFEST, MAX_MANIFEST_BYTES, Location, changed, check_growth, check_same_study,
                        corrupt_manifest, digest, new_key, parse_manifest, plan_chunks, region_of)
 
 #: the object ``check_store`` puts and removes to learn that a store takes writes

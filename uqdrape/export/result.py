@@ -15,7 +15,7 @@ import xarray as xr
 
 from ..conventions import cf_decode, cf_encode
 from ..geometry import Surface, build
-from ..schema import FORCE, REALIZATION
+from ..schema import APPLIED_FORCE, FORCE, REALIZATION
 
 #: Quantiles of the node shear exported for an ensemble.
 QUANTILES = (0.05, 0.5, 0.95)
@@ -126,6 +126,6 @@ def levels(ds: xr.Dataset, is_ensemble: bool) -> list[Level]:
     R = ds.sizes[REALIZATION]
     if R == 1:
         return [_drape_level(ds, "")]
-    forces = ds[FORCE].values
+    forces = ds[APPLIED_FORCE].values
     named = len(set(forces.tolist())) == R
     return [_drape_level(ds.isel(realization=[r]), f"{forces[r]:g}N" if named else f"r{r}") for r in range(R)]

@@ -18,24 +18,18 @@ light commands do not pay for dask, matplotlib and SALib.
 
 from __future__ import annotations
 
-import importlib
+from .._lazy import lazy_exports
 
 _EXPORTS = {
-    "run": ("run_study", "run_outcome", "design_outcome", "run_design", "run_report", "write_sensitivity", "open_sensitivity", "INDICES_FILE",
-            "MAPS_FILE"),
-    "preflight": ("load_study", "validate_study", "check_resources", "check_placement", "run_preflight",
-                  "check_workers"),
-    "single_shot": ("check_drape_inputs", "drape_to_files", "material_list", "material_text", "derive_material", "fit_material",
-                 "export_result"),
-    "help_text": ("geometry_help", "architectures", "describe_study", "version_text"),
-    "serve": ("serve_study", "input_names", "nominal_input"),
-    "calibrate": ("calibrate_fibre_angles", "calibrate_drapes", "calibrate_parts", "synthetic_parts"),
+    ".run": ("run_study", "run_outcome", "design_outcome", "run_design", "run_report", "write_sensitivity",
+             "open_sensitivity", "INDICES_FILE", "MAPS_FILE"),
+    ".preflight": ("load_study", "validate_study", "check_resources", "check_placement", "run_preflight",
+                   "check_workers"),
+    ".single_shot": ("check_drape_inputs", "drape_to_files", "material_list", "material_text", "derive_material",
+                     "fit_material", "export_result"),
+    ".help_text": ("geometry_help", "architectures", "describe_study", "version_text"),
+    ".serve": ("serve_study", "input_names", "nominal_input"),
+    ".calibrate": ("calibrate_fibre_angles", "calibrate_drapes", "calibrate_parts", "synthetic_parts"),
 }
-_MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
-__all__ = sorted(_MODULE_OF)
-
-
-def __getattr__(name: str):
-    if name not in _MODULE_OF:
-        raise AttributeError(f"module 'uqdrape.workflow' has no attribute {name!r}")
-    return getattr(importlib.import_module(f".{_MODULE_OF[name]}", __name__), name)
+__all__ = sorted(name for names in _EXPORTS.values() for name in names)
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -36,6 +36,7 @@ from ..design import DESIGN_FILE, EVALUATIONS, Evaluator, drape_design, optimise
 from ..ensemble import (Progress, at, local_pool, open_ensemble, read_manifest, reach_scheduler, run_ensemble,
                         sample_columns)
 from ..report import write_design_report, write_laminate_report, write_report
+from ..schema import FORCE
 from ..sensitivity import map_indices, qoi_indices, sensitivity_sample
 from ..stats import SENSITIVITY_QOIS, realization_qois
 from ..study import SENSITIVITY_METHODS, Study, from_dict, identity, load_study
@@ -194,7 +195,7 @@ def write_sensitivity(output_dir, matrix, *, qoi=None, seed: int,
         study_name = ds.attrs.get("study_name", out.name)
     indices = qoi_indices(matrix, qois, seed=seed)
     nodes = shear.isel({dim: 0 for dim in shear.dims if dim not in ("i", "j")}).size
-    bar = Progress(nodes * shear.sizes.get("blankholder_force", 1), enabled=progress, desc="index maps", unit="node")
+    bar = Progress(nodes * shear.sizes.get(FORCE, 1), enabled=progress, desc="index maps", unit="node")
     try:
         maps = map_indices(matrix, shear, seed=seed, progress=bar.update)
     finally:
