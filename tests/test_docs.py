@@ -33,7 +33,7 @@ def test_a_key_added_to_the_validator_without_an_entry_fails(monkeypatch):
 def test_the_reference_lists_every_key_mould_factor_and_choice():
     page = studyref.reference()
     for table, keys in validate.KEYS.items():
-        heading = re.search(rf"^#+ `\[{re.escape(table)}\]`.*$", page, re.M)
+        heading = re.search(rf"^#+ `\[\[?{re.escape(table)}\]\]?`.*$", page, re.M)  # [[ply]]: an array
         section = re.split(r"\n#+ ", page[heading.end():])[0]  # up to the next heading
         for key in keys:
             assert f"| `{key}` |" in section, (table, key)

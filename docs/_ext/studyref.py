@@ -106,7 +106,7 @@ def reference() -> str:
              "section by section, in the order they are checked. Units: mm, N, degrees. "
              "A key not listed here is refused.", ""]
     for section in spec.SECTIONS:
-        lines += [f"## `[{section}]`", ""]
+        lines += [f"## `[[{section}]]`" if section == "ply" else f"## `[{section}]`", ""]
         if section == "geometry":
             lines += _geometry()
         elif section == "uncertainty":
