@@ -205,3 +205,31 @@ def test_a_ply_the_tool_cannot_hold_is_refused_before_the_run(tmp_path):
     assert res.returncode != 0
     assert_one_line_error(res.stderr.strip(), file=path, key="ply.edge.crossover")
     assert "ply edge" in res.stderr and not (tmp_path / "lam").exists()
+
+
+def test_laminate_export_writes_each_ply_and_the_handoff(tmp_path):
+    """``uqdrape export RUN`` of a laminate: VTK and flat pattern per ply, the laminate
+    handoff for --to fe, all in one line of output and no traceback."""
+    import meshio
+
+    from uqdrape.workflow import run_study
+
+    path = laminate_file(tmp_path, QUASI_ISOTROPIC[:2], study={"realizations": 2})
+    out = run_study(path, progress=False)
+    n = 9
+    xs = np.linspace(-15.0, 15.0, n)
+    X, Y = np.meshgrid(xs, xs)
+    points = np.column_stack([X.ravel(), Y.ravel(), np.sqrt(50.0 ** 2 - X.ravel() ** 2 - Y.ravel() ** 2)])
+    quads = [[i * n + j, i * n + j + 1, (i + 1) * n + j + 1, (i + 1) * n + j] for i in range(n - 1) for j in range(n - 1)]
+    meshio.write(tmp_path / "cap.inp", meshio.Mesh(points, [("quad", np.array(quads))]))
+    res = subprocess.run([sys.executable, "-m", "uqdrape.cli", "export", str(out), "--to", "vtk", "flat", "fe",
+                          "--mesh", str(tmp_path / "cap.inp"), "--thickness", "0.3", "--realizations", "2"],
+                         capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    names = {p.name for p in (out / "export").iterdir()}
+    for ply in ("p0", "p45"):
+        assert {f"lam-ply-{ply}.vtu", f"lam-ply-{ply}-flat.dxf"} <= names, names
+    assert {"lam-laminate.inp", "lam-laminate.nc", "lam-r0000-laminate.inp", "lam-r0001-laminate.inp"} <= names
+    res = subprocess.run([sys.executable, "-m", "uqdrape.cli", "export", str(out), "--to", "fe", "--mesh",
+                          str(tmp_path / "cap.inp"), "--thickness", "0"], capture_output=True, text=True)
+    assert res.returncode != 0 and "Traceback" not in res.stderr and "thickness" in res.stderr

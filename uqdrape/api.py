@@ -440,7 +440,9 @@ def write_report(run: PathLike, out_dir: PathLike | None = None, formats: Sequen
 
 def export_result(result: PathLike, to: Sequence[str], *, out: PathLike | None = None, mesh: PathLike | None = None,
                   flavours: Sequence[str] = ("abaqus",), trim: PathLike | None = None, ply: str | None = None,
-                  tolerance: float | None = None, reference: float | None = None) -> tuple[list, list[str]]:
+                  tolerance: float | None = None, reference: float | None = None,
+                  thickness: float | Sequence[float] = 1.0, realizations: int = 0,
+                  variance: float = 0.99) -> tuple[list, list[str]]:
     """Export a drape file or a run for other tools: all files computed first, then written together.
 
     Parameters
@@ -465,6 +467,15 @@ def export_result(result: PathLike, to: Sequence[str], *, out: PathLike | None =
         How far (mm) an element may lie from the mould for ``"fe"`` (default: the spacing).
     reference : float, optional
         Plan angle (deg) that fibre deviations are measured from (default: the orientation).
+    thickness : float or sequence of float, default 1.0
+        A laminate's cured ply thickness (mm) for ``"fe"``: one for all plies, or one per ply.
+    realizations : int, default 0
+        A laminate's Monte Carlo decks for ``"fe"``: one per realisation, the first ``realizations``.
+    variance : float, default 0.99
+        Share of a laminate's yarn-angle variance its Karhunen-Loeve modes keep, in (0, 1].
+
+    A laminate run (a study with ``[[ply]]``) writes ``"vtk"``, ``"flat"`` and ``"cut"``
+    per ply, and its ``"fe"`` is the laminate handoff (``uqdrape.export.export_laminate``).
 
     Returns
     -------
@@ -478,7 +489,8 @@ def export_result(result: PathLike, to: Sequence[str], *, out: PathLike | None =
     from .workflow.single_shot import export_result as export
 
     return export(result, tuple(to), out=out, mesh=mesh, tolerance=tolerance, reference=reference,
-                  flavours=tuple(flavours), trim=trim, ply=ply)
+                  flavours=tuple(flavours), trim=trim, ply=ply, thickness=thickness, realizations=realizations,
+                  variance=variance)
 
 
 def mould(kind: str, **params: Any) -> Surface:

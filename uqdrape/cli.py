@@ -183,7 +183,8 @@ def cmd_export(args) -> int:
         if value is not None and not math.isfinite(value):
             raise ValueError(f"{flag} must be a finite number, got {value}")
     written, notes = export_result(args.result, args.to, out=args.out, mesh=args.mesh, tolerance=args.tolerance,
-                                   reference=args.reference, flavours=args.flavour, trim=args.trim, ply=args.ply)
+                                   reference=args.reference, flavours=args.flavour, trim=args.trim, ply=args.ply,
+                                   thickness=args.thickness, realizations=args.realizations, variance=args.variance)
     for note in notes:
         print(note)
     print("wrote " + ", ".join(map(str, written)))
@@ -365,7 +366,13 @@ def build_parser() -> argparse.ArgumentParser:
                     "  uqdrape export results/drape/nosecone.nc --to vtk flat\n"
                     "  uqdrape export results/drape/nosecone.nc --to cut --trim edge.csv --ply P1\n"
                     "  uqdrape export results/nosecone-zero-angle --to fe --mesh part.inp --flavour abaqus lsdyna\n"
-                    "  uqdrape export s3://bucket/runs/nosecone --to netcdf --out results/nosecone.nc")
+                    "  uqdrape export s3://bucket/runs/nosecone --to netcdf --out results/nosecone.nc\n"
+                    "  uqdrape export results/doubledome-laminate --to fe --mesh part.inp --thickness 0.25 "
+                    "--realizations 20\n\n"
+                    "A laminate run (a study with [[ply]]) writes vtk, flat and cut per ply (STEM-ply-NAME...);\n"
+                    "its fe is the laminate handoff: STEM-laminate.* (a composite section with each element's\n"
+                    "median ply angles), STEM-rNNNN-laminate.* (one deck per realisation, --realizations of\n"
+                    "them) and STEM-laminate.nc (per-element, per-ply angle samples and their KL modes).")
     e.add_argument("result", help="a drape netCDF file, a run folder or a store URL")
     e.add_argument("--to", nargs="+", required=True, choices=("vtk", "fe", "flat", "cut", "netcdf"),
                    help="what to write")
@@ -381,6 +388,12 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--reference", type=float, metavar="DEG",
                    help="plan angle of the direction fibre_deviation is measured from (default: the fabric's "
                         "orientation)")
+    e.add_argument("--thickness", type=float, nargs="+", default=[1.0], metavar="MM",
+                   help="a laminate's cured ply thickness for --to fe: one for all plies or one per ply (default 1)")
+    e.add_argument("--realizations", type=int, default=0, metavar="N",
+                   help="a laminate's Monte Carlo decks for --to fe: the first N realisations (default 0)")
+    e.add_argument("--variance", type=float, default=0.99, metavar="FRACTION",
+                   help="share of a laminate's angle variance its KL modes keep, in (0, 1] (default 0.99)")
     e.add_argument("--out", metavar="STEM",
                    help="output path stem, or FILE.nc for --to netcdf (default: the drape file without .nc, or "
                         "RUN/export/RUN, under a store's URL for a store)")

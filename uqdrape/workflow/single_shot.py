@@ -12,7 +12,7 @@ import numpy as np
 from ..conventions import cf_encode
 from ..drape import drape, unplaced_error
 from ..ensemble import at, ring_progress, write_netcdf
-from ..export import cut_files, fe_files, flat_files, levels, netcdf_file, open_result, vtk_files
+from ..export import cut_files, fe_files, flat_files, laminate_files, levels, netcdf_file, open_result, vtk_files
 from ..files import local_path, write_all, write_text_atomic
 from ..errors import ParameterError
 from ..geometry import build
@@ -22,7 +22,7 @@ from ..material.cards import card_material, card_text
 from ..material.plot import plot_architecture, plot_sheartest
 from ..material.sheartest import fit_card, read_rig
 from ..report import plot_lines, plot_net
-from ..schema import MAX_RINGS, MAX_TOLERANCE_DEG, SOLVER_INPUTS, SPACING_RANGE_MM
+from ..schema import MAX_RINGS, MAX_TOLERANCE_DEG, PLY, SOLVER_INPUTS, SPACING_RANGE_MM, ply_dataset
 from ..study.spec import Solver
 from .preflight import WORKING_BYTES_PER_NODE, memory_bytes
 
@@ -176,14 +176,17 @@ EXPORT_FORMATS = ("vtk", "fe", "flat", "cut", "netcdf")
 
 
 def export_result(result, to, *, out=None, mesh=None, tolerance=None, reference=None, flavours=("abaqus",),
-                  trim=None, ply=None) -> tuple[list, list[str]]:
+                  trim=None, ply=None, thickness=1.0, realizations=0, variance=0.99) -> tuple[list, list[str]]:
     """Export a drape file, a run folder or a store URL ``result`` as ``to`` (some of
     "vtk", "fe", "flat", "cut", "netcdf"); every file is computed first and written
     together, all or nothing, under the stem ``out`` (default: the drape file without
     .nc, or the run's ``export/NAME``, in a store put under its URL). ``flavours``: the
     FE solvers' cards for "fe"; ``trim``: the part's edge (plan CSV) for "cut" (default:
-    the mould's own outline), ``ply`` its label. Returns the paths (URLs in a store) and
-    the lines to tell the user (the FE mapping counts)."""
+    the mould's own outline), ``ply`` its label. A laminate's "vtk", "flat" and "cut" are
+    written per ply (``STEM-ply-NAME...``, each cut labelled with its ply), and its "fe" is
+    the laminate handoff (``uqdrape.export.laminate``: plies ``thickness`` mm thick, the
+    first ``realizations`` decks, KL modes holding ``variance`` of the angles' variance).
+    Returns the paths (URLs in a store) and the lines to tell the user (the FE mapping counts)."""
     unknown = [t for t in to if t not in EXPORT_FORMATS]
     if unknown or not to:
         raise ValueError(f"to must name some of {', '.join(EXPORT_FORMATS)}; got {list(to)!r}")
@@ -194,7 +197,8 @@ def export_result(result, to, *, out=None, mesh=None, tolerance=None, reference=
     ds, is_ensemble = open_result(result)
     name = at(result).name if is_ensemble else Path(result).stem
     options = dict(mesh=mesh, tolerance=tolerance, reference=reference, flavours=flavours, trim=trim,
-                   ply=ply or name, history=f"uqdrape export {result} --to {' '.join(to)}")
+                   ply=ply or name, history=f"uqdrape export {result} --to {' '.join(to)}",
+                   laminate=dict(thickness_mm=thickness, realizations=realizations, variance=variance))
     if out or not is_ensemble:
         return _export(ds, is_ensemble, to, out or Path(result).with_suffix(""), **options)
     where = at(result)
@@ -204,24 +208,32 @@ def export_result(result, to, *, out=None, mesh=None, tolerance=None, reference=
 
 
 def _export(ds, is_ensemble: bool, to, stem: Path, *, mesh, tolerance, reference, flavours, trim, ply,
-            history) -> tuple[list[Path], list[str]]:
+            history, laminate) -> tuple[list[Path], list[str]]:
     """The files of ``export_result`` under ``stem``."""
     writers, notes = {}, []
     if "netcdf" in to:
         writers.update(netcdf_file(ds, stem, history))
-    levels_ = levels(ds, is_ensemble) if set(to) - {"netcdf"} else []
-    for level in levels_ if reference is not None else ():
-        level.orientation = reference
-    if "vtk" in to:
-        writers.update(vtk_files(levels_, ds, stem))
-    if "fe" in to:
-        fe, statuses = fe_files(levels_, ds, mesh, stem, tolerance, flavours)
-        writers.update(fe)
-        counts = [int(n) for n in np.bincount(statuses[0], minlength=3)]
-        notes.append(f"{mesh}: {sum(counts)} elements, {counts[0]} on the net, {counts[1]} outside it, "
-                     f"{counts[2]} off the mould (flagged in map_status and each flavour's unmapped set)")
-    if "flat" in to:
-        writers.update(flat_files(levels_, stem))
-    if "cut" in to:
-        writers.update(cut_files(levels_, ds, stem, trim=trim, ply=ply))
+    plies = [(name, ply_dataset(ds, name), stem.with_name(f"{stem.name}-ply-{name}")) for name in ds[PLY].values] \
+        if PLY in ds.dims else [(ply, ds, stem)]
+    for label, one, base in plies:
+        levels_ = levels(one, is_ensemble) if set(to) - {"netcdf"} else []
+        for level in levels_ if reference is not None else ():
+            level.orientation = reference
+        if "vtk" in to:
+            writers.update(vtk_files(levels_, one, base))
+        if "fe" in to and PLY not in ds.dims:
+            fe, statuses = fe_files(levels_, one, mesh, base, tolerance, flavours)
+            writers.update(fe)
+            counts = [int(n) for n in np.bincount(statuses[0], minlength=3)]
+            notes.append(f"{mesh}: {sum(counts)} elements, {counts[0]} on the net, {counts[1]} outside it, "
+                         f"{counts[2]} off the mould (flagged in map_status and each flavour's unmapped set)")
+        if "flat" in to:
+            writers.update(flat_files(levels_, base))
+        if "cut" in to:
+            writers.update(cut_files(levels_, one, base, trim=trim, ply=label))
+    if "fe" in to and PLY in ds.dims:
+        writers.update(laminate_files(ds, mesh, stem, flavours=flavours, tolerance_mm=tolerance, history=history,
+                                      **laminate))
+        notes.append(f"{mesh}: the laminate of {ds.sizes[PLY]} plies (elements a ply does not reach are listed in "
+                     "each flavour's unmapped set of that ply)")
     return write_all(writers), notes
