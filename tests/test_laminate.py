@@ -233,3 +233,18 @@ def test_laminate_export_writes_each_ply_and_the_handoff(tmp_path):
     res = subprocess.run([sys.executable, "-m", "uqdrape.cli", "export", str(out), "--to", "fe", "--mesh",
                           str(tmp_path / "cap.inp"), "--thickness", "0"], capture_output=True, text=True)
     assert res.returncode != 0 and "Traceback" not in res.stderr and "thickness" in res.stderr
+
+
+def test_one_ply_commands_refuse_a_laminate(tmp_path):
+    """A served model, a calibration from drapes and a sensitivity sample drape one ply: on
+    a laminate each says so in one line naming the study file."""
+    from uqdrape.workflow import run_study, serve_study
+
+    path = laminate_file(tmp_path, uncertainty={"friction": {"dist": "uniform", "bounds": [0.1, 0.3]},
+                                                "orientation": {"dist": "normal", "mean": 0.0, "sd": 1.0}})
+    study = load_study(path)
+    for call in (lambda: serve_study(study, port=0), lambda: run_study(study, method="morris", progress=False)):
+        with pytest.raises(ValueError) as err:
+            call()
+        assert_one_line_error(str(err.value), file=path, valid=("laminate", "one ply"))
+    assert not (tmp_path / "lam").exists()

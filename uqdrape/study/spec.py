@@ -366,6 +366,12 @@ class Study:
         value = getattr(getattr(self, section), key)
         return value if index is None else value[index]
 
+    def single_ply(self, what: str) -> None:
+        """Raise ValueError naming the study file if it is a laminate: ``what`` drapes one ply."""
+        if self.plies:
+            raise ValueError(f"{self.path}: {what} drapes one ply; this study is a laminate of {len(self.plies)} "
+                             "plies ([[ply]]): remove the ply book, or run it with `uqdrape run`")
+
     @property
     def shared(self) -> Study:
         """The laminate's process as a study of its own: the factors every ply of a

@@ -140,6 +140,7 @@ def calibrate_parts(study_path, parts, params, *, training_points: int | None = 
     ``parts`` (``uqdrape.calibration.drapes.drape_posterior``): each training point draped
     as ``realizations`` (default the study's) with its own seed."""
     study = load_study(study_path)
+    study.single_ply("a calibration from drapes")
     if study.is_sweep:
         raise ValueError(f"{study.path}: a calibration from drapes needs one blank-holder force level "
                          f"(the study sweeps {list(study.force_levels)} N)")
@@ -175,6 +176,7 @@ def calibrate_drapes(parts_csv, study_path, parameters, out, *, report=None,
     if out.suffix.lower() != ".toml":
         raise ParameterError("out", f"out must name the calibrated study to write, a .toml path; got {str(out)!r}")
     study = load_study(study_path)
+    study.single_ply("a calibration from drapes")
     params = parse_parameters(parameters, study)
     parts = [read_experimental(p) for p in parts_csv]
     write_atomic(out, lambda tmp: _valid_at(tmp, read_text(study_path, "study file"), out, study_path) and False)

@@ -72,6 +72,8 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
             raise ValueError(f"study {study.name!r} is a [design] study; it takes no sensitivity method")
         return run_design(study, scheduler=scheduler, workers=workers, progress=progress)
     method = study.sensitivity.method if method is None else method
+    if method != "none":
+        study.single_ply("a sensitivity sample")
     if method not in SENSITIVITY_METHODS:
         raise ValueError(f"method must be one of {', '.join(SENSITIVITY_METHODS)}, got {method!r}")
     matrix = None if method == "none" else sensitivity_sample(study, method)

@@ -210,6 +210,7 @@ def serve_study(study, *, host: str = "127.0.0.1", port: int = 4242, qoi=None, m
     seconds; returns the evaluations served. A connection idle for ``connection_timeout_s``
     seconds in a read or write is dropped. ``announce`` gets the lines describing the
     model."""
+    study.single_ply("a served model")
     qoi = check_qois(qoi if qoi else study.sensitivity.qoi)
     if max_requests is not None and max_requests < 1:
         raise ParameterError("max_requests", f"max_requests must be at least 1, got {max_requests}")
