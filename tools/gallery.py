@@ -6,7 +6,8 @@
 ``summary.json``, not the netCDF chunks; a design study's ``design.nc`` too -- into
 ``results/gallery/<name>/``, plus the
 entry's headline numbers in ``headline.json`` and, for entries with ``exports``, its
-VTK and flat-pattern export in ``export/``. ``results/gallery/README.md`` is then
+VTK and flat-pattern export in ``export/`` (a laminate entry with ``fe_mesh``: its FE
+handoff there; its plies' own reports in ``ply-NAME/``). ``results/gallery/README.md`` is then
 rebuilt from the headline files of all entries present, so ``--only`` refreshes one entry.
 
 The PNGs are the report's own lossless ones. Paths are relative to the checkout root
@@ -503,7 +504,10 @@ def write_readme() -> Path:
         "themselves (netCDF chunks) are not kept.",
         "",
         "Entries with an `export/` folder also ship their ensemble as `uqdrape export` writes it: the net's",
-        "per-node statistics and the mould as VTK (`.vtu`, open in ParaView), and the flat pattern (CSV, DXF).",
+        "per-node statistics and the mould as VTK (`.vtu`, open in ParaView), and the flat pattern (CSV, DXF);",
+        "a laminate's `export/` holds its FE handoff on the part's shell mesh instead (`uqdrape export --to fe",
+        "--thickness 0.25 --realizations 4`: Abaqus, LS-DYNA and Nastran decks, Monte Carlo decks, the netCDF",
+        "of the yarn-angle samples and their Karhunen-Loeve modes).",
         "",
         "Regenerate all of it (a few minutes on 2 cores), or one entry, from the checkout root:",
         "",
