@@ -6,7 +6,8 @@
 ``summary.json``, not the netCDF chunks; a design study's ``design.nc`` too -- into
 ``results/gallery/<name>/``, plus the
 entry's headline numbers in ``headline.json`` and, for entries with ``exports``, its
-VTK and flat-pattern export in ``export/``. ``results/gallery/README.md`` is then
+VTK and flat-pattern export in ``export/`` (a laminate entry with ``fe_mesh``: its FE
+handoff there; its plies' own reports in ``ply-NAME/``). ``results/gallery/README.md`` is then
 rebuilt from the headline files of all entries present, so ``--only`` refreshes one entry.
 
 The PNGs are the report's own lossless ones. Paths are relative to the checkout root
@@ -22,6 +23,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import re
 import shutil
 import sys
 from collections.abc import Callable
@@ -219,6 +221,24 @@ def _sensitivity_headline(ds: xr.Dataset, out: Path) -> dict:
     return out_
 
 
+def _laminate_headline(ds: xr.Dataset) -> dict:
+    """P(any ply locked) with its 95 % Wilson interval and each ply's P(locked), per force level."""
+    from uqdrape.schema import FORCE, PLY, PLY_ANGLE
+    from uqdrape.stats import laminate_lock
+
+    lock = laminate_lock(ds)
+    out = {}
+    for force in ds[FORCE].values:
+        at = lock.sel({FORCE: force})
+        out[f"P(any ply locked) at {force:g} N, 95 % interval"] = (
+            f"{float(at['p_any']):.3f} [{float(at['lower']):.3f}, {float(at['upper']):.3f}] "
+            f"({int(at['count'])} of {lock.attrs['n']})")
+        out[f"P(ply locked) at {force:g} N"] = ", ".join(
+            f"{p} ({float(ds[PLY_ANGLE].sel({PLY: p})):+g} deg) {float(at['p_ply'].sel({PLY: p})):.3f}"
+            for p in ds[PLY].values)
+    return out
+
+
 @dataclass(frozen=True)
 class Entry:
     """One gallery study: its name (= the study file's stem and its [study] name), the
@@ -234,6 +254,9 @@ class Entry:
     reads_folder: bool = False
     #: ship the ensemble's export too: VTK net statistics and mould, flat pattern, a render
     exports: bool = False
+    #: a laminate's FE handoff on this shell mesh (relative to the checkout root): ply
+    #: thickness 0.25 mm, FE_DECKS Monte Carlo decks, Abaqus, LS-DYNA and Nastran
+    fe_mesh: str | None = None
 
     @property
     def study(self) -> Path:
@@ -289,6 +312,10 @@ GALLERY = (
     Entry("design-doubledome-sectors", "beyond the thesis (its next step: segment-wise pressure)", "sectors.png",
           _design_headline, "segmented blank-holder pressure named as future work; here eight sector forces "
           "minimising P(lock) under an 800 N budget against the uniform force of the same total"),
+    Entry("doubledome-laminate", "beyond the thesis (a laminate)", "tool_lock_map.png", _laminate_headline,
+          "one ply at a time; here a quasi-isotropic [0/45/90/-45] ply book draped ply by ply, per-ply "
+          "misalignment sd 1.5 deg, a common rosette error sd 1 deg: P(some ply locks) and its FE handoff",
+          fe_mesh="studies/meshes/doubledome-shell.inp"),
 )
 ENTRIES = {e.name: e for e in GALLERY}
 
@@ -315,17 +342,34 @@ def build_entry(entry: Entry, *, workers: int | None = None, resume: bool = Fals
     if target.exists():
         shutil.rmtree(target)
     target.mkdir(parents=True)
-    figures = json.loads((report / "summary.json").read_text(encoding="utf-8"))["figures"]
-    for name in (*KEPT, *figures):
-        shutil.copy2(report / name, target / name)
+    copy_report(report, target)
     if study.design is not None:
         shutil.copy2(out / DESIGN_FILE, target / DESIGN_FILE)
     if entry.exports:
         export_entry(entry, out, target)
+    if entry.fe_mesh is not None:
+        export_fe(entry, out, target)
     record = {"study": entry.study.as_posix(), "thesis_figure": entry.figure, "thesis": entry.thesis,
               "headline": headline}
     (target / "headline.json").write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
     return target
+
+
+def copy_report(report: Path, target: Path) -> None:
+    """Copy a report's :data:`KEPT` files and the figures its page shows into ``target``;
+    a laminate's page (its summary lists ``plies``, no ``figures``) with each ply's own
+    report, in ``target/ply-NAME/``, so the page's links hold."""
+    summary = json.loads((report / "summary.json").read_text(encoding="utf-8"))
+    if "figures" in summary:
+        figures = summary["figures"]
+    else:  # the laminate page: the PNGs it shows
+        figures = sorted(set(re.findall(r'src="([^"/]+\.png)"', (report / "index.html").read_text(encoding="utf-8"))))
+    target.mkdir(parents=True, exist_ok=True)
+    for name in (*KEPT, *figures):
+        shutil.copy2(report / name, target / name)
+    for ply in summary.get("plies", {}).values():
+        folder = Path(ply["report"]).parent
+        copy_report(report / folder, target / folder)
 
 
 #: Gallery entries compared on one plot of the nose-cone asymmetry against force.
@@ -415,6 +459,22 @@ def export_entry(entry: Entry, run_folder: Path, target: Path) -> list[Path]:
     return vtk + export_flat(per_level, stem) + [png]
 
 
+#: Monte Carlo decks per solver that a laminate entry's FE handoff ships.
+FE_DECKS = 4
+
+
+def export_fe(entry: Entry, run_folder: Path, target: Path) -> list[Path]:
+    """Export a laminate entry's ensemble onto its shell mesh into ``target/export/``, as
+    ``uqdrape export RUN --to fe --mesh MESH --thickness 0.25 --realizations 4`` with all
+    three solvers' cards: the nominal layup decks, the Monte Carlo decks and the
+    ``-laminate.nc`` samples with their Karhunen-Loeve modes; returns the paths."""
+    from uqdrape.api import export_result
+
+    paths, _ = export_result(run_folder, ["fe"], out=target / "export" / entry.name, mesh=entry.fe_mesh,
+                             flavours=("abaqus", "lsdyna", "nastran"), thickness=0.25, realizations=FE_DECKS)
+    return [Path(p) for p in paths]
+
+
 def _cell(text: str) -> str:
     """Text for a markdown table cell (a bare | would end the cell)."""
     return text.replace("|", "\\|")
@@ -444,7 +504,10 @@ def write_readme() -> Path:
         "themselves (netCDF chunks) are not kept.",
         "",
         "Entries with an `export/` folder also ship their ensemble as `uqdrape export` writes it: the net's",
-        "per-node statistics and the mould as VTK (`.vtu`, open in ParaView), and the flat pattern (CSV, DXF).",
+        "per-node statistics and the mould as VTK (`.vtu`, open in ParaView), and the flat pattern (CSV, DXF);",
+        "a laminate's `export/` holds its FE handoff on the part's shell mesh instead (`uqdrape export --to fe",
+        "--thickness 0.25 --realizations 4`: Abaqus, LS-DYNA and Nastran decks, Monte Carlo decks, the netCDF",
+        "of the yarn-angle samples and their Karhunen-Loeve modes).",
         "",
         "Regenerate all of it (a few minutes on 2 cores), or one entry, from the checkout root:",
         "",

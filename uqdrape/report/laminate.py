@@ -67,6 +67,10 @@ def plot_ply_maps(ds: xr.Dataset, values: xr.DataArray, path, *, norm, cmap, lab
         ax.tripcolor(tri, v.flat[used], shading="gouraud", norm=norm, cmap=cmap, rasterized=True)
         xlabel, ylabel = map_labels(one)
         ax.set(xlabel=xlabel, ylabel=ylabel, aspect="equal", title=ply_label(ds, ply))
+    (x0, x1), (y0, y1) = ((min(lim[0] for lim in lims), max(lim[1] for lim in lims))
+                          for lims in ([ax.get_xlim() for ax in axes], [ax.get_ylim() for ax in axes]))
+    for ax in axes:  # one plan window for every ply, so the plies compare at a glance on the same tool
+        ax.set(xlim=(x0, x1), ylim=(y0, y1))
     fig.colorbar(mpl.cm.ScalarMappable(norm=norm, cmap=cmap), ax=axes, shrink=0.85, label=label)
     suptitle(fig, title, force_title(force) if ds.sizes[FORCE] > 1 else "")
     return save(fig, path)
