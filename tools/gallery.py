@@ -23,7 +23,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-import re
 import shutil
 import sys
 from collections.abc import Callable
@@ -357,15 +356,11 @@ def build_entry(entry: Entry, *, workers: int | None = None, resume: bool = Fals
 
 def copy_report(report: Path, target: Path) -> None:
     """Copy a report's :data:`KEPT` files and the figures its page shows into ``target``;
-    a laminate's page (its summary lists ``plies``, no ``figures``) with each ply's own
-    report, in ``target/ply-NAME/``, so the page's links hold."""
+    a laminate's page (its summary lists ``plies``) with each ply's own report, in
+    ``target/ply-NAME/``, so the page's links hold."""
     summary = json.loads((report / "summary.json").read_text(encoding="utf-8"))
-    if "figures" in summary:
-        figures = summary["figures"]
-    else:  # the laminate page: the PNGs it shows
-        figures = sorted(set(re.findall(r'src="([^"/]+\.png)"', (report / "index.html").read_text(encoding="utf-8"))))
     target.mkdir(parents=True, exist_ok=True)
-    for name in (*KEPT, *figures):
+    for name in (*KEPT, *summary["figures"]):
         shutil.copy2(report / name, target / name)
     for ply in summary.get("plies", {}).values():
         folder = Path(ply["report"]).parent

@@ -117,7 +117,8 @@ def write_laminate_report(ds: xr.Dataset, out_dir, *, title: str, description: s
     record = {"title": title, "description": description, "plies": {}, "provenance": provenance(wall_time_s),
               "p_any_ply_locked": {f"{float(f):g}": {k: float(lock[k].sel({FORCE: f})) for k in ("p_any", "lower", "upper")}
                                    for f in ds[FORCE].values},
-              "confidence": lock.attrs["confidence"], "n": lock.attrs["n"]}
+              "confidence": lock.attrs["confidence"], "n": lock.attrs["n"],
+              "figures": [path.name for path, _ in items]}
     for ply, index, summary in plies:
         record["plies"][str(ply)] = {
             "angle_deg": float(ds[PLY_ANGLE].sel({PLY: ply})),
@@ -156,7 +157,7 @@ def _page(record: dict, items, study_text: str | None) -> str:
              f"<table><tr><th>blank-holder force</th><th>P(any ply locked)</th><th>{conf} Wilson interval</th></tr>"
              f"{lock_rows}</table>",
              "<table><tr><th>ply</th><th>angle (deg)</th><th>P(ply locked) per force level</th>"
-             "<th>largest |mean fibre deviation| (deg)</th><th>largest sd of fibre deviation (deg)</th></tr>"
+             "<th>largest |mean fibre deviation| (deg, plan)</th><th>largest sd of fibre deviation (deg, plan)</th></tr>"
              f"{ply_rows}</table>",
              figures_html(items)]
     if study_text:
