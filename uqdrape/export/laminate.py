@@ -258,7 +258,7 @@ def _statistics(level: xr.Dataset, labels: np.ndarray, samples: np.ndarray, vari
                 "mode": ("mode", np.arange(1, K + 1, dtype=np.int32), {"units": "1", "long_name": "mode number"})},
         attrs={"variance_target": variance, "variance_retained": float(kl["fraction"].sum()),
                "total_variance_deg2": float(kl["total"]), "rosette_deg": float(level.attrs.get("rosette_deg", 0.0)),
-               "mould": level.attrs.get("geometry", "")})
+               "mould": level.attrs.get("mould", "")})
     ds[PLY].attrs["long_name"] = "ply (stacking order, the first on the tool)"
     return ds, nominal
 
@@ -328,7 +328,7 @@ def laminate_files(ds: xr.Dataset, mesh_path, stem, *, flavours=("abaqus",), thi
         samples = _samples(level, surface, on, tolerance_mm)
         statistics, nominal = _statistics(level, on.labels, samples, variance)
         writers.update(netcdf_file(statistics, stem.with_name(f"{base}-laminate.nc"), history))
-        source = f"{ds.attrs.get('geometry', 'a laminate')}{' at ' + label if label else ''}"
+        source = f"{ds.attrs.get('mould', 'a laminate')}{' at ' + label if label else ''}"
         decks = [("", nominal, f"the median over {R} realisations")]
         width = len(str(int(level[REALIZATION].max())))
         decks += [(f"-r{int(level[REALIZATION][r]):0{max(4, width)}d}", samples[:, :, r],
