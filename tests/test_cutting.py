@@ -16,7 +16,8 @@ from conftest import assert_one_line_error
 from uqdrape.cli import main
 from uqdrape.drape import drape
 from uqdrape.export import export_cut, levels
-from uqdrape.export.cutting import perimeter, polygon_area
+from uqdrape.export.cutting import perimeter
+from uqdrape.geometry.outline import polygon_area
 from uqdrape.export.result import _ensemble_level
 from uqdrape.geometry import build
 

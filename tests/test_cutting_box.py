@@ -23,7 +23,8 @@ from test_cutting import read_cut_csv
 
 from uqdrape.drape import drape
 from uqdrape.export import export_cut, levels
-from uqdrape.export.cutting import perimeter, polygon_area
+from uqdrape.export.cutting import perimeter
+from uqdrape.geometry.outline import polygon_area
 from uqdrape.geometry import MeshSurface
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -248,3 +248,35 @@ def test_one_ply_commands_refuse_a_laminate(tmp_path):
             call()
         assert_one_line_error(str(err.value), file=path, valid=("laminate", "one ply"))
     assert not (tmp_path / "lam").exists()
+
+
+def test_a_trimmed_ply_is_the_whole_ply_cut_to_its_edge(tmp_path):
+    """A ply with a trim boundary: nodes outside its edge are TRIMMED with no values, cells
+    with such a corner have none, every node inside is the untrimmed ply's bit for bit."""
+    from uqdrape.drape.status import Status
+
+    (tmp_path / "edge.csv").write_text("x_mm,y_mm\n-12,-8\n15,-8\n15,10\n-12,10\n", encoding="utf-8")
+    plies = [{"name": "whole", "angle_deg": 30.0}, {"name": "cut", "angle_deg": 30.0, "trim": "edge.csv"}]
+    _, ds = laminate(tmp_path, plies, realizations=(0, 1), study={"realizations": 2},
+                     uncertainty={"zero_angle": {"mean_deg": 0.0, "sd_deg": 1.0}})
+    whole, cut = ds.sel({PLY: "whole"}), ds.sel({PLY: "cut"})
+    x, y = whole["x"].values, whole["y"].values
+    inside = (x > -12) & (x < 15) & (y > -8) & (y < 10)
+    assert 0 < inside.sum() < inside.size
+    assert np.array_equal(cut["status"].values == Status.TRIMMED, ~inside)
+    for name in ("x", "z", "shear", "locked"):
+        assert np.array_equal(cut[name].values[inside], whole[name].values[inside]), name
+        assert np.isnan(cut[name].values[~inside]).all(), name
+    corners = inside[:, :-1, :-1] & inside[:, 1:, :-1] & inside[:, :-1, 1:] & inside[:, 1:, 1:]
+    assert np.array_equal(np.isfinite(cut["cell_shear"].values), corners)
+    assert np.isfinite(cut["gamma0"].values).all()  # the inputs stay as draped
+
+
+def test_a_bad_trim_names_the_ply_and_key(tmp_path):
+    from uqdrape.study import StudyError
+
+    (tmp_path / "edge.csv").write_text("x_mm,y_mm\n0,0\n1,1\n", encoding="utf-8")
+    path = laminate_file(tmp_path, [{"name": "a", "angle_deg": 0.0, "trim": "edge.csv"}])
+    with pytest.raises(StudyError) as err:
+        load_study(path)
+    assert_one_line_error(str(err.value), file=path, key="ply.a.trim", valid=("3",))

@@ -18,6 +18,8 @@ class Status(IntEnum):
     OFF_MOULD = 3
     #: the node's cell turns over (its +i/+j corner orientation flips)
     FOLDED = 4
+    #: the node lies outside its ply's trim boundary (a laminate's ply cut to its edge)
+    TRIMMED = 5
 
     @classmethod
     def describe(cls) -> str:

@@ -27,6 +27,8 @@ if TYPE_CHECKING:  # annotations only: xarray is imported where a Dataset is mad
 from .. import files
 from .. import geometry as _geometry
 from ..drape import drape, drape_status
+from ..drape.status import Status
+from ..geometry.outline import contains, read_trim
 from ..material.scatter import card_scatter, scattered
 from ..schema import PLY, PLY_ANGLE, PLY_ATTR, REALIZATION, SOLVER_INPUTS, at_level
 from ..study.spec import CARD
@@ -106,7 +108,8 @@ def drape_laminate(study, realizations, *, force=None) -> xr.Dataset:
                  for name in set(SOLVER_INPUTS).union(*inputs)}
         ds = drape_inputs(plies[0], np.tile(r, len(members)), batch, force=force)
         for m, k in enumerate(members):
-            parts[k] = ds.isel({REALIZATION: slice(m * r.size, (m + 1) * r.size)})
+            part = ds.isel({REALIZATION: slice(m * r.size, (m + 1) * r.size)})
+            parts[k] = part if study.plies[k].trim is None else trimmed(part, read_trim(study.plies[k].trim))
     parts = [parts[k] for k in range(len(study.plies))]
     ds = xr.concat(parts, dim=PLY, data_vars="all", coords="minimal", compat="override", join="override",
                    combine_attrs="drop_conflicts")
@@ -117,6 +120,30 @@ def drape_laminate(study, realizations, *, force=None) -> xr.Dataset:
         PLY_ANGLE: (PLY, [p.angle_deg for p in study.plies], {"units": "degree",
                                                                 "long_name": "ply angle from the rosette"}),
         **differ}).assign_attrs(rosette_deg=study.fabric.orientation_deg)
+
+
+def trimmed(ds: xr.Dataset, edge: np.ndarray) -> xr.Dataset:
+    """A ply's drapes cut to its ``edge`` (K, 2 plan polyline, mm): each node whose plan
+    position lies outside it gets status TRIMMED and NaN outputs, each cell with such a
+    corner NaN (False where boolean); the inputs (gamma0, segments) and per-drape values
+    stay as draped: the net was formed whole, then cut."""
+    out = ~contains(edge, ds["x"].transpose(REALIZATION, "i", "j").values,
+                    ds["y"].transpose(REALIZATION, "i", "j").values)
+    cell = out[..., :-1, :-1] | out[..., 1:, :-1] | out[..., :-1, 1:] | out[..., 1:, 1:]
+    ds = ds.copy()
+    for name, var in ds.data_vars.items():
+        sites = ("i", "j") if {"i", "j"} <= set(var.dims) else ("cell_i", "cell_j") \
+            if {"cell_i", "cell_j"} <= set(var.dims) and name != "gamma0" else None
+        if sites is None or name == "status":
+            continue
+        mask = (out if sites == ("i", "j") else cell).reshape(
+            [ds.sizes[d] if d in (REALIZATION, *sites) else 1 for d in var.transpose(REALIZATION, *sites, ...).dims])
+        values = var.transpose(REALIZATION, *sites, ...).values
+        values = np.where(mask, False if values.dtype == bool else np.nan, values)
+        ds[name] = var.transpose(REALIZATION, *sites, ...).copy(data=values).transpose(*var.dims)
+    status = ds["status"].transpose(REALIZATION, "i", "j")
+    ds["status"] = status.copy(data=np.where(out, int(Status.TRIMMED), status.values).astype(status.dtype))
+    return ds
 
 
 def _filled(ply, inputs: dict, name: str, R: int, force) -> np.ndarray:

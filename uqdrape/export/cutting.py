@@ -25,7 +25,6 @@ row per edge point.
 
 from __future__ import annotations
 
-import math
 from functools import partial
 from pathlib import Path
 
@@ -35,7 +34,8 @@ import numpy as np
 from ..drape import flat_positions
 from ..drape.net import net_quads
 from ..errors import ParameterError
-from ..files import csv_number, csv_rows, read_text, write_all
+from ..files import write_all
+from ..geometry.outline import polygon_area, read_trim
 from ..schema import REALIZATION
 from .fe import locate
 from .result import Level, surface_of
@@ -50,42 +50,6 @@ RESAMPLE = 0.25
 ARROW = 0.15
 
 
-def read_trim(path) -> np.ndarray:
-    """The closed plan polyline (K, 2) mm of the trim CSV ``path`` (an optional header, then
-    x_mm,y_mm a row), closing vertex dropped; FileNotFoundError / ValueError naming the file
-    and line, never quoting it (it may be any file named by mistake)."""
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: no such trim-curve file")
-    (top, header), *lines = csv_rows(read_text(path, "trim CSV"), str(path), path=path)
-    rows = []
-    for k, cells in lines if _header(header) else [(top, header), *lines]:
-        try:
-            x, y = (csv_number(c) for c in cells[:2]) if len(cells) >= 2 else (None, None)
-        except ValueError:
-            x = None
-        if x is None:
-            raise ValueError(f"{path}: line {k}: expected two finite numbers x_mm,y_mm (a header line first "
-                             "at most)")
-        rows.append((x, y))
-    P = np.array(rows, dtype=float).reshape(-1, 2)
-    if len(P) > 1 and np.array_equal(P[0], P[-1]):
-        P = P[:-1]
-    if len(P) < 3:
-        raise ValueError(f"{path}: a trim curve needs at least 3 finite vertices x_mm,y_mm, got {len(P)}")
-    if abs(polygon_area(P)) == 0.0:
-        raise ValueError(f"{path}: the trim curve encloses no area")
-    return P
-
-
-def _header(cells: list[str]) -> bool:
-    """Whether the first line ``cells`` of a trim CSV is a header: not two numbers."""
-    try:
-        return len(cells) < 2 or not all(math.isfinite(float(c)) for c in cells[:2])
-    except ValueError:
-        return True
-
-
 def mould_outline(surface) -> np.ndarray:
     """The mould's own outline (K, 2) mm in plan, counter-clockwise; ValueError if it has none."""
     attr = OUTLINE_RADIUS.get(surface.name)
@@ -95,12 +59,6 @@ def mould_outline(surface) -> np.ndarray:
                              f"{', '.join(OUTLINE_RADIUS)}")
     t = 2 * np.pi * np.arange(OUTLINE_VERTICES) / OUTLINE_VERTICES
     return getattr(surface, attr) * np.column_stack([np.cos(t), np.sin(t)])
-
-
-def polygon_area(P: np.ndarray) -> float:
-    """Signed area (mm^2, positive counter-clockwise) of the closed polygon ``P`` (K, 2)."""
-    x, y = P[:, 0], P[:, 1]
-    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
 def perimeter(P: np.ndarray) -> float:

@@ -197,7 +197,8 @@ class Ply:
     fibre-1 angle from the rosette's 0 deg direction (``fabric.orientation_deg``); its card,
     fibre spacing (mm) and seed point ``crossover`` (plan mm, the ply's first contact);
     ``misalignment_sd_deg``, the sd of its own normal misalignment (deg; 0: none); and its
-    random fields by name (``RandomField``; a ply without its own takes the study's).
+    random fields by name (``RandomField``; a ply without its own takes the study's);
+    ``trim``, its edge in plan (nodes outside it are the ply's offcut).
     Each ply draws its own fields and misalignment."""
 
     name: str
@@ -207,6 +208,8 @@ class Ply:
     crossover: tuple[float, float]
     misalignment_sd_deg: float
     fields: dict
+    #: the ply's edge: a plan polyline CSV (x_mm,y_mm); None: the whole net
+    trim: str | None = None
 
 
 def ply_seed(seed: int, k: int) -> int:

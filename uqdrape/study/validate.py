@@ -53,6 +53,7 @@ from .. import geometry as _geometry
 from .. import material as _material
 from .. import stochastic as _stochastic
 from ..experimental import read_experimental
+from ..geometry.outline import read_trim
 from ..files import (REQUIRED, Document, FileFormatError, Table, fmt, inside, is_int, is_number, location,
                      url_problem)
 from ..stochastic.sampling import EXTENDABLE_PLANS, RQMC, STUDY_PLANS, rqmc_points
@@ -101,7 +102,7 @@ KEYS = {
                "max_draw_in_mm", "rare"),
     "design.rare": ("qoi", "threshold", "max_probability", "cov", "max_drapes"),
     "report": ("histogram_nodes", "experimental_csv", "fixed_twin"),
-    "ply": ("name", "angle_deg", "material", "spacing_mm", "crossover", "misalignment_sd_deg", "uncertainty"),
+    "ply": ("name", "angle_deg", "material", "spacing_mm", "crossover", "misalignment_sd_deg", "trim", "uncertainty"),
     "output": ("directory", "float32"),
 }
 
@@ -761,6 +762,13 @@ def _ply(src: _Source, t: Table, name: str, fabric: Fabric, solver: Solver, unce
     if not all(SOLVER_INPUTS["orientation"].admits(a) for a in reach):
         t.invalid("misalignment_sd_deg", f"the ply's angle reaches [{reach[0]:g}, {reach[1]:g}] deg at {REACH_SD:g} sd; "
                                          f"orientation {SOLVER_INPUTS['orientation'].describe_range()}")
+    trim = None
+    if t.has("trim"):
+        trim = str(src.relative_file(t.dotted("trim"), t.data["trim"]))
+        try:
+            read_trim(trim)
+        except ValueError as err:
+            t.invalid("trim", str(err))
     own = t.table("uncertainty", FIELDS)
     if "stitch_prestrain" in own.data and "zero_angle" in own.data:
         own.invalid("stitch_prestrain", "the stitch pre-strain sets each cell's zero-energy angle itself: give one "
@@ -772,7 +780,7 @@ def _ply(src: _Source, t: Table, name: str, fabric: Fabric, solver: Solver, unce
         if field.sd_dof is not None or field.length_log_sd is not None:
             src.fail(f"{field.name}: a sd or length drawn per realisation (sd_dof, length_log_sd) is not supported "
                      "in a laminate; remove it", f"uncertainty.{field.name}")
-    return Ply(name, angle, material, spacing, crossover, sd, fields)
+    return Ply(name, angle, material, spacing, crossover, sd, fields, trim)
 
 
 def _plain_field(field: RandomField) -> dict:
