@@ -235,7 +235,10 @@ def test_binomial_intervals_known_values():
     # 0 of 10: Wilson upper z^2 / (n + z^2); Clopper-Pearson upper 1 - (alpha/2)^(1/n).
     z = stats.norm.ppf(0.975)
     lo, hi = wilson_interval(np.array(0.0), np.array(10.0), 0.95)
-    assert lo == pytest.approx(0.0, abs=1e-15) and hi == pytest.approx(z**2 / (10 + z**2), rel=1e-12)
+    assert lo == 0.0 and hi == pytest.approx(z**2 / (10 + z**2), rel=1e-12)
+    for n in (10, 48, 127):  # all of n: the upper limit is 1 itself, the lower 1 - (0 of n's upper)
+        lo, hi = wilson_interval(n, n, 0.95)
+        assert hi == 1.0 and lo == pytest.approx(1 - z**2 / (n + z**2), rel=1e-12)
     lo, hi = clopper_pearson_interval(0, 10, 0.95)
     assert lo == 0.0 and hi == pytest.approx(1 - 0.025 ** (1 / 10), rel=1e-10)
     lo, hi = clopper_pearson_interval(10, 10, 0.95)

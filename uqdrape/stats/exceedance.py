@@ -20,7 +20,8 @@ _METHOD_TEXT = {
 
 
 def wilson_interval(k, n, confidence: float):
-    """Wilson score interval of a binomial proportion k/n (NaN where n = 0).
+    """Wilson score interval of a binomial proportion k/n (NaN where n = 0); exactly
+    [0, ...] at k = 0 and [..., 1] at k = n, where the formula gives 0 and 1 up to rounding.
 
     Works on numbers, numpy arrays or (dask-backed) DataArrays.
     """
@@ -29,7 +30,8 @@ def wilson_interval(k, n, confidence: float):
     p = k / nn
     centre = (p + z**2 / (2.0 * nn)) / (1.0 + z**2 / nn)
     half = z / (1.0 + z**2 / nn) * np.sqrt(p * (1.0 - p) / nn + z**2 / (4.0 * nn**2))
-    return np.maximum(centre - half, 0.0), np.minimum(centre + half, 1.0)
+    lower, upper = np.maximum(centre - half, 0.0), np.minimum(centre + half, 1.0)
+    return lower * (p != 0.0), upper + (p == 1.0) * (1.0 - upper)  # arithmetic: DataArrays stay DataArrays
 
 
 def _clopper_pearson(k, n, confidence):
