@@ -6,9 +6,11 @@ draped as 8 single-ply studies of N realisations (``drape_inputs`` of each
 ``Study.ply_study``), interleaved in one process, medians of --repeats. Both give the
 same drapes bit for bit (tests/test_laminate.py); the ratio is what batching the plies
 saves or costs. Also the memory of one realisation of the laminate: the in-memory
-Dataset's bytes per realisation (all plies), and a float64 chunk file's bytes per realisation.
+Dataset's bytes per realisation (all plies), and a float64 chunk file's bytes per
+realisation. With ``--thickness T`` the same laminate with plies of T mm, each on the tool
+offset by the plies below it (8 offsets: 8 batches), is timed beside the others.
 
-Run: ``python benchmarks/bench_laminate.py --mode energy --n 16 --rings 10 --repeats 5``.
+Run: ``python benchmarks/bench_laminate.py --mode energy --n 16 --rings 10 --repeats 5 --thickness 0.5``.
 """
 
 from __future__ import annotations
@@ -28,8 +30,8 @@ from bench_ensemble import load  # noqa: E402
 ANGLES = (0, 45, 90, -45, -45, 90, 45, 0)
 
 
-def study_text(mode: str, n: int, rings: int, out: Path) -> str:
-    plies = "".join(f'\n[[ply]]\nname = "p{k}"\nangle_deg = {a}\nmisalignment_sd_deg = 1.0\n'
+def study_text(mode: str, n: int, rings: int, out: Path, thickness: float = 0.0) -> str:
+    plies = "".join(f'\n[[ply]]\nname = "p{k}"\nangle_deg = {a}\nmisalignment_sd_deg = 1.0\nthickness_mm = {thickness}\n'
                     for k, a in enumerate(ANGLES))
     return f"""[study]
 name = "bench-laminate"
@@ -67,6 +69,7 @@ def main(argv=None) -> int:
     parser.add_argument("--n", type=int, default=16, help="realisations")
     parser.add_argument("--rings", type=int, default=10)
     parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--thickness", type=float, default=0.0, help="ply thickness (mm) of a third, offset laminate")
     args = parser.parse_args(argv)
 
     from uqdrape.ensemble import drape_inputs, drape_laminate, sampled_inputs
@@ -78,6 +81,9 @@ def main(argv=None) -> int:
         path = Path(tmp) / "lam.toml"
         path.write_text(study_text(args.mode, args.n, args.rings, Path(tmp) / "out"))
         study = load_study(path)
+        thick_path = Path(tmp) / "thick.toml"
+        thick_path.write_text(study_text(args.mode, args.n, args.rings, Path(tmp) / "thick", args.thickness))
+        thick = load_study(thick_path)
         r = np.arange(args.n)
         shared = sampled_inputs(study.shared, r)
         plies = [(study.ply_study(k), ply_inputs(study, k, r, shared)) for k in range(len(study.plies))]
@@ -88,10 +94,17 @@ def main(argv=None) -> int:
         def one_by_one():
             return [drape_inputs(ply, r, inputs) for ply, inputs in plies]
 
-        laminate(), one_by_one()  # compiled and warm
-        times = {"laminate_s": [], "plies_one_by_one_s": []}
+        def offset():
+            return drape_laminate(thick, r)
+
+        runs = {"laminate_s": laminate, "plies_one_by_one_s": one_by_one}
+        if args.thickness:
+            runs["offset_laminate_s"] = offset
+        for run in runs.values():  # compiled and warm
+            run()
+        times = {label: [] for label in runs}
         for _ in range(args.repeats):
-            for label, run in (("laminate_s", laminate), ("plies_one_by_one_s", one_by_one)):
+            for label, run in runs.items():
                 t = time.perf_counter()
                 ds = run()
                 times[label].append(time.perf_counter() - t)
@@ -103,6 +116,9 @@ def main(argv=None) -> int:
         print(f"  laminate (one batch of {len(ANGLES) * args.n}):  {med['laminate_s']:.3f} s")
         print(f"  8 plies one by one (8 batches of {args.n}):  {med['plies_one_by_one_s']:.3f} s")
         print(f"  ratio laminate / one by one: {med['laminate_s'] / med['plies_one_by_one_s']:.3f}")
+        if args.thickness:
+            print(f"  laminate of {args.thickness:g} mm plies, each on its offset (8 batches of {args.n}): "
+                  f"{med['offset_laminate_s']:.3f} s, {med['offset_laminate_s'] / med['laminate_s']:.3f} x the laminate")
         print(f"  memory per realisation (all {len(ANGLES)} plies): {ds.nbytes / args.n / 1e3:.1f} kB in memory, "
               f"{chunk.stat().st_size / args.n / 1e3:.1f} kB in a float64 chunk file")
     return 0

@@ -327,6 +327,32 @@ def test_mapping_error_is_second_order_in_the_spacing(tmp_path):
     assert abs(order - 2.0) <= 0.3, (errors, order)
 
 
+def test_a_ply_over_thicker_plies_maps_from_its_offset_surface(tmp_path):
+    """Ply 1 lies on the dome's offset by the 3 mm ply 0 (the sphere of R + 3). Mapped onto
+    the tool's shell mesh it takes its net above each element along the tool's normal: the
+    same angles (to 1e-9 deg) as the ply draped on a dome of R + 3 mapped onto the mesh
+    scaled by (R + 3) / R, whose elements have the same frames and lie on that dome."""
+    R, d = 50.0, 3.0
+    tool = build("hemisphere", radius=R)
+    mesh = hemisphere_mesh(tool, tmp_path / "dome.inp", radius_mm=25.0, rings=6)
+    big = meshio.read(mesh)
+    big.points *= (R + d) / R
+    meshio.write(tmp_path / "big.inp", big, file_format="abaqus")
+    plies = [schema.at_level(drape(s, 2.0, 20, orientation=30.0), 0.0) for s in (tool, tool.offset(d))]
+    ds = xr.concat(plies, dim=schema.PLY, join="override", combine_attrs="drop_conflicts")
+    ds = ds.assign_coords({schema.PLY: ["p0", "p1"], schema.PLY_ANGLE: (schema.PLY, [30.0, 30.0]),
+                           **{f"{schema.PLY_ATTR}{k}": (schema.PLY, [p.attrs[k] for p in plies])
+                              for k in ("mould", "geometry_json")}}).assign_attrs(
+        rosette_deg=0.0, mould=plies[0].attrs["mould"], geometry_json=plies[0].attrs["geometry_json"])
+    export_laminate(ds, mesh, tmp_path / "thick", flavours=("abaqus",), tolerance_mm=1.0)
+    export_laminate(laminate(build("hemisphere", radius=R + d), 2.0, 20, angles=(30.0,)), tmp_path / "big.inp",
+                    tmp_path / "alone", flavours=("abaqus",), tolerance_mm=1.0)
+    thick = xr.load_dataset(tmp_path / "thick-laminate.nc").yarn_angle.isel(ply=1).values
+    alone = xr.load_dataset(tmp_path / "alone-laminate.nc").yarn_angle.isel(ply=0).values
+    assert np.isfinite(thick).all()
+    assert np.abs(line_diff(thick, alone)).max() < 1e-9
+
+
 # ----------------------------------------------------------------------------- mesh formats
 
 

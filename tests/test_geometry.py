@@ -231,7 +231,7 @@ def test_build_rejects_bad_kind_and_parameters():
         build("sphere")
     with pytest.raises(
         ValueError,
-        match=r"unknown parameter 'radus' for geometry 'hemisphere'; valid: radius, flange_half_width$",
+        match=r"unknown parameter 'radus' for geometry 'hemisphere'; valid: radius, flange_half_width, offset_mm$",
     ):
         build("hemisphere", radus=50)
     with pytest.raises(ValueError, match=r"geometry 'mesh' needs parameter 'path'"):
@@ -332,3 +332,80 @@ def test_shipped_stl_loads():
     gx, gy = s.gradient(x, y)
     ax, ay = h.gradient(x, y)
     assert np.max(np.hypot(gx - ax, gy - ay)) < 0.1
+
+
+# -- offset surfaces (a laminate's plies over the plies below them) ----------------------
+
+OFFSET_MOULDS = {"plate": Plate(), "hemisphere": Hemisphere(100.0), "cylinder": Cylinder(100.0),
+                 "cone": Cone(30.0, 100.0), "nose_cone": NoseCone()}
+
+
+@pytest.mark.parametrize("key", OFFSET_MOULDS)
+def test_an_offset_surface_lies_its_distance_out_along_the_mould_s_normal(key):
+    """Every point q of the offset surface at d, moved back by d along its normal n, lands
+    on the mould (phi = 0) where the mould's normal is n: the definition of the offset, on
+    the flanges, the spheres, the cones, a cone's apex (whose offset is a sphere about it)
+    and the concave rims where an offset sphere or cone meets the raised flange."""
+    mould, d = OFFSET_MOULDS[key], 3.0
+    out = mould.offset(d)
+    xmin, xmax, ymin, ymax = mould.bounds
+    rng = np.random.default_rng(7)
+    x, y = rng.uniform(0.95 * xmin, 0.95 * xmax, 20_000), rng.uniform(0.95 * ymin, 0.95 * ymax, 20_000)
+    n = out.normal(x, y)
+    foot = np.stack([x, y, out.height(x, y)], -1) - d * n
+    assert np.abs(mould.gap(foot[:, 0], foot[:, 1], foot[:, 2])[0]).max() < 1e-9
+    smooth = np.linalg.norm(foot[:, :2], axis=1) > 1e-6  # a cone's apex has no normal of its own
+    assert np.abs(mould.normal(foot[smooth, 0], foot[smooth, 1]) - n[smooth]).max() < 1e-6
+    assert out.describe() == mould.describe()[:-1] + ", offset 3 mm)"
+
+
+def test_offset_moulds_rebuild_from_their_params_and_add_up():
+    """``build(kind, **params)`` of an offset mould gives its kernel back, an offset of an
+    offset is the offset by the sum, and a hemisphere's offset is the sphere of radius
+    R + d (to the last bit where both are the sphere, with the flange raised by d)."""
+    for mould in OFFSET_MOULDS.values():
+        out = mould.offset(2.5)
+        again = build(out.name, **out.params())
+        assert again.params() == out.params() and np.array_equal(again.kernel[1], out.kernel[1])
+        assert np.array_equal(mould.offset(1.0).offset(1.5).kernel[1], out.kernel[1])
+        assert np.array_equal(mould.offset(0.0).kernel[1], mould.kernel[1])
+    r = np.linspace(0.0, 99.0, 500)
+    np.testing.assert_array_equal(Hemisphere(100.0).offset(2.0).height(r, 0 * r), Hemisphere(102.0).height(r, 0 * r))
+    assert Hemisphere(100.0).offset(2.0).height(150.0, 0.0) == 2.0
+
+
+@pytest.mark.parametrize("mould, why", [(Saddle(), "saddle"), (DoubleDome(), "double dome")])
+def test_moulds_without_a_closed_form_offset_refuse_one(mould, why):
+    with pytest.raises(ValueError, match=rf"a {why} has no offset surface in closed form: give the tool as a mesh"):
+        mould.offset(1.0)
+    assert mould.offset(0.0).kernel[1].tolist() == mould.kernel[1].tolist()
+
+
+@pytest.mark.parametrize("bad", [-1.0, float("nan"), "thick", 101.0])
+def test_a_bad_offset_names_its_argument(bad):
+    with pytest.raises(ValueError, match=r"offset_mm must be a length >= 0 and at most the mould's size \(100 mm\)"):
+        Hemisphere(100.0).offset(bad)
+
+
+def test_a_mesh_offset_is_the_level_set_of_its_distance(tmp_path):
+    """A mesh's offset surface lies at its distance from the mesh to the solver's precision
+    (its top found on a vertical line, and a drape on it), a sphere of R + d to the mesh's own
+    faceting error."""
+    path = tmp_path / "ball.stl"
+    trimesh.creation.icosphere(subdivisions=5, radius=100.0).export(path)
+    mesh = MeshSurface(path)
+    out = build("mesh", **{**mesh.params(), "offset_mm": 2.0})
+    assert out.describe() == "mesh ball.stl (mm, press +z, offset 2 mm)"
+    x, y = np.meshgrid(np.linspace(-70, 70, 15), np.linspace(-70, 70, 15))
+    top = np.stack([x, y, out.height(x, y)], -1).reshape(-1, 3)
+    _, phi, _ = mesh.project(top)
+    assert np.abs(phi - 2.0).max() < 1e-9
+    sag = np.abs(mesh.height(x, y) - np.sqrt(100.0**2 - x**2 - y**2)).max()  # the faceting error
+    assert np.abs(top[:, 2] - np.sqrt(102.0**2 - x.ravel()**2 - y.ravel()**2)).max() < 1.5 * sag
+
+    from uqdrape.drape import drape
+
+    ds = drape(out, 5.0, 8)
+    P = np.stack([ds[c].values.ravel() for c in "xyz"], -1)
+    assert (ds["status"].values == 0).all()
+    assert np.abs(mesh.project(P)[1] - 2.0).max() < 1e-8

@@ -280,3 +280,62 @@ def test_a_bad_trim_names_the_ply_and_key(tmp_path):
     with pytest.raises(StudyError) as err:
         load_study(path)
     assert_one_line_error(str(err.value), file=path, key="ply.a.trim", valid=("3",))
+
+
+def test_each_ply_lies_on_the_tool_offset_by_the_plies_below(tmp_path):
+    """Plies of 1.5, 1 and 2 mm on a 60 mm dome: ply k lies on the offset sphere of radius
+    60 + the thickness below it, and is bitwise the ply of a laminate without thickness on
+    a dome of that radius (the offset of a sphere is the sphere grown about its centre); the
+    laminate's mould is the tool, each ply's its offset surface."""
+    plies = [{**p, "thickness_mm": t} for p, t in zip(QUASI_ISOTROPIC[:3], (1.5, 1.0, 2.0))]
+    options = dict(solver={"mode": "energy", "rings": 5}, fabric={"material": "ebxhd936_like"},
+                   process={"blankholder_force_N": 30.0})
+    study, ds = laminate(tmp_path, plies, geometry={"radius": 60.0}, **options)
+    assert [study.ply_offset(k) for k in range(3)] == [0.0, 1.5, 2.5]
+    assert ds.attrs["mould"] == "hemisphere (radius 60 mm, flange half width 120 mm)"
+    assert list(ds["ply_mould"].values[1:]) == [ds.attrs["mould"][:-1] + f", offset {d:g} mm)" for d in (1.5, 2.5)]
+    for k, offset in enumerate((0.0, 1.5, 2.5)):
+        ply = ds.isel({PLY: k})
+        radius = np.sqrt(ply["x"] ** 2 + ply["y"] ** 2 + ply["z"] ** 2).values
+        np.testing.assert_allclose(radius, 60.0 + offset, rtol=0, atol=1e-9)
+        thin = tmp_path / f"thin{k}"
+        thin.mkdir()
+        _, same = laminate(thin, QUASI_ISOTROPIC[:3], geometry={"radius": 60.0 + offset}, **options)
+        for name in ("x", "y", "z", "shear", "energy_total"):
+            assert np.array_equal(ply[name].values, same.isel({PLY: k})[name].values, equal_nan=True), (k, name)
+
+
+def test_a_mesh_tool_offsets_its_plies_by_their_distance(tmp_path):
+    """On a meshed dome the second ply's nodes lie 0.8 mm from the mesh, to the solver's
+    tolerance: the offset is the mesh's distance level set, not a shifted copy."""
+    import trimesh
+
+    path = tmp_path / "cap.stl"
+    trimesh.creation.icosphere(subdivisions=4, radius=60.0).export(path)
+    plies = [{"name": "a", "angle_deg": 0.0, "thickness_mm": 0.8}, {"name": "b", "angle_deg": 45.0}]
+    study, ds = laminate(tmp_path, plies, geometry={"kind": "mesh", "radius": None, "path": "cap.stl"},
+                         solver={"rings": 5})
+    from uqdrape.ensemble.chunk import study_mould
+
+    tool = study_mould(study)
+    for k, offset in enumerate((0.0, 0.8)):
+        P = np.stack([ds.isel({PLY: k})[c].values.ravel() for c in "xyz"], -1)
+        assert (ds.isel({PLY: k})["status"].values == 0).all()
+        np.testing.assert_allclose(tool.project(P)[1], offset, rtol=0, atol=1e-8)
+
+
+@pytest.mark.parametrize("thickness, geometry, key, valid", [
+    ("0.3", {}, "ply.p0.thickness_mm", ("number",)),
+    (-0.1, {}, "ply.p0.thickness_mm", ("0 <= thickness_mm < 10",)),
+    (12.0, {}, "ply.p0.thickness_mm", ("0 <= thickness_mm < 10",)),
+    (0.5, {"kind": "saddle", "radius": 200.0, "half_width": 150.0}, "ply.p0.thickness_mm",
+     ("offset by 0.5 mm", "saddle", "mesh")),
+])
+def test_a_bad_ply_thickness_names_file_ply_and_key(tmp_path, thickness, geometry, key, valid):
+    from uqdrape.study import StudyError
+
+    plies = [{**QUASI_ISOTROPIC[0], "thickness_mm": thickness}, QUASI_ISOTROPIC[1]]
+    path = laminate_file(tmp_path, plies, geometry=geometry)
+    with pytest.raises(StudyError) as err:
+        load_study(path)
+    assert_one_line_error(str(err.value), file=path, key=key, valid=valid)

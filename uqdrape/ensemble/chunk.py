@@ -41,10 +41,11 @@ from .inputs import inputs_from_rows, sampled_inputs
 HDF5_LOCK = threading.RLock()
 
 
-@functools.lru_cache(maxsize=2)
+@functools.lru_cache(maxsize=8)
 def _mould(kind: str, params: str, stamp):
     """A mould built once per process (``stamp``: the version of the file it reads), so a
-    mesh tool is read and packed once, not for every chunk."""
+    mesh tool is read and packed once, not for every chunk (a laminate's plies at their
+    offsets: one mould each)."""
     return _geometry.build(kind, **json.loads(params))
 
 
@@ -88,11 +89,12 @@ def ply_inputs(study, k: int, realizations, shared: dict | None = None) -> dict:
 
 def drape_laminate(study, realizations, *, force=None) -> xr.Dataset:
     """Every ply of a laminate for the given realisations, each ply a member of one batched
-    drape per card and spacing (so a laminate costs what its plies cost): the solver's
+    drape per card, spacing and offset from the tool (so a laminate costs what its plies cost): the solver's
     Dataset with a ``ply`` dimension before ``realization`` (``uqdrape.schema.PLY``), the
     ply names and ``ply_angle`` (deg from the rosette) as coordinates; an attribute whose
     value differs between plies (a ply's card, its spacing) becomes a coordinate along
-    ``ply`` named ``ply_<attribute>`` (``uqdrape.schema.ply_dataset`` puts it back). A drape in the batch is the
+    ``ply`` named ``ply_<attribute>`` (``uqdrape.schema.ply_dataset`` puts it back), and the
+    laminate's own ``mould`` is the tool's (ply 0 lies on it). A drape in the batch is the
     one a single-ply study of ``study.ply_study(k)`` gives, bitwise, when no factor is shared."""
     import xarray as xr
 
@@ -100,7 +102,7 @@ def drape_laminate(study, realizations, *, force=None) -> xr.Dataset:
     shared = sampled_inputs(study.shared, r)
     parts, groups = {}, {}
     for k, ply in enumerate(study.plies):
-        groups.setdefault((ply.material, ply.spacing_mm), []).append(k)
+        groups.setdefault((ply.material, ply.spacing_mm, study.ply_offset(k)), []).append(k)
     for members in groups.values():
         plies = [study.ply_study(k) for k in members]
         inputs = [ply_inputs(study, k, r, shared) for k in members]
@@ -119,7 +121,8 @@ def drape_laminate(study, realizations, *, force=None) -> xr.Dataset:
         PLY: [p.name for p in study.plies],
         PLY_ANGLE: (PLY, [p.angle_deg for p in study.plies], {"units": "degree",
                                                                 "long_name": "ply angle from the rosette"}),
-        **differ}).assign_attrs(rosette_deg=study.fabric.orientation_deg)
+        **differ}).assign_attrs(rosette_deg=study.fabric.orientation_deg,
+                                **{name: parts[0].attrs[name] for name in ("mould", "geometry_json")})
 
 
 def trimmed(ds: xr.Dataset, edge: np.ndarray) -> xr.Dataset:

@@ -210,11 +210,16 @@ WRITERS = {"abaqus": abaqus, "lsdyna": lsdyna, "nastran": nastran}
 
 def _samples(level: xr.Dataset, surface, on, tolerance_mm: float | None) -> np.ndarray:
     """Yarn angles (P, 2, R, M) deg of every drape of every ply of ``level``, each ply mapped
-    with ``tolerance_mm`` (default its own spacing)."""
+    with ``tolerance_mm`` (default its own spacing). A ply on the tool's offset surface
+    (``thickness_mm`` below it) is mapped at the elements' foot points moved out along the
+    tool's normal by its offset: the point of its own surface over the element."""
     out = []
     for name in level[PLY].values:
         ply = ply_dataset(level, name)
-        angles = drape_angles(ply, surface, on.foot, tolerance_of(ply, tolerance_mm), on.solver_frame)
+        own = surface_of(ply)
+        xy, dist, reached = on.foot
+        foot = (xy + (own.offset_mm - surface.offset_mm) * on.normal[:, :xy.shape[1]], dist, reached)
+        angles = drape_angles(ply, own, foot, tolerance_of(ply, tolerance_mm), on.solver_frame)
         out.append([angles["theta1"], angles["theta2"]])
     return np.array(out)
 

@@ -23,23 +23,26 @@ KINDS: dict[str, type] = {
 
 
 def build(kind: str, **params) -> Surface:
-    """Construct the mould ``kind`` with shape ``params``; ValueError on a bad kind or parameter."""
+    """Construct the mould ``kind`` with shape ``params`` (and ``offset_mm``: its offset
+    surface, ``Surface.offset``); ValueError on a bad kind or parameter."""
     if not isinstance(kind, str) or kind not in KINDS:
         raise ValueError(f"unknown geometry kind {kind!r}; valid: {', '.join(KINDS)}")
     cls = KINDS[kind]
     sig = inspect.signature(cls.__init__)
     valid = [p for p in sig.parameters if p != "self"]
+    offset = params.pop("offset_mm", None)
     unknown = [p for p in params if p not in valid]
     if unknown:
         raise ParameterError(
-            unknown[0], f"unknown parameter {unknown[0]!r} for geometry {kind!r}; valid: {', '.join(valid)}"
+            unknown[0], f"unknown parameter {unknown[0]!r} for geometry {kind!r}; valid: {', '.join(valid + ['offset_mm'])}"
         )
     missing = [
         p for p in valid if sig.parameters[p].default is inspect.Parameter.empty and p not in params
     ]
     if missing:
         raise ParameterError(missing[0], f"geometry {kind!r} needs parameter {missing[0]!r}")
-    return cls(**params)
+    surface = cls(**params)
+    return surface if offset is None else surface.offset(offset)
 
 
 __all__ = [

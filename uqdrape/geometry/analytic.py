@@ -27,6 +27,8 @@ compiled = lazy_module("uqdrape.geometry.compiled")  # numba: loaded when a moul
 
 #: Largest mould dimension accepted (mm): beyond any press, and far from float overflow.
 MAX_LENGTH_MM = 1e5
+#: What to do for a mould without an offset of its own kind (``Surface.offset``).
+_AS_MESH = "give the tool as a mesh file (uqdrape.geometry.export_stl writes one) to offset it"
 
 
 def _length(name: str, value) -> float:
@@ -81,7 +83,10 @@ class Plate(_SquareDomain):
         self.half_width = _length("half_width", half_width)
         self._half = self.half_width
         self.size = self.half_width
-        self.kernel = (compiled.PLATE, np.array([self._half]))
+        self.kernel = self._kernel(0.0)
+
+    def _kernel(self, d):
+        return compiled.PLATE, np.array([self._half, d])
 
 
 class Hemisphere(_SquareDomain):
@@ -99,7 +104,10 @@ class Hemisphere(_SquareDomain):
         self.flange_half_width = _flange(flange_half_width, self.radius)
         self._half = self.flange_half_width
         self.size = self.radius
-        self.kernel = (compiled.HEMISPHERE, np.array([self._half, self.radius]))
+        self.kernel = self._kernel(0.0)
+
+    def _kernel(self, d):
+        return compiled.HEMISPHERE, np.array([self._half, self.radius, d])
 
 
 class Cylinder(Surface):
@@ -122,8 +130,11 @@ class Cylinder(Surface):
             raise ParameterError("axis", f"axis must be 'x' or 'y', got {axis!r}")
         self.axis = axis
         self.size = self.radius
-        self.kernel = (compiled.CYLINDER,
-                       np.array([self.radius, self.length, 0.0 if axis == "x" else 1.0, self.WIDTH_FRACTION]))
+        self.kernel = self._kernel(0.0)
+
+    def _kernel(self, d):
+        return compiled.CYLINDER, np.array([self.radius, self.length, 0.0 if self.axis == "x" else 1.0,
+                                            self.WIDTH_FRACTION, d])
 
     @property
     def bounds(self):
@@ -155,12 +166,20 @@ class Cone(_SquareDomain):
         self.flange_half_width = _flange(flange_half_width, self.base_radius)
         self._half = self.flange_half_width
         self.size = self.base_radius
-        self.kernel = (compiled.CONE, np.array([self._half, self.cone_height, self._cot, self.base_radius]))
+        self.kernel = self._kernel(0.0)
+
+    def _kernel(self, d):
+        if d == 0.0:
+            return compiled.CONE, np.array([self._half, self.cone_height, self._cot, self.base_radius])
+        # the offset of the apex is a sphere of radius d about it: a nose cone's tip
+        cos = math.cos(math.radians(self.half_angle_deg))
+        return compiled.NOSE_CONE, np.array([self._half, self.base_radius + d / cos, self._cot, d, d * cos,
+                                             self.cone_height, d])
 
     def params(self):
         # ``height`` is the constructor's name, but Surface.height is the height field
-        return {"half_angle_deg": self.half_angle_deg, "height": self.cone_height,
-                "flange_half_width": self.flange_half_width}
+        return self._with_offset({"half_angle_deg": self.half_angle_deg, "height": self.cone_height,
+                                  "flange_half_width": self.flange_half_width})
 
 
 class NoseCone(_SquareDomain):
@@ -202,8 +221,13 @@ class NoseCone(_SquareDomain):
         self.flange_half_width = _flange(flange_half_width, self.base_radius)
         self._half = self.flange_half_width
         self.size = self.base_radius
-        self.kernel = (compiled.NOSE_CONE, np.array([self._half, self.base_radius, self._cot, self.tip_radius, self.blend_radius,
-                                             self._z_centre]))
+        self.kernel = self._kernel(0.0)
+
+    def _kernel(self, d):
+        cos = math.cos(math.radians(self.half_angle_deg))
+        tip = self.tip_radius + d
+        return compiled.NOSE_CONE, np.array([self._half, self.base_radius + d / cos, self._cot, tip, tip * cos,
+                                             self._z_centre, d])
 
 
 class DoubleDome(_SquareDomain):
@@ -247,8 +271,13 @@ class DoubleDome(_SquareDomain):
             )
         self._half = self.flange_half_width
         self.size = reach
-        self.kernel = (compiled.DOUBLE_DOME, np.array([self._half, self.dome_radius, self.base_radius, self.centre_distance,
-                                               self.blend, self._depth, self._rim_slope]))
+        self.kernel = self._kernel(0.0)
+
+    def _kernel(self, d):
+        if d != 0.0:  # the valley's blend of the offset caps misses the offset by up to 2/3 of d
+            raise ParameterError("offset_mm", f"a double dome has no offset surface in closed form: {_AS_MESH}")
+        return compiled.DOUBLE_DOME, np.array([self._half, self.dome_radius, self.base_radius, self.centre_distance,
+                                               self.blend, self._depth, self._rim_slope])
 
 
 class Saddle(_SquareDomain):
@@ -265,4 +294,9 @@ class Saddle(_SquareDomain):
         self.half_width = _length("half_width", half_width)
         self._half = self.half_width
         self.size = self.half_width
-        self.kernel = (compiled.SADDLE, np.array([self._half, self.radius]))
+        self.kernel = self._kernel(0.0)
+
+    def _kernel(self, d):
+        if d != 0.0:
+            raise ParameterError("offset_mm", f"a saddle has no offset surface in closed form: {_AS_MESH}")
+        return compiled.SADDLE, np.array([self._half, self.radius])

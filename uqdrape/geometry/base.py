@@ -8,11 +8,14 @@ The tool moves along z and the blank-holder lies in an x-y plane (thesis assumpt
 
 from __future__ import annotations
 
+import copy
 import inspect
+import math
 
 import numpy as np
 
 from .._lazy import lazy_module
+from ..errors import ParameterError
 
 compiled = lazy_module("uqdrape.geometry.compiled")  # numba: loaded when a mould is evaluated
 
@@ -32,6 +35,36 @@ class Surface:
     #: The rotation R (3, 3) from the tool's CAD frame into the solver's (solver = R @ tool,
     #: both in mm); None where they are the same frame (every analytic mould).
     tool_rotation: np.ndarray | None = None
+    #: How far (mm) this surface lies outside the mould it was made from (``offset``).
+    offset_mm: float = 0.0
+
+    def _kernel(self, d: float) -> tuple:
+        """The compiled description of this mould's outward offset surface at d mm (0: the mould)."""
+        raise NotImplementedError
+
+    def offset(self, distance_mm: float) -> Surface:
+        """The surface ``distance_mm`` (mm, >= 0) further out along the normal: where a ply
+        lies over plies of that total thickness. Exact for a mesh (a level set of its
+        signed distance: rounded over convex edges, the offset faces meeting at concave
+        ones), spheres, cylinders, cones and flanges, which offset to their own kind; a
+        double dome's valley joins its offset caps with the same blend, and a saddle has
+        no offset (ParameterError ``offset_mm``). The crossover stays a plan position: the
+        first contact is on the offset surface above it."""
+        try:
+            d = float(distance_mm)
+        except (TypeError, ValueError):
+            d = math.nan
+        if not (math.isfinite(d) and 0.0 <= d <= self.size):
+            raise ParameterError("offset_mm", f"offset_mm must be a length >= 0 and at most the mould's size "
+                                 f"({self.size:g} mm), got {distance_mm!r}")
+        out = copy.copy(self)
+        out.offset_mm = self.offset_mm + d
+        out.kernel = self._kernel(out.offset_mm)
+        return out
+
+    def _with_offset(self, params: dict) -> dict:
+        """``params`` with this surface's ``offset_mm`` added where it is not 0."""
+        return {**params, "offset_mm": self.offset_mm} if self.offset_mm else params
 
     def to_tool(self, a):
         """Points or vectors ``a`` (..., 3) of the solver frame in the tool's frame (mm);
@@ -85,9 +118,10 @@ class Surface:
 
     def params(self) -> dict:
         """Shape parameters (for netCDF attributes and reports): the constructor's
-        arguments, read from the attributes of the same names."""
+        arguments, read from the attributes of the same names, and ``offset_mm`` where not 0
+        (``uqdrape.geometry.build`` takes them all)."""
         names = list(inspect.signature(type(self).__init__).parameters)[1:]
-        return {name: getattr(self, name) for name in names}
+        return self._with_offset({name: getattr(self, name) for name in names})
 
     def normal(self, x, y):
         """Unit upward normal, shape (..., 3)."""

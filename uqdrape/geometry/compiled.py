@@ -6,14 +6,21 @@ mould without Python in between, and the Python ``Surface`` methods are thin vec
 wrappers of the same functions (one implementation of each shape). Kinds and their
 parameter layouts (all mm unless stated):
 
-PLATE        [half]
-HEMISPHERE   [half, R]
-CYLINDER     [R, length, axis (0: x, 1: y), width fraction]
+PLATE        [half, height]
+HEMISPHERE   [half, R, flange height]           the sphere's radius R + flange height
+CYLINDER     [R, length, axis (0: x, 1: y), width fraction, offset]
 CONE         [half, H, cot(half-angle), base radius]
-NOSE_CONE    [half, base radius, cot(half-angle), tip radius, blend radius, sphere centre z]
+NOSE_CONE    [half, base radius, cot(half-angle), tip radius, blend radius, sphere centre z,
+              flange height]
 DOUBLE_DOME  [half, dome R, base radius, centre distance, blend, depth, rim slope]
 SADDLE       [half, R]
 MESH         a triangle mesh with its bounding-volume hierarchy (``meshquery``)
+
+The offset and flange-height slots describe a mould's outward offset surface
+(``Surface.offset``; 0 for the mould itself): a sphere's radius grows by the offset about
+the same centre, a cone is shifted along its normal, a flange is raised; a cone's offset
+is a nose cone with a tip of the offset's radius. A double dome's and a saddle's offsets
+are no surfaces of their kind: they have none.
 
 Every kind is also an implicit surface for the node solver (``gap_on``, ``surface_normal``): a height field through its closed form, a mesh through its signed distance.
 These take a query memo (``new_memo``): a mesh's table of proven nearby answers
@@ -44,11 +51,12 @@ def _revolution(kind, p, r):
         f = max(p[1] - r * p[2], 0.0)
         return f, (-p[2] if r < p[3] else 0.0)
     # NOSE_CONE
-    base, cot, tip, blend, zc = p[1], p[2], p[3], p[4], p[5]
+    base, cot, tip, blend, zc, floor = p[1], p[2], p[3], p[4], p[5], p[6]
     if r <= blend:
         rs = min(r, blend)
         return zc + math.sqrt(max(tip * tip - r * r, 0.0)), -rs / math.sqrt(tip * tip - rs * rs)
-    return max((base - r) * cot, 0.0), (-cot if r < base else 0.0)
+    f = (base - r) * cot
+    return (f, -cot) if f > floor else (floor, 0.0)
 
 
 @jit
@@ -71,7 +79,7 @@ def height_gradient(kind, p, x, y):
     if kind == MESH:
         if not (math.isfinite(x) and math.isfinite(y)):
             return math.nan, math.nan, math.nan
-        return meshquery.top(p, x, y)
+        return meshquery.offset_top(p, x, y)
     return _closed_form(kind, p, x, y)
 
 
@@ -82,12 +90,12 @@ def _closed_form(kind, p, x, y):
     if not (math.isfinite(x) and math.isfinite(y)):
         return math.nan, math.nan, math.nan
     if kind == PLATE:
-        return 0.0, 0.0, 0.0
+        return p[1], 0.0, 0.0
     if kind == HEMISPHERE:  # h = sqrt(R^2 - x^2 - y^2), dh/dx = -x / h: no plan radius needed
-        R = p[1]
+        R, floor = p[1] + p[2], p[2]
         q = R * R - (x * x + y * y)
-        if q <= 0.0:
-            return 0.0, 0.0, 0.0
+        if q <= floor * floor:
+            return floor, 0.0, 0.0
         f = math.sqrt(q)
         k = -1.0 / max(f, 1e-9 * R)
         return f, k * x, k * y
@@ -97,7 +105,7 @@ def _closed_form(kind, p, x, y):
         k = slope / max(r, R_EPS)
         return f, k * x, k * y
     if kind == CYLINDER:
-        R = p[0]
+        R = p[0] + p[4]
         c = y if p[2] == 0.0 else x
         q = R * R - c * c
         root = max(math.sqrt(max(q, 0.0)), 1e-9 * R)

@@ -302,10 +302,12 @@ def _cell_grid(tri: np.ndarray, cell: float, margin: float, origin: np.ndarray):
     return slots, table, face
 
 
-def pack(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh", edge_blend_mm: float = EDGE_BLEND_MM) -> np.ndarray:
+def pack(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh", edge_blend_mm: float = EDGE_BLEND_MM,
+         offset_mm: float = 0.0) -> np.ndarray:
     """The packed array of ``meshquery`` for a checked mesh (mm, outward-wound faces):
     faces sorted into the hierarchy's order, vertices into their faces', neighbours, vertex
-    normals, crease flags."""
+    normals, crease flags; its queries describe the surface ``offset_mm`` outside it (the
+    cell grid's margin widened by as much, so that a query there is answered from its cell)."""
     tri = vertices[faces]
     leaves = 1 << max(int(math.ceil(math.log2(max(math.ceil(faces.shape[0] / mq.LEAF), 1)))), 0)
     order = _order(tri.mean(1), leaves)
@@ -340,7 +342,7 @@ def pack(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh", edge_blend
     size = 0.5 * float(np.ptp(vertices, 0).max())
     edge = float(np.median(np.linalg.norm(e_next, axis=2)))
     cell = max(GRID_CELL * edge, 2 * size / (mq.GRID_AXIS - 8))  # a cell no smaller than the grid allows
-    margin = GRID_MARGIN * edge
+    margin = GRID_MARGIN * edge + offset_mm
     origin = vertices.min(0) - 2 * margin - cell
     slots, table, lists = _cell_grid(tri, cell, margin, origin)
     parts = [tri, np.where(creased, -faces - 1, faces), nb, vn, vb, boxes, table, lists]
@@ -353,6 +355,7 @@ def pack(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh", edge_blend
     head[mq.COS_CREASE] = math.cos(math.radians(CREASE_DEG))
     head[mq.EDGE_BLEND] = edge_blend_mm
     head[mq.REACH] = MEMO_REACH * edge
+    head[mq.OFFSET] = offset_mm
     head[[mq.GRID_CELL, mq.GRID_MARGIN, mq.GRID_X0, mq.GRID_Y0, mq.GRID_Z0, mq.GRID_SLOTS]] = (
         cell, margin, *origin, slots)
     return np.concatenate([head] + [np.asarray(p, float).ravel() for p in parts])
@@ -437,9 +440,13 @@ class MeshSurface(Surface):
         self.bounds = (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
         self.size = 0.5 * extent
 
+    def _kernel(self, d):
+        v, f, _ = self.triangles()
+        return compiled.MESH, pack(v, f, str(self.path), self.edge_blend_mm, d)
+
     def params(self):
-        return {"path": str(self.path), "units": self.units, "press_direction": self.press_direction,
-                "edge_blend_mm": self.edge_blend_mm}
+        return self._with_offset({"path": str(self.path), "units": self.units, "press_direction": self.press_direction,
+                                  "edge_blend_mm": self.edge_blend_mm})
 
     def describe(self) -> str:
         """The mould in words: its file, units and press direction (and a blend other than
@@ -449,7 +456,8 @@ class MeshSurface(Surface):
         press = (("+" if d[axis[0]] > 0 else "-") + "xyz"[axis[0]] if len(axis) == 1
                  else "(" + ", ".join(f"{c:g}" for c in d) + ")")
         blend = "" if self.edge_blend_mm == EDGE_BLEND_MM else f", edge blend {self.edge_blend_mm:g} mm"
-        return f"mesh {self.path.name} ({self.units}, press {press}{blend})"
+        offset = f", offset {self.offset_mm:g} mm" if self.offset_mm else ""
+        return f"mesh {self.path.name} ({self.units}, press {press}{blend}{offset})"
 
     def normal_at(self, points):
         """The solver's unit normal (..., 3) at points (..., 3) mm on the mesh (NaN in, NaN out)."""

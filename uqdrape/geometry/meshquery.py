@@ -60,10 +60,11 @@ from .._jit import jit
 
 #: Header slots of the packed mesh array: counts, offsets, the on-mesh tolerance (mm), the
 #: mesh's size (mm), cos(crease angle), the edge blend half-width (mm), the memo's reach (mm),
-#: and the cell grid: its cell size and margin (mm), origin (mm), hash slots and offsets.
+#: and the cell grid: its cell size and margin (mm), origin (mm), hash slots and offsets;
+#: last the offset (mm) of the surface the queries describe from the mesh (``OFFSET``).
 (NV, NF, LEAVES, OFF_TRI, OFF_F, OFF_NB, OFF_VN, OFF_VB, OFF_BOX, ON_TOL, SCALE, COS_CREASE, EDGE_BLEND, REACH,
- GRID_CELL, GRID_MARGIN, GRID_X0, GRID_Y0, GRID_Z0, GRID_SLOTS, OFF_HASH, OFF_LIST) = range(22)
-HEADER = 22
+ GRID_CELL, GRID_MARGIN, GRID_X0, GRID_Y0, GRID_Z0, GRID_SLOTS, OFF_HASH, OFF_LIST, OFFSET) = range(23)
+HEADER = 23
 #: Cells of the grid per axis (a cell's key, ix + GRID_AXIS (iy + GRID_AXIS iz), is exact in a float).
 GRID_AXIS = 1 << 17
 #: Entries of a query memo (a power of 2), each (x, y, z, rho, face).
@@ -323,18 +324,19 @@ def _on_boundary(p, f, region):
 @jit
 def signed_distance(p, x, y, z, memo):
     """(phi, gradient 3-tuple, on the mesh) at (x, y, z): the signed distance (> 0 outside, on
-    the normals' side), its gradient, as set out in the module docstring, and whether the
-    point lies on the mesh within the stored tolerance (not on the tangent plane that
+    the normals' side) less the mesh's OFFSET, its gradient, as set out in the module
+    docstring, and whether the point lies on the mesh (its offset surface) within the stored tolerance (not on the tangent plane that
     continues it past an open edge), from the one closest-point query (``memo`` as in
     ``closest``)."""
     f, c, _, region, d2 = closest(p, x, y, z, memo)
     if f < 0:
         return math.nan, (math.nan, math.nan, math.nan), False
-    on = d2 <= p[ON_TOL] * p[ON_TOL]
+    off = p[OFFSET]
+    on = d2 <= p[ON_TOL] * p[ON_TOL] if off == 0.0 else abs(math.sqrt(d2) - off) <= p[ON_TOL]
     n = _face_normal(p, f)
     diff = (x - c[0], y - c[1], z - c[2])
     if region == 0 or _on_boundary(p, f, region):
-        return _dot(diff, n), n, on
+        return _dot(diff, n) - off, n, on
     if region >= 4:
         g = int(p[int(p[OFF_NB]) + 3 * f + region - 4])
         m = _face_normal(p, g)
@@ -345,9 +347,9 @@ def signed_distance(p, x, y, z, memo):
     sign = 1.0 if _dot(diff, pseudo) >= 0.0 else -1.0
     d = math.sqrt(d2)
     if d > 1e-9 * p[SCALE]:
-        return sign * d, (sign * diff[0] / d, sign * diff[1] / d, sign * diff[2] / d), on
+        return sign * d - off, (sign * diff[0] / d, sign * diff[1] / d, sign * diff[2] / d), on
     s = math.sqrt(_dot(pseudo, pseudo))
-    return sign * d, (pseudo[0] / s, pseudo[1] / s, pseudo[2] / s), on
+    return sign * d - off, (pseudo[0] / s, pseudo[1] / s, pseudo[2] / s), on
 
 
 @jit
@@ -467,3 +469,32 @@ def top(p, x, y):
     m = _smooth_normal(p, best_f, best_w)
     nz = max(m[2], 1e-9)
     return best, -m[0] / nz, -m[1] / nz
+
+
+@jit
+def offset_top(p, x, y):
+    """``top`` of the surface at the mesh's OFFSET (mm) outside it: (z, dz/dx, dz/dy) where a
+    vertical line at plan point (x, y) meets phi = OFFSET above the mesh's top, found by
+    Newton steps kept inside a bracket (from the top, where phi = 0, to above the mesh's
+    highest point); the mesh's own ``top`` where OFFSET is 0."""
+    h, hx, hy = top(p, x, y)
+    off = p[OFFSET]
+    if off == 0.0 or not math.isfinite(h):
+        return h, hx, hy
+    memo = new_memo()
+    lo, hi = h, p[int(p[OFF_BOX]) + 5] + off + 1.0  # below: phi <= 0; above: phi > off
+    z = h + off
+    tol = 1e-12 * p[SCALE]
+    g = (0.0, 0.0, 1.0)
+    for _ in range(100):
+        phi, g, _ = signed_distance(p, x, y, z, memo)
+        if phi < 0.0:
+            lo = z
+        else:
+            hi = z
+        if abs(phi) <= tol or hi - lo <= tol:
+            break
+        step = z - phi / g[2] if g[2] > 1e-3 else math.nan
+        z = step if lo < step < hi else 0.5 * (lo + hi)
+    nz = max(g[2], 1e-9)
+    return z, -g[0] / nz, -g[1] / nz

@@ -91,9 +91,11 @@ def write_laminate_report(ds: xr.Dataset, out_dir, *, title: str, description: s
     out.mkdir(parents=True, exist_ok=True)
     plies = []
     for ply in ds[PLY].values:
-        index = write_report(ply_dataset(ds, ply), out / f"ply-{ply}", title=f"{title}: {ply_label(ds, ply)}",
+        one = ply_dataset(ds, ply)
+        index = write_report(one, out / f"ply-{ply}", title=f"{title}: {ply_label(ds, ply)}",
                              description=description, wall_time_s=wall_time_s, formats=formats)
-        plies.append((ply, index, json.loads((index.parent / "summary.json").read_text())))
+        offset = json.loads(one.attrs.get("geometry_json", "{}")).get("offset_mm", 0.0)
+        plies.append((ply, index, json.loads((index.parent / "summary.json").read_text()), offset))
     lock = laminate_lock(ds)
     deviation = fibre_deviation(ds)
     mean_dev = deviation.isel({FORCE: 0}).mean(REALIZATION)
@@ -119,9 +121,10 @@ def write_laminate_report(ds: xr.Dataset, out_dir, *, title: str, description: s
                                    for f in ds[FORCE].values},
               "confidence": lock.attrs["confidence"], "n": lock.attrs["n"],
               "figures": [path.name for path, _ in items]}
-    for ply, index, summary in plies:
+    for ply, index, summary, offset in plies:
         record["plies"][str(ply)] = {
             "angle_deg": float(ds[PLY_ANGLE].sel({PLY: ply})),
+            "offset_mm": offset,
             "p_locked": [float(v) for v in lock["p_ply"].sel({PLY: ply}).values],
             "fibre_deviation_mean_max_abs_deg": float(np.nanmax(np.abs(mean_dev.sel({PLY: ply}).values))),
             "fibre_deviation_sd_max_deg": float(np.nanmax(sd_dev.sel({PLY: ply}).values))
@@ -143,6 +146,7 @@ def _page(record: dict, items, study_text: str | None) -> str:
                         for force, v in record["p_any_ply_locked"].items())
     ply_rows = "".join(
         f"<tr><td><a href=\"{esc(p['report'])}\">{esc(name)}</a></td><td class=\"num\">{p['angle_deg']:+g}</td>"
+        f"<td class=\"num\">{p['offset_mm']:g}</td>"
         f"<td class=\"num\">{', '.join(f'{v:.3g}' for v in p['p_locked'])}</td>"
         f"<td class=\"num\">{p['fibre_deviation_mean_max_abs_deg']:.3g}</td>"
         f"<td class=\"num\">{'–' if p['fibre_deviation_sd_max_deg'] is None else format(p['fibre_deviation_sd_max_deg'], '.3g')}</td></tr>"
@@ -152,11 +156,12 @@ def _page(record: dict, items, study_text: str | None) -> str:
         body.append(f"<p>{esc(record['description'])}</p>")
     body += [f"<p class=\"note\">{esc(provenance_line(record['provenance']))}</p>",
              f"<h2>Laminate, N = {record['n']}</h2>",
-             "<p class=\"note\">Plies are formed one by one over the same tool, without inter-ply friction or "
-             "the thickness of the plies beneath.</p>",
+             "<p class=\"note\">Plies are formed one by one over the same tool, without inter-ply friction, each on "
+             "the tool's surface offset by the thickness of the plies beneath it (its offset; 0 where no "
+             "thickness_mm is given).</p>",
              f"<table><tr><th>blank-holder force</th><th>P(any ply locked)</th><th>{conf} Wilson interval</th></tr>"
              f"{lock_rows}</table>",
-             "<table><tr><th>ply</th><th>angle (deg)</th><th>P(ply locked) per force level</th>"
+             "<table><tr><th>ply</th><th>angle (deg)</th><th>offset (mm)</th><th>P(ply locked) per force level</th>"
              "<th>largest |mean fibre deviation| (deg, plan)</th><th>largest sd of fibre deviation (deg, plan)</th></tr>"
              f"{ply_rows}</table>",
              figures_html(items)]

@@ -198,8 +198,9 @@ class Ply:
     fibre spacing (mm) and seed point ``crossover`` (plan mm, the ply's first contact);
     ``misalignment_sd_deg``, the sd of its own normal misalignment (deg; 0: none); and its
     random fields by name (``RandomField``; a ply without its own takes the study's);
-    ``trim``, its edge in plan (nodes outside it are the ply's offcut).
-    Each ply draws its own fields and misalignment."""
+    ``trim``, its edge in plan (nodes outside it are the ply's offcut); ``thickness_mm``,
+    what it adds to the stack (mm): the plies above it lie on the tool's offset surface
+    (``Study.ply_offset``). Each ply draws its own fields and misalignment."""
 
     name: str
     angle_deg: float
@@ -210,6 +211,8 @@ class Ply:
     fields: dict
     #: the ply's edge: a plan polyline CSV (x_mm,y_mm); None: the whole net
     trim: str | None = None
+    #: the ply's thickness in the stack (mm); 0: the plies above lie where it does
+    thickness_mm: float = 0.0
 
 
 def ply_seed(seed: int, k: int) -> int:
@@ -382,11 +385,19 @@ class Study:
         ``orientation``), drawn from the study's seed; no fields, no plies."""
         return dataclasses.replace(self, uncertainty=Uncertainty({}, self.uncertainty.factors), plies=())
 
+    def ply_offset(self, k: int) -> float:
+        """How far (mm) ply ``k`` lies outside the tool: the thickness of the plies below it."""
+        return float(sum(p.thickness_mm for p in self.plies[:k]))
+
     def ply_study(self, k: int) -> Study:
         """Ply ``k`` of a laminate as a single-ply study: the ply's card, spacing and seed
         point, fibre 1 at the rosette's angle + the ply's angle, the ply's fields and
-        misalignment (a normal factor on ``orientation``) drawn with ``ply_seed``."""
+        misalignment (a normal factor on ``orientation``) drawn with ``ply_seed``, and the
+        mould offset by ``ply_offset(k)`` where that is not 0 (geometry key ``offset_mm``)."""
         ply = self.plies[k]
+        offset = self.ply_offset(k)
+        geometry = self.geometry if not offset else Geometry(
+            self.geometry.kind, {**self.geometry.params, "offset_mm": self.geometry.params.get("offset_mm", 0.0) + offset})
         fabric = dataclasses.replace(self.fabric, material=ply.material, spacing_mm=ply.spacing_mm,
                                      orientation_deg=self.fabric.orientation_deg + ply.angle_deg,
                                      crossover=ply.crossover)
@@ -394,7 +405,7 @@ class Study:
         if ply.misalignment_sd_deg > 0:
             factors["orientation"] = _stochastic.make_factor("normal", mean=fabric.orientation_deg,
                                                              sd=ply.misalignment_sd_deg)
-        return dataclasses.replace(self, seed=ply_seed(self.seed, k), fabric=fabric,
+        return dataclasses.replace(self, seed=ply_seed(self.seed, k), fabric=fabric, geometry=geometry,
                                    uncertainty=Uncertainty(ply.fields, factors), plies=())
 
     def to_dict(self) -> dict:

@@ -52,6 +52,7 @@ import numpy as np
 from .. import geometry as _geometry
 from .. import material as _material
 from .. import stochastic as _stochastic
+from ..errors import ParameterError
 from ..experimental import read_experimental
 from ..geometry.outline import read_trim
 from ..files import (REQUIRED, Document, FileFormatError, Table, fmt, inside, is_int, is_number, location,
@@ -102,7 +103,8 @@ KEYS = {
                "max_draw_in_mm", "rare"),
     "design.rare": ("qoi", "threshold", "max_probability", "cov", "max_drapes"),
     "report": ("histogram_nodes", "experimental_csv", "fixed_twin"),
-    "ply": ("name", "angle_deg", "material", "spacing_mm", "crossover", "misalignment_sd_deg", "trim", "uncertainty"),
+    "ply": ("name", "angle_deg", "material", "spacing_mm", "crossover", "misalignment_sd_deg", "trim", "thickness_mm",
+            "uncertainty"),
     "output": ("directory", "float32"),
 }
 
@@ -120,6 +122,9 @@ MAX_DESIGN_SECTORS = 36
 #: largest ensemble run into one store, 10^6).
 MAX_DESIGN_EVALUATIONS = 10_000
 MAX_VALIDATION_REALIZATIONS = 1_000_000
+#: Thickness a ply may add to the stack (mm): a dry ply is a fraction of a millimetre to a
+#: few millimetres (an NCF's 2 mm); 10 mm is a typing error.
+MAX_PLY_THICKNESS_MM = 10.0
 
 
 class _Source(Document):
@@ -740,6 +745,15 @@ def _plies(src: _Source, doc: dict, fabric: Fabric, solver: Solver, uncertainty:
         seen[name] = k
         plies.append(_ply(src, Table(src, f"ply.{name}", entry, KEYS["ply"]), name, fabric, solver, uncertainty,
                           mould))
+    below = 0.0
+    for ply in plies[:-1]:
+        below += ply.thickness_mm
+        if below:
+            try:
+                mould.offset(below)
+            except ParameterError as err:
+                src.invalid(f"ply.{ply.name}.thickness_mm", ply.thickness_mm,
+                            f"the plies above it lie on the tool offset by {below:g} mm: {err}")
     return tuple(plies)
 
 
@@ -780,7 +794,8 @@ def _ply(src: _Source, t: Table, name: str, fabric: Fabric, solver: Solver, unce
         if field.sd_dof is not None or field.length_log_sd is not None:
             src.fail(f"{field.name}: a sd or length drawn per realisation (sd_dof, length_log_sd) is not supported "
                      "in a laminate; remove it", f"uncertainty.{field.name}")
-    return Ply(name, angle, material, spacing, crossover, sd, fields, trim)
+    thickness = t.number("thickness_mm", 0.0, ge=0, lt=MAX_PLY_THICKNESS_MM)
+    return Ply(name, angle, material, spacing, crossover, sd, fields, trim, thickness)
 
 
 def _plain_field(field: RandomField) -> dict:

@@ -69,10 +69,11 @@ def _ply_book(s) -> list[str]:
     if not s.plies:
         return []
     lines = [f"  laminate of {len(s.plies)} plies, rosette at {s.fabric.orientation_deg:g} deg, formed one by one "
-             "(no inter-ply friction, no ply thickness):"]
-    for p in s.plies:
+             "(no inter-ply friction), each on the tool offset by the plies below it:"]
+    for k, p in enumerate(s.plies):
         own = _fields(p.fields) + ([f"misalignment sd {p.misalignment_sd_deg:g} deg"] if p.misalignment_sd_deg else []) \
-            + ([f"trimmed to {Path(p.trim).name}"] if p.trim else [])
+            + ([f"trimmed to {Path(p.trim).name}"] if p.trim else []) \
+            + ([f"on the tool offset by {s.ply_offset(k):g} mm"] if s.ply_offset(k) else [])
         lines.append(f"    {p.name}: {p.angle_deg:+g} deg, {Path(p.material).name}, {p.spacing_mm:g} mm, seed point "
                      f"({p.crossover[0]:g}, {p.crossover[1]:g}) mm; {'; '.join(own) or 'no own variability'}")
     return lines
