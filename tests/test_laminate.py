@@ -60,17 +60,31 @@ def test_flat_plate_plies_keep_their_angles_without_shear(tmp_path):
 
 
 def test_cylinder_plies_keep_their_angles_in_the_development(tmp_path):
-    """On a cylinder along x (developable) every ply is unsheared. Unrolled (u = x,
-    v = R atan2(y, z)), the 0 and 90 deg plies' fibre-1 segments run at their angles
-    exactly; a +-45 deg ply's are one helix whose developed angle is off by the chord
-    construction's (s / R)^2 / 24 rad (0.024 deg at s / R = 0.1), the same at every segment,
-    a quarter of it at half the spacing."""
+    """On a cylinder along x (developable) every ply is unsheared, and at every node its two
+    fibre directions (the central-difference tangents the FE handoff maps) run at the ply's
+    angle and 90 deg more from the axis, about the normal, to 1e-9 deg. The net's segments
+    are chords: unrolled (u = x, v = R atan2(y, z)), the 0 and 90 deg plies' run at their
+    angles exactly, a +-45 deg ply's are one helix whose developed chord angle is off by
+    the chord construction's (s / R)^2 / 24 rad (0.024 deg at s / R = 0.1), the same at every
+    segment, a quarter of it at half the spacing."""
+    from uqdrape.export.directions import fibre_directions
+    from uqdrape.geometry import Cylinder
+
     R = 100.0
     errors = []
     for s in (10.0, 5.0):
         _, ds = laminate(tmp_path, geometry={"kind": "cylinder", "radius": R, "length": 400.0, "axis": "x"},
                          fabric={"spacing_mm": s}, solver={"rings": 6})
         assert np.nanmax(np.abs(ds["cell_shear"].values)) < 1e-9
+        for k, nominal in enumerate((0.0, 45.0, 90.0, -45.0)):
+            ply = ds.isel({PLY: k, "realization": 0})
+            P = np.stack([ply[c].values for c in "xyz"], -1)
+            d1, d2, n = fibre_directions(P, ply["shear"].values, Cylinder(R, 400.0))
+            axis = np.array([1.0, 0.0, 0.0])
+            around = np.cross(n, axis)
+            for d, angle in ((d1, nominal), (d2, nominal + 90.0)):
+                dev = np.degrees(np.arctan2((d * around).sum(-1), (d * axis).sum(-1))) - angle
+                assert np.abs((dev + 90.0) % 180.0 - 90.0).max() < 1e-9, (s, nominal)
         u, v = ds["x"].values, R * np.arctan2(ds["y"].values, ds["z"].values)
         angle = np.degrees(np.arctan2(np.diff(v, axis=-2), np.diff(u, axis=-2)))  # along i, each ply
         err = (angle[:, 0] - np.array([0.0, 45.0, 90.0, -45.0])[:, None, None] + 90.0) % 180.0 - 90.0
@@ -325,16 +339,18 @@ def test_a_mesh_tool_offsets_its_plies_by_their_distance(tmp_path):
 
 
 @pytest.mark.parametrize("thickness, geometry, key, valid", [
-    ("0.3", {}, "ply.p0.thickness_mm", ("number",)),
-    (-0.1, {}, "ply.p0.thickness_mm", ("0 <= thickness_mm < 10",)),
-    (12.0, {}, "ply.p0.thickness_mm", ("0 <= thickness_mm < 10",)),
-    (0.5, {"kind": "saddle", "radius": 200.0, "half_width": 150.0}, "ply.p0.thickness_mm",
-     ("offset by 0.5 mm", "saddle", "mesh")),
+    (("0.3", 0.0), {}, "ply.p0.thickness_mm", ("number",)),
+    ((-0.1, 0.0), {}, "ply.p0.thickness_mm", ("0 <= thickness_mm < 10",)),
+    ((12.0, 0.0), {}, "ply.p0.thickness_mm", ("0 <= thickness_mm < 10",)),
+    ((4.0, 4.0), {"kind": "double_dome", "radius": None}, "ply.p45.thickness_mm",
+     ("offset by 8 mm", "concave radius", "5.927 mm")),
 ])
 def test_a_bad_ply_thickness_names_file_ply_and_key(tmp_path, thickness, geometry, key, valid):
+    """A thickness that is no length, and a stack whose offset (two 4 mm plies under the
+    third) would fold the double dome's valley: one line naming the ply that adds it."""
     from uqdrape.study import StudyError
 
-    plies = [{**QUASI_ISOTROPIC[0], "thickness_mm": thickness}, QUASI_ISOTROPIC[1]]
+    plies = [{**p, "thickness_mm": t} for p, t in zip(QUASI_ISOTROPIC, thickness)] + [QUASI_ISOTROPIC[2]]
     path = laminate_file(tmp_path, plies, geometry=geometry)
     with pytest.raises(StudyError) as err:
         load_study(path)

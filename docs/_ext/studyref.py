@@ -80,9 +80,8 @@ def _geometry() -> list[str]:
                          for p in params)
         summary = (inspect.getdoc(cls) or "").split("\n")[0].replace("``", "`")
         rows.append(f"| `{kind}` | {_cell(summary)} | {keys} |")
-    return rows + ["", "Every kind but `saddle` and `double_dome` also takes `offset_mm` (default 0): the mould's "
-                   "surface that far out along its normal (`uqdrape.geometry.Surface.offset`), where a laminate's "
-                   "upper plies lie.", ""]
+    return rows + ["", "Every kind also takes `offset_mm` (default 0): the mould's surface that far out along "
+                   "its normal (`uqdrape.geometry.Surface.offset`), where a laminate's upper plies lie.", ""]
 
 
 def _factors() -> list[str]:

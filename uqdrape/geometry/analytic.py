@@ -27,8 +27,6 @@ compiled = lazy_module("uqdrape.geometry.compiled")  # numba: loaded when a moul
 
 #: Largest mould dimension accepted (mm): beyond any press, and far from float overflow.
 MAX_LENGTH_MM = 1e5
-#: What to do for a mould without an offset of its own kind (``Surface.offset``).
-_AS_MESH = "give the tool as a mesh file (uqdrape.geometry.export_stl writes one) to offset it"
 
 
 def _length(name: str, value) -> float:
@@ -274,10 +272,24 @@ class DoubleDome(_SquareDomain):
         self.kernel = self._kernel(0.0)
 
     def _kernel(self, d):
-        if d != 0.0:  # the valley's blend of the offset caps misses the offset by up to 2/3 of d
-            raise ParameterError("offset_mm", f"a double dome has no offset surface in closed form: {_AS_MESH}")
         return compiled.DOUBLE_DOME, np.array([self._half, self.dome_radius, self.base_radius, self.centre_distance,
-                                               self.blend, self._depth, self._rim_slope])
+                                               self.blend, self._depth, self._rim_slope, d])
+
+    def _largest_offset(self):
+        """The smallest concave radius of curvature (mm) of the domes and their valley above
+        the flange: the largest principal curvature of the shape operator, from central
+        differences of the slope on a 0.5 mm plan grid."""
+        reach, h = self.size, 1e-4
+        X, Y = np.meshgrid(np.arange(-reach, reach, 0.5), np.arange(-self.base_radius, self.base_radius, 0.5))
+        f, fx, fy = self.height_gradient(X, Y)
+        rows = [np.stack(self.height_gradient(X + dx, Y + dy)[1:], -1) - np.stack(self.height_gradient(X - dx, Y - dy)[1:], -1)
+                for dx, dy in ((h, 0.0), (0.0, h))]
+        hessian = np.stack(rows, -2) / (2 * h)
+        g = np.stack([fx, fy], -1)
+        metric = np.eye(2) + g[..., :, None] * g[..., None, :]
+        shape = np.linalg.solve(metric, hessian) / np.sqrt(1.0 + (g * g).sum(-1))[..., None, None]
+        concave = np.linalg.eigvals(shape[f > 0.5]).real.max()
+        return float(1.0 / concave), "the smallest concave radius of curvature of its valley, past which its offset folds"
 
 
 class Saddle(_SquareDomain):
@@ -297,6 +309,8 @@ class Saddle(_SquareDomain):
         self.kernel = self._kernel(0.0)
 
     def _kernel(self, d):
-        if d != 0.0:
-            raise ParameterError("offset_mm", f"a saddle has no offset surface in closed form: {_AS_MESH}")
-        return compiled.SADDLE, np.array([self._half, self.radius])
+        return compiled.SADDLE, np.array([self._half, self.radius, d])
+
+    def _largest_offset(self):
+        # its principal curvatures are largest, +-1/R, at the origin
+        return min(self.radius, self.size), "the saddle's radius and size"

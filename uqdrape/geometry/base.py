@@ -44,23 +44,29 @@ class Surface:
 
     def offset(self, distance_mm: float) -> Surface:
         """The surface ``distance_mm`` (mm, >= 0) further out along the normal: where a ply
-        lies over plies of that total thickness. Exact for a mesh (a level set of its
-        signed distance: rounded over convex edges, the offset faces meeting at concave
-        ones), spheres, cylinders, cones and flanges, which offset to their own kind; a
-        double dome's valley joins its offset caps with the same blend, and a saddle has
-        no offset (ParameterError ``offset_mm``). The crossover stays a plan position: the
-        first contact is on the offset surface above it."""
+        lies over plies of that total thickness. Exact: for a mesh, a level set of its
+        signed distance (rounded over convex edges, the offset faces meeting at concave
+        ones); spheres, cylinders, cones and flanges offset to their own kind; a double
+        dome's domes and a saddle point by point, up to their smallest concave radius of
+        curvature (beyond it the offset folds: ParameterError ``offset_mm``). The crossover
+        stays a plan position: the first contact is on the offset surface above it."""
         try:
             d = float(distance_mm)
         except (TypeError, ValueError):
             d = math.nan
-        if not (math.isfinite(d) and 0.0 <= d <= self.size):
-            raise ParameterError("offset_mm", f"offset_mm must be a length >= 0 and at most the mould's size "
-                                 f"({self.size:g} mm), got {distance_mm!r}")
+        limit, what = self._largest_offset()
+        if not (math.isfinite(d) and 0.0 <= self.offset_mm + d <= limit):
+            raise ParameterError("offset_mm", f"offset_mm must be a length >= 0 and at most {what} ({limit:.4g} mm), "
+                                 f"got {distance_mm!r}")
         out = copy.copy(self)
         out.offset_mm = self.offset_mm + d
         out.kernel = self._kernel(out.offset_mm)
         return out
+
+    def _largest_offset(self) -> tuple[float, str]:
+        """The largest offset (mm) this mould takes and what bounds it: its size, or where a
+        concave curvature would fold the offset."""
+        return self.size, "the mould's size"
 
     def _with_offset(self, params: dict) -> dict:
         """``params`` with this surface's ``offset_mm`` added where it is not 0."""

@@ -12,15 +12,15 @@ CYLINDER     [R, length, axis (0: x, 1: y), width fraction, offset]
 CONE         [half, H, cot(half-angle), base radius]
 NOSE_CONE    [half, base radius, cot(half-angle), tip radius, blend radius, sphere centre z,
               flange height]
-DOUBLE_DOME  [half, dome R, base radius, centre distance, blend, depth, rim slope]
-SADDLE       [half, R]
+DOUBLE_DOME  [half, dome R, base radius, centre distance, blend, depth, rim slope, offset]
+SADDLE       [half, R, offset]
 MESH         a triangle mesh with its bounding-volume hierarchy (``meshquery``)
 
 The offset and flange-height slots describe a mould's outward offset surface
 (``Surface.offset``; 0 for the mould itself): a sphere's radius grows by the offset about
 the same centre, a cone is shifted along its normal, a flange is raised; a cone's offset
-is a nose cone with a tip of the offset's radius. A double dome's and a saddle's offsets
-are no surfaces of their kind: they have none.
+is a nose cone with a tip of the offset's radius. A double dome's domes and a saddle,
+whose offsets are of no closed form, are offset point by point (``_offset_of``).
 
 Every kind is also an implicit surface for the node solver (``gap_on``, ``surface_normal``): a height field through its closed form, a mesh through its signed distance.
 These take a query memo (``new_memo``): a mesh's table of proven nearby answers
@@ -112,19 +112,53 @@ def _closed_form(kind, p, x, y):
         across = -c / root if q > 0 else 0.0
         h = math.sqrt(max(q, 0.0))
         return (h, 0.0, across) if p[2] == 0.0 else (h, across, 0.0)
-    if kind == DOUBLE_DOME:
-        d = 0.5 * p[3]
-        f1, g1x, g1y = _cap(p, x, y, -d)
-        f2, g2x, g2y = _cap(p, x, y, d)
-        k = p[4]
-        gap = max(k - abs(f1 - f2), 0.0)
-        f = max(f1, f2) + gap * gap / (4 * k)
-        w = min(max(0.5 + (f1 - f2) / (2 * k), 0.0), 1.0)
-        if f > 0:
-            return f, w * g1x + (1 - w) * g2x, w * g1y + (1 - w) * g2y
-        return 0.0, 0.0, 0.0
+    if kind == DOUBLE_DOME:  # the domes' surface, or its offset, on the flange raised by the offset
+        floor = p[7]
+        f, gx, gy = _smooth(kind, p, x, y) if floor == 0.0 else _offset_of(kind, p, x, y, floor)
+        if f > floor:
+            return f, gx, gy
+        return floor, 0.0, 0.0
     # SADDLE
-    return (x * x - y * y) / (2 * p[1]), x / p[1], -y / p[1]
+    if p[2] == 0.0:
+        return _smooth(kind, p, x, y)
+    return _offset_of(kind, p, x, y, p[2])
+
+
+@inline
+def _smooth(kind, p, x, y):
+    """(f, df/dx, df/dy) of the smooth height fields whose offsets have no closed form: the
+    saddle, and the double dome's caps joined by the valley's blend (continued below its
+    flange by their tangent cones)."""
+    if kind == SADDLE:
+        return (x * x - y * y) / (2 * p[1]), x / p[1], -y / p[1]
+    d = 0.5 * p[3]
+    f1, g1x, g1y = _cap(p, x, y, -d)
+    f2, g2x, g2y = _cap(p, x, y, d)
+    k = p[4]
+    gap = max(k - abs(f1 - f2), 0.0)
+    f = max(f1, f2) + gap * gap / (4 * k)
+    w = min(max(0.5 + (f1 - f2) / (2 * k), 0.0), 1.0)
+    return f, w * g1x + (1 - w) * g2x, w * g1y + (1 - w) * g2y
+
+
+@jit
+def _offset_of(kind, p, x, y, d):
+    """(h, dh/dx, dh/dy) at plan point (x, y) of the surface d mm outside ``_smooth``: the
+    foot (u, v) whose point moved by d along its unit normal n lies over (x, y), found by the
+    fixed-point iteration (u, v) <- (x, y) - d n_xy(u, v) (it contracts by about d times
+    the curvature), then h = f(u, v) + d n_z and the foot's slope. NaN where it does not
+    settle in 100 steps (an offset past a concave curvature radius folds)."""
+    u, v = x, y
+    for _ in range(100):
+        f, fx, fy = _smooth(kind, p, u, v)
+        s = d / math.sqrt(1.0 + fx * fx + fy * fy)
+        un, vn = x + fx * s, y + fy * s
+        done = abs(un - u) + abs(vn - v) <= 1e-13 * (abs(x) + abs(y) + d)
+        u, v = un, vn
+        if done:
+            f, fx, fy = _smooth(kind, p, u, v)
+            return f + d / math.sqrt(1.0 + fx * fx + fy * fy), fx, fy
+    return math.nan, math.nan, math.nan
 
 
 @jit
