@@ -30,20 +30,17 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-import xarray as xr
+from typing import TYPE_CHECKING
 
-from ..design import DESIGN_FILE, EVALUATIONS, Evaluator, drape_design, optimise, problem, result_dataset
-from ..ensemble import (Progress, at, local_pool, open_ensemble, read_manifest, reach_scheduler, run_ensemble,
-                        sample_columns)
-from ..report import write_design_report, write_laminate_report, write_report
+from ..ensemble import at, read_manifest
 from ..schema import FORCE
-from ..sensitivity import map_indices, qoi_indices, sensitivity_sample
-from ..stats import SENSITIVITY_QOIS, realization_qois
 from ..study import SENSITIVITY_METHODS, Study, from_dict, identity, load_study
-from .preflight import check_placement, check_resources, run_preflight
-from .rare import design_rare, rare_probabilities, read_rare
-from .target import run_to_target
-from .twin import fixed_twin, hierarchical_summary, twin_location
+
+if TYPE_CHECKING:
+    import xarray as xr
+
+# What a plain run does not use (the design, report, sensitivity, statistics, rare-event
+# and target engines: seconds of imports before its first drape) is imported where used.
 
 #: Files a sensitivity run writes into its output folder.
 INDICES_FILE = "sensitivity.nc"
@@ -66,6 +63,9 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
     (``uqdrape.workflow.twin``; ``[report] fixed_twin = false`` skips it), a sensitivity
     run's indices, a ``[study] rare`` probability.
     """
+    from ..ensemble import run_ensemble, sample_columns
+    from .preflight import run_preflight
+
     study = study if isinstance(study, Study) else load_study(study)
     if study.design is not None:
         if method is not None:
@@ -76,7 +76,11 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
         study.single_ply("a sensitivity sample")
     if method not in SENSITIVITY_METHODS:
         raise ValueError(f"method must be one of {', '.join(SENSITIVITY_METHODS)}, got {method!r}")
-    matrix = None if method == "none" else sensitivity_sample(study, method)
+    matrix = None
+    if method != "none":
+        from ..sensitivity import sensitivity_sample
+
+        matrix = sensitivity_sample(study, method)
     if matrix is not None:
         assert matrix.problem["names"] == sample_columns(study), "problem and ensemble disagree on the variables"
     out, provenance, attrs = study.output_dir, study.to_dict(), {}
@@ -96,6 +100,8 @@ def run_study(study, *, scheduler: str | None = None, workers: int | None = None
                             preflight=run_preflight(sample, where, chunk_size=chunk_size, quiet=not progress,
                                                     sample_rows=kwargs.get("sample_rows")))
     if matrix is None and study.target is not None:
+        from .target import run_to_target
+
         out = run_to_target(study, lambda sample, again: run(sample, out, again),
                             chunk_size=chunk_size or study.chunk_size, resume=resume, progress=progress)
     else:
@@ -126,6 +132,8 @@ def _twin(done: Sampled) -> None:
     (``[report] fixed_twin``; ``fixed_twin`` is None for a study that is not hierarchical)."""
     if done.matrix is not None or not done.study.report.fixed_twin:
         return
+    from .twin import fixed_twin
+
     twin = fixed_twin(done.study, read_manifest(done.out)["study"]["study"]["realizations"], done.out)
     if done.progress:
         print(f"{done.study.name}: draping its fixed-parameter twin into {twin.output_dir}: the same "
@@ -153,6 +161,8 @@ def _indices(done: Sampled) -> None:
 def _rare(done: Sampled) -> None:
     """The study's ``[study] rare`` probability into its run folder, if it asks for one."""
     if done.study.rare is not None:
+        from .rare import rare_probabilities
+
         rare_probabilities(done.study, done.out, resume=done.resume, progress=done.progress)
 
 
@@ -190,6 +200,10 @@ def write_sensitivity(output_dir, matrix, *, qoi=None, seed: int,
     ``run_key`` naming the run they are of: see :func:`analysed`). ``qoi``: names (default
     ``SENSITIVITY_QOIS``); ``progress``: count the analysed nodes on stderr. Returns the
     two paths (URLs in a store)."""
+    from ..ensemble import Progress
+    from ..sensitivity import map_indices, qoi_indices
+    from ..stats import SENSITIVITY_QOIS, realization_qois
+
     out = at(output_dir)
     with out.open() as ds:
         qois = realization_qois(ds, SENSITIVITY_QOIS if qoi is None else qoi)
@@ -217,13 +231,20 @@ def open_sensitivity(output_dir) -> tuple[xr.Dataset, xr.Dataset] | None:
 
 
 def run_design(study, *, output_dir=None, scheduler: str | None = None, workers: int | None = None,
-               progress: bool = True, drape=drape_design, rare=design_rare) -> Path:
+               progress: bool = True, drape=None, rare=None) -> Path:
     """Run the [design] of a study (a ``Study`` or a study file's path): write
     ``design.nc`` and the per-design records into the output folder or store URL (default
     the study's; resumes from the records of an earlier run of the same study) and return
-    it. ``drape`` is the task that drapes one chunk of one design, ``rare`` estimates a
-    ``[design] rare`` constraint of one design (a test passes synthetic ones through the
-    same pipeline)."""
+    it. ``drape`` is the task that drapes one chunk of one design (default
+    ``uqdrape.design.drape_design``), ``rare`` estimates a ``[design] rare`` constraint of one
+    design (default ``uqdrape.workflow.rare.design_rare``; a test passes synthetic ones
+    through the same pipeline)."""
+    from ..design import DESIGN_FILE, Evaluator, drape_design, optimise, problem, result_dataset
+    from ..ensemble import local_pool, reach_scheduler
+    from .preflight import check_placement, check_resources
+    from .rare import design_rare
+
+    drape, rare = drape or drape_design, rare or design_rare
     start = time.perf_counter()
     study = study if isinstance(study, Study) else load_study(study)
     if study.design is None:
@@ -258,6 +279,12 @@ def run_report(output_dir, out_dir=None, formats=()) -> Path | str:
     the local folder ``out_dir`` (default: the run's ``report/``, in a store put under its
     URL), its figures also in the vector ``formats`` (svg, pdf) beside the PNGs; returns
     the index.html path (a URL in a store)."""
+    from ..design import DESIGN_FILE
+    from ..ensemble import open_ensemble
+    from ..report import write_design_report, write_laminate_report, write_report
+    from .rare import read_rare
+    from .twin import hierarchical_summary
+
     if out_dir is None:
         where = at(output_dir)
         with where.writing("report") as folder:
@@ -293,6 +320,8 @@ def run_report(output_dir, out_dir=None, formats=()) -> Path | str:
 def design_outcome(out) -> str:
     """What ``uqdrape design`` did to ``out`` (a folder or store URL): designs draped, or how
     many a resume kept."""
+    from ..design import DESIGN_FILE, EVALUATIONS
+
     attrs = at(out).read_dataset(DESIGN_FILE).attrs
     kept, draped = int(attrs.get("designs_kept", 0)), int(attrs.get("designs_draped", 0))
     if not kept:
@@ -304,6 +333,8 @@ def design_outcome(out) -> str:
 def run_outcome(out: Path) -> str:
     """What ``uqdrape run`` did to ``out``: chunks drawn, or how many of them a resume kept;
     a second line for its fixed-parameter twin if it has one."""
+    from .twin import twin_location
+
     twin = twin_location(out)
     if read_manifest(twin) is not None:
         return f"{_outcome(out)}\nfixed-parameter twin: {_outcome(twin)}"

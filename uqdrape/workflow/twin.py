@@ -30,7 +30,6 @@ import numpy as np
 from ..ensemble import at, open_ensemble, read_manifest
 from ..ensemble.inputs import realization_length_mm, realization_sd_deg
 from ..schema import FORCE, REALIZATION, by_force
-from ..stats import node_statistics
 from ..study import identity
 
 #: The twin's folder inside the run's (a store: its URL's last part).
@@ -101,6 +100,8 @@ def widening(hier, fixed) -> dict:
     level), and the (5 %, median, 95 %) over them of ``sd`` and ``band`` (ratios
     hierarchical / fixed of the shear sd and of the 5-95 % band width) and ``share``
     (1 - var_fixed / var_hier); only ``nodes`` (0) if none moves."""
+    from ..stats import node_statistics
+
     h, f = (node_statistics(by_force(ds), quantiles=(0.05, 0.95)) for ds in (hier, fixed))
     band_h, band_f = (s["quantile_value"].sel(quantile=0.95) - s["quantile_value"].sel(quantile=0.05) for s in (h, f))
     sd_h, sd_f = h["sd"], f["sd"]
