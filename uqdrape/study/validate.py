@@ -52,7 +52,6 @@ import numpy as np
 from .. import geometry as _geometry
 from .. import material as _material
 from .. import stochastic as _stochastic
-from ..errors import ParameterError
 from ..experimental import read_experimental
 from ..geometry.outline import read_trim
 from ..files import (REQUIRED, Document, FileFormatError, Table, fmt, inside, is_int, is_number, location,
@@ -751,7 +750,7 @@ def _plies(src: _Source, doc: dict, fabric: Fabric, solver: Solver, uncertainty:
         if below:
             try:
                 mould.offset(below)
-            except ParameterError as err:
+            except ValueError as err:
                 src.invalid(f"ply.{ply.name}.thickness_mm", ply.thickness_mm,
                             f"the plies above it lie on the tool offset by {below:g} mm: {err}")
     return tuple(plies)
