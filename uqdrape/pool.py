@@ -39,8 +39,11 @@ import time
 from pathlib import Path
 
 #: Modules the forkserver imports once for all the workers it forks: what ties its life to
-#: the run's, then a chunk's task and dask's process scheduler (the whole drape engine).
-PRELOAD = ["uqdrape._forkserver", "uqdrape.ensemble.run", "dask.multiprocessing"]
+#: the run's, then a chunk's task and dask's process scheduler (the whole drape engine), and
+#: what a chunk's Dataset and netCDF file then import (xarray, netCDF4, and dask.distributed,
+#: which xarray's writer imports to choose its lock; about 0.8 CPU-s a worker otherwise).
+PRELOAD = ["uqdrape._forkserver", "uqdrape.ensemble.run", "dask.multiprocessing", "xarray", "netCDF4",
+           "dask.distributed"]
 #: How often a worker checks that its run is alive where the kernel cannot be asked to
 #: kill it with its run (s).
 WATCH_INTERVAL = 0.2
