@@ -318,8 +318,10 @@ def minimise(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, 
     iterations, not cycles. Converged when the next step, or the radius, is below
     ``tolerance`` (rad). An accepted trial's forward stencil ring comes first: if the step
     it gives (the gradient by forward differences, the curvature along the arms from the
-    last stencil) is below half the tolerance, the search stops there without the
-    backward ring. Returns (turns, iterations, converged); ``best_ring`` (chain nodes, their
+    last stencil) is below a fifth of the tolerance, the search stops there without the
+    backward ring, provided no arm's curvature changed by more than a quarter between the
+    search's last two stencils (a stencil across a kink gives a curvature that does not
+    hold beside it). Returns (turns, iterations, converged); ``best_ring`` (chain nodes, their
     status, corner nodes, their status; the buffers of one candidate) receives ring k at
     the returned turns, so it is not placed again.
     """
@@ -335,6 +337,7 @@ def minimise(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, 
     hess_best = np.zeros((4, 4))
     grad_fwd = np.zeros(4)
     hess_fwd = np.zeros((4, 4))
+    curv_before = np.zeros(4)
     stencilled = False
     radius = 0.02
     last = 0.0
@@ -368,17 +371,25 @@ def minimise(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, 
             for c in (2, 4, 5):
                 corners(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S,
                         pairs[c:c + 1], X[c:c + 1], Xs[c:c + 1], e_corner[c:c + 1])
-            if stencilled:
+            steady = stencilled
+            for a in range(4):
+                steady &= abs(hess_best[a, a] - curv_before[a]) <= 0.25 * abs(curv_before[a])
+            if steady:
                 hess_fwd[:] = hess_best
                 _forward(e_arm, e_corner, h, grad_fwd, hess_fwd)
-                if np.abs(_newton(grad_fwd, hess_fwd, radius, best, max_turn) - best).max() < 0.5 * tolerance:
+                if np.abs(_newton(grad_fwd, hess_fwd, radius, best, max_turn) - best).max() < 0.2 * tolerance:
                     return best, its, True
             sides(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat,
                   bh, cand[0:1], S[0:1], St[0:1], e_arm[0:1])
             for c in (0, 3):
                 corners(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S,
                         pairs[c:c + 1], X[c:c + 1], Xs[c:c + 1], e_corner[c:c + 1])
+            for a in range(4):
+                curv_before[a] = hess_best[a, a]
             _stencil(e_arm, e_corner, h, grad_best, hess_best)
+            if not stencilled:
+                for a in range(4):
+                    curv_before[a] = hess_best[a, a]
             stencilled = True
         else:
             radius = 0.25 * last
