@@ -481,3 +481,23 @@ def test_energy_drape_over_a_plate_stays_flat_with_half_the_net_off_the_edge():
     assert (ds.status != Status.OK).any()
     assert ds.energy_total.item() >= 0.0
     assert np.nanmax(np.abs(ds.cell_shear.values)) <= 1e-6
+
+
+def test_the_forward_half_stencil_gives_the_central_stencils_gradient_on_a_quadratic():
+    """On a quadratic step energy (per arm a t_a² / 2 + b t_a, per corner c t_i t_j, J and rad)
+    the forward-difference gradient with the curvature from the central stencil (``ring._forward``,
+    the minimiser's early stop) equals the central stencil's gradient, and its corner
+    couplings the central stencil's."""
+    from uqdrape.drape.ring import _PAIRS, CORNERS, STENCIL, _forward, _stencil
+
+    rng = np.random.default_rng(3)
+    a, b, c, turn = rng.uniform(0.1, 30, 4), rng.normal(0, 1e-2, 4), rng.normal(0, 0.05, 4), rng.normal(0, 0.05, 4)
+    cand = turn[None, :] + STENCIL * np.arange(-1, 2)[:, None]
+    e_arm = 0.5 * a * cand**2 + b * cand
+    e_corner = np.array([[c[q] * cand[i, CORNERS[q][0]] * cand[j, CORNERS[q][2]] for q in range(4)] for i, j in _PAIRS])
+    grad, hess = np.zeros(4), np.zeros((4, 4))
+    _stencil(e_arm.copy(), e_corner, STENCIL, grad, hess)
+    grad_fwd, hess_fwd = np.zeros(4), np.diag(np.diag(hess))
+    _forward(e_arm, e_corner, STENCIL, grad_fwd, hess_fwd)
+    np.testing.assert_allclose(grad_fwd, grad, rtol=1e-6, atol=1e-9)
+    np.testing.assert_allclose(hess_fwd, hess, rtol=0, atol=0)

@@ -270,6 +270,41 @@ def _stencil(e_arm, e_corner, h, grad, hess):
 
 
 @jit
+def _forward(e_arm, e_corner, h, grad, hess):
+    """Gradient (4,) of the step energy from the forward half of the stencil (candidates 1
+    and 2, corner pairs (1, 1), (2, 1), (1, 2), (2, 2)), the curvature along each arm taken
+    from ``hess``'s diagonal (J/rad²); the corner couplings, which the forward half gives in
+    full, are written into ``hess``."""
+    per_arm = np.empty((2, 4))
+    for a in range(4):
+        for c in range(2):
+            per_arm[c, a] = math.inf if math.isnan(e_arm[c + 1, a]) else e_arm[c + 1, a]
+    for q in range(4):
+        qa, _, qb, _, _, _ = CORNERS[q]
+        per_arm[0, qa] += e_corner[1, q]
+        per_arm[1, qa] += e_corner[2, q]
+        per_arm[0, qb] += e_corner[1, q]
+        per_arm[1, qb] += e_corner[4, q]
+        hess[qa, qb] = hess[qb, qa] = _finite0((e_corner[5, q] - e_corner[2, q] - e_corner[4, q] + e_corner[1, q])
+                                               / h**2)
+    for a in range(4):
+        grad[a] = _finite0((per_arm[1, a] - per_arm[0, a]) / h - 0.5 * h * hess[a, a])
+
+
+@jit
+def _newton(grad, hess, radius, best, max_turn):
+    """The next trial (4,) rad from ``best``: the Newton step with the Hessian's eigenvalues
+    clamped to positive, cut to the trust radius (rad) and bounded to |turn| <= max_turn."""
+    lam, vec = np.linalg.eigh(hess)
+    floor = max(1e-3 * np.abs(lam).max(), 1e-12)
+    lam = np.maximum(np.abs(lam), floor)
+    step = -(vec @ ((vec.T @ grad) / lam))
+    size = np.abs(step).max()
+    step *= min(1.0, radius / max(size, 1e-300))
+    return np.minimum(np.maximum(best + step, -max_turn), max_turn)
+
+
+@jit
 def minimise(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat, bh,
              turn, tolerance, max_iterations, max_turn, S, St, X, Xs, best_ring):
     """Trust-region Newton on the four turn angles (rad) of ring k, from ``turn``.
@@ -280,10 +315,15 @@ def minimise(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, 
     ring; a trial that lowers the energy is accepted, gets its two stencil rings and
     widens the trust radius; one that raises it costs that one ring and shrinks the
     radius, so kinks in the energy (an asymmetric card's branch change at gamma0) cost
-    iterations, not cycles. Converged when the next step,
-    or the radius, is below ``tolerance`` (rad). Returns (turns, iterations, converged);
-    ``best_ring`` (chain nodes, their status, corner nodes, their status; the buffers of
-    one candidate) receives ring k at the returned turns, so it is not placed again.
+    iterations, not cycles. Converged when the next step, or the radius, is below
+    ``tolerance`` (rad). An accepted trial's forward stencil ring comes first: if the step
+    it gives (the gradient by forward differences, the curvature along the arms from the
+    last stencil) is below a fifth of the tolerance, the search stops there without the
+    backward ring, provided no arm's curvature changed by more than a quarter between the
+    search's last two stencils (a stencil across a kink gives a curvature that does not
+    hold beside it). Returns (turns, iterations, converged); ``best_ring`` (chain nodes, their
+    status, corner nodes, their status; the buffers of one candidate) receives ring k at
+    the returned turns, so it is not placed again.
     """
     S_best, St_best, X_best, Xs_best = best_ring
     h = STENCIL
@@ -295,6 +335,10 @@ def minimise(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, 
     best_energy = math.inf
     grad_best = np.zeros(4)
     hess_best = np.zeros((4, 4))
+    grad_fwd = np.zeros(4)
+    hess_fwd = np.zeros((4, 4))
+    curv_before = np.zeros(4)
+    stencilled = False
     radius = 0.02
     last = 0.0
     its = 0
@@ -315,12 +359,6 @@ def minimise(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, 
         total += e_corner[1, 0] + e_corner[1, 1] + e_corner[1, 2] + e_corner[1, 3]
         its += 1
         if total <= best_energy:
-            for c in (0, 2):
-                sides(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat,
-                      bh, cand[c:c + 1], S[c:c + 1], St[c:c + 1], e_arm[c:c + 1])
-            corners(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S, pairs,
-                    X, Xs, e_corner)
-            _stencil(e_arm, e_corner, h, grad_best, hess_best)
             best[:] = turn
             best_energy = total
             S_best[0, :, :, :k] = S[1, :, :, :k]
@@ -328,15 +366,34 @@ def minimise(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, 
             X_best[0] = X[1]
             Xs_best[0] = Xs[1]
             radius = min(max(radius, 2 * last), 0.1)
+            sides(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat,
+                  bh, cand[2:3], S[2:3], St[2:3], e_arm[2:3])
+            for c in (2, 4, 5):
+                corners(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S,
+                        pairs[c:c + 1], X[c:c + 1], Xs[c:c + 1], e_corner[c:c + 1])
+            steady = stencilled
+            for a in range(4):
+                steady &= abs(hess_best[a, a] - curv_before[a]) <= 0.25 * abs(curv_before[a])
+            if steady:
+                hess_fwd[:] = hess_best
+                _forward(e_arm, e_corner, h, grad_fwd, hess_fwd)
+                if np.abs(_newton(grad_fwd, hess_fwd, radius, best, max_turn) - best).max() < 0.2 * tolerance:
+                    return best, its, True
+            sides(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, first_dir, bend, mat,
+                  bh, cand[0:1], S[0:1], St[0:1], e_arm[0:1])
+            for c in (0, 3):
+                corners(surf, memo, tol, n, k, P, blank, seg_i, seg_j, s1, s2, g0, centre, force, mu, mat, bh, S,
+                        pairs[c:c + 1], X[c:c + 1], Xs[c:c + 1], e_corner[c:c + 1])
+            for a in range(4):
+                curv_before[a] = hess_best[a, a]
+            _stencil(e_arm, e_corner, h, grad_best, hess_best)
+            if not stencilled:
+                for a in range(4):
+                    curv_before[a] = hess_best[a, a]
+            stencilled = True
         else:
             radius = 0.25 * last
-        lam, vec = np.linalg.eigh(hess_best)
-        floor = max(1e-3 * np.abs(lam).max(), 1e-12)
-        lam = np.maximum(np.abs(lam), floor)
-        step = -(vec @ ((vec.T @ grad_best) / lam))
-        size = np.abs(step).max()
-        step *= min(1.0, radius / max(size, 1e-300))
-        nxt = np.minimum(np.maximum(best + step, -max_turn), max_turn)
+        nxt = _newton(grad_best, hess_best, radius, best, max_turn)
         last = np.abs(nxt - best).max()
         if last < tolerance or radius < tolerance:
             return best, its, True
