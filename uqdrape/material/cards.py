@@ -84,10 +84,8 @@ def load_material(name_or_path) -> Material:
     path = Path(name_or_path)
     suffix = path.suffix.lower()
     if suffix not in (".toml", ".csv"):
-        raise ValueError(
-            f"unknown material {text!r}: valid shipped cards are {', '.join(shipped)}; "
-            "or give the path of a .toml card or a .csv curve file"
-        )
+        raise ValueError(f"unknown material {text!r}: valid shipped cards are {', '.join(shipped)}; "
+                         "or give the path of a .toml card or a .csv curve file")
     if not path.is_file():
         raise ValueError(f"{path}: material file not found")
     if suffix == ".csv":
@@ -166,10 +164,8 @@ def _read_csv(text, label):
     by someone else's card); past the header a bad cell is quoted (``csv_number``)."""
     (_, header), *rows = csv_rows(text, label)
     if header not in (list(_CSV_COLUMNS[:2]), list(_CSV_COLUMNS)):
-        raise ValueError(
-            f"{label}: not a curve CSV: its first line that is not a # comment must be the header "
-            "angle_deg,ns_positive or angle_deg,ns_positive,ns_negative"
-        )
+        raise ValueError(f"{label}: not a curve CSV: its first line that is not a # comment must be the header "
+                         "angle_deg,ns_positive or angle_deg,ns_positive,ns_negative")
     columns = {name: [] for name in header}
     for lineno, row in rows:
         if len(row) != len(header):
