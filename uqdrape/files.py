@@ -242,6 +242,14 @@ def is_number(value) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
+def to_float(value) -> float:
+    """``value`` as a float; NaN where float() refuses it (None, a word, a list)."""
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
+
+
 def is_int(value) -> bool:
     """An int, not a bool."""
     return isinstance(value, int) and not isinstance(value, bool)

@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from ..errors import ParameterError
+from ..files import to_float
 from .fields import GaussianField
 
 
@@ -27,10 +28,7 @@ def positive_int(name: str, value) -> int:
 
 
 def _spacing(spacing_mm) -> float:
-    try:
-        s = float(spacing_mm)
-    except (TypeError, ValueError):
-        s = math.nan
+    s = to_float(spacing_mm)
     if not (math.isfinite(s) and s > 0):
         raise ValueError(f"spacing_mm must be a positive number (mm), got {spacing_mm!r}")
     return s
