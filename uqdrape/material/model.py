@@ -298,10 +298,7 @@ class Material:
             raise MaterialError("shear.negative", "angles_deg_neg and ns_neg must be given together (or both omitted "
                                 "for a symmetric fabric)")
         a_pos, n_pos = _as_curve("positive", angles_deg_pos, ns_pos)
-        if angles_deg_neg is None:
-            a_neg, n_neg = a_pos, n_pos
-        else:
-            a_neg, n_neg = _as_curve("negative", angles_deg_neg, ns_neg)
+        a_neg, n_neg = (a_pos, n_pos) if angles_deg_neg is None else _as_curve("negative", angles_deg_neg, ns_neg)
         self.symmetric = bool(a_pos.shape == a_neg.shape and np.array_equal(a_pos, a_neg)
                               and np.array_equal(n_pos, n_neg))
 
