@@ -222,6 +222,17 @@ def url_problem(url: str) -> str | None:
     return None
 
 
+def json_object(data: bytes, error: Callable[[str], Exception]) -> dict:
+    """The JSON object in the UTF-8 ``data``; anything else raises ``error(why)``."""
+    try:
+        value = json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError) as err:
+        raise error(f"not JSON text: {type(err).__name__}") from None
+    if not isinstance(value, dict):
+        raise error("not a JSON object")
+    return value
+
+
 def fmt(value) -> str:
     """A value as it would be written in TOML (shortened past 80 characters)."""
     if isinstance(value, bool):
