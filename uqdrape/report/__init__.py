@@ -28,23 +28,8 @@ from .laminate import write_laminate_report
 from .sensitivity_figures import plot_sensitivity_bars, plot_sensitivity_map, plot_sensitivity_vs_force
 
 __all__ = [
-    "plot_net",
-    "plot_lines",
-    "plot_mean_map",
-    "plot_sd_map",
-    "plot_wrinkle_map",
-    "plot_line_statistics",
-    "plot_histograms",
-    "plot_convergence",
-    "plot_sweep",
-    "plot_scalar_vs_factor",
-    "plot_sensitivity_bars",
-    "plot_sensitivity_vs_force",
-    "plot_sensitivity_map",
-    "write_report",
-    "rare_rows",
-    "read_experimental",
-    "ExperimentalPoints",
-    "write_design_report",
-    "write_laminate_report",
+    "plot_net", "plot_lines", "plot_mean_map", "plot_sd_map", "plot_wrinkle_map", "plot_line_statistics",
+    "plot_histograms", "plot_convergence", "plot_sweep", "plot_scalar_vs_factor", "plot_sensitivity_bars",
+    "plot_sensitivity_vs_force", "plot_sensitivity_map", "write_report", "rare_rows", "read_experimental",
+    "ExperimentalPoints", "write_design_report", "write_laminate_report",
 ]
