@@ -44,20 +44,9 @@ import numpy as np
 from ..files import Document, Table, csv_number, csv_rows, parse_toml, read_text, toml_text
 from .model import Material, MaterialError
 
-_CARD_KEYS = {
-    "name": str,
-    "description": str,
-    "note": str,
-    "phi0_deg": float,
-    "locking_angle_deg": float,
-    "locking_angle_neg_deg": float,
-    "bending_stiffness": float,
-    "stitch_direction_deg": float,
-    "shear": dict,
-    "architecture": dict,
-    "scatter": dict,
-    "sheartest": dict,
-}
+_CARD_KEYS = {"name": str, "description": str, "note": str, "phi0_deg": float, "locking_angle_deg": float,
+              "locking_angle_neg_deg": float, "bending_stiffness": float, "stitch_direction_deg": float,
+              "shear": dict, "architecture": dict, "scatter": dict, "sheartest": dict}
 #: Tables a card keeps for its readers, not for `Material`: [scatter] (the specimens' sd
 #: per angle) and [sheartest] (how the curves were fitted: `uqdrape.material.sheartest`).
 _RECORD_KEYS = ("shear", "scatter", "sheartest")

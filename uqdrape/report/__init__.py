@@ -10,16 +10,8 @@ kind's plan (``plan.PLAN``) with ``index.html`` and ``summary.json``; the number
 from ``uqdrape.stats``, this package only renders.
 """
 
-from .ensemble_figures import (
-    plot_convergence,
-    plot_histograms,
-    plot_line_statistics,
-    plot_mean_map,
-    plot_scalar_vs_factor,
-    plot_sd_map,
-    plot_sweep,
-    plot_wrinkle_map,
-)
+from .ensemble_figures import (plot_convergence, plot_histograms, plot_line_statistics, plot_mean_map,
+                               plot_scalar_vs_factor, plot_sd_map, plot_sweep, plot_wrinkle_map)
 from .design import write_design_report
 from ..experimental import ExperimentalPoints, read_experimental
 from .figures import plot_lines, plot_net

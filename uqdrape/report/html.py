@@ -19,13 +19,7 @@ from pathlib import Path
 import xarray as xr
 
 from uqdrape.schema import FORCE, QOI_ATTRS, REALIZATION, by_force
-from uqdrape.stats import (
-    dominant_factors,
-    headline_numbers,
-    node_statistics,
-    study_kind,
-    wrinkle_risk,
-)
+from uqdrape.stats import dominant_factors, headline_numbers, node_statistics, study_kind, wrinkle_risk
 from uqdrape.stats.headline import SENSITIVITY, DETERMINISTIC, RANDOM, SWEPT
 
 from ..experimental import read_experimental
