@@ -22,6 +22,7 @@ once per state of the package, and any edit of any module parses afresh.
 """
 
 import ast
+import contextlib
 import functools
 import hashlib
 import os
@@ -138,10 +139,8 @@ def _remembered_key(parents: list[Path], package: Path = _PACKAGE) -> str:
 
 def _used(path: Path) -> None:
     """Mark ``path`` used now (its modification time), if it still exists."""
-    try:
+    with contextlib.suppress(OSError):
         os.utime(path)
-    except OSError:
-        pass
 
 
 def _prune(parent: Path, prefix: str, current: Path) -> None:

@@ -580,12 +580,9 @@ def drape_mould(mould: Surface, spacing: float = 5.0, rings: int = 20, *, materi
     named = material if isinstance(material, str | os.PathLike) else None
     check_drape_inputs(spacing, rings, options, named and str(named))
     card = load_material(material) if named is not None else material
-    bar = ring_progress(rings, mode, progress)
-    try:
+    with ring_progress(rings, mode, progress) as bar:
         return drape(mould, spacing, rings, material=card, mode=mode, progress=lambda k: bar.update(k - bar.n),
                      **options)
-    finally:
-        bar.close()
 
 
 def available_materials() -> list[str]:

@@ -90,7 +90,6 @@ def cf_encode(ds: xr.Dataset, *, title: str, history: str, float32: bool = False
     earlier = out.attrs.get("history")
     out.attrs.update(Conventions=CONVENTIONS, title=title, source=version_text(), date_created=now,
                      history=f"{now} {history}" + (f"\n{earlier}" if earlier else ""))
-    encoding: dict[str, dict] = {}
     for name, (long_name, units) in INDEX_ATTRS.items():
         if name in out.coords:
             out[name].attrs.setdefault("long_name", long_name)
@@ -102,11 +101,9 @@ def cf_encode(ds: xr.Dataset, *, title: str, history: str, float32: bool = False
         out[label].encoding["dtype"] = "S1"
         out = out.assign_coords({name: (name, np.arange(out.sizes[name], dtype=np.int32),
                                         {"long_name": f"position along {name} (labels: {label})", "units": "1"})})
-    for name in out.coords:
-        encoding[name] = {"_FillValue": None}
+    encoding = {name: {"_FillValue": None} for name in out.coords}
     place = all(p in out for p in POSITIONS)
     for name, var in out.data_vars.items():
-        enc = {}
         if var.dtype == bool:
             var.attrs.update(flag_values=np.array([0, 1], np.int8), flag_meanings="false true")
         elif "flag_values" in var.attrs:
@@ -116,9 +113,7 @@ def cf_encode(ds: xr.Dataset, *, title: str, history: str, float32: bool = False
         if aux:
             var.encoding["coordinates"] = " ".join(aux)  # xarray writes it as the attribute
         if float32 and var.dtype.kind == "f":
-            enc.update(dtype="float32", zlib=True, complevel=4)
-        if enc:
-            encoding[name] = enc
+            encoding[name] = {"dtype": "float32", "zlib": True, "complevel": 4}
     return out, encoding
 
 

@@ -222,6 +222,17 @@ def url_problem(url: str) -> str | None:
     return None
 
 
+def json_object(data: bytes, error: Callable[[str], Exception]) -> dict:
+    """The JSON object in the UTF-8 ``data``; anything else raises ``error(why)``."""
+    try:
+        value = json.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError) as err:
+        raise error(f"not JSON text: {type(err).__name__}") from None
+    if not isinstance(value, dict):
+        raise error("not a JSON object")
+    return value
+
+
 def fmt(value) -> str:
     """A value as it would be written in TOML (shortened past 80 characters)."""
     if isinstance(value, bool):
@@ -240,6 +251,14 @@ def fmt(value) -> str:
 def is_number(value) -> bool:
     """An int or float, not a bool (TOML's true is not 1)."""
     return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def to_float(value) -> float:
+    """``value`` as a float; NaN where float() refuses it (None, a word, a list)."""
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
 
 
 def is_int(value) -> bool:

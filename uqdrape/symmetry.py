@@ -131,10 +131,8 @@ def symmetrising_force(surface, spacing, rings, material, *, fraction=0.1, force
         seen.update(zip(more, quadrant_gaps(surface, spacing, rings, material, more, k_max, drape_kwargs)[0]))
     lo, hi = bracket()
     while hi / max(lo, 1e-300) - 1.0 > rtol:
-        if lo == 0.0:
-            inner = [hi * (k + 1) / (batch + 1) for k in range(batch)]
-        else:
-            inner = [lo * (hi / lo) ** ((k + 1) / (batch + 1)) for k in range(batch)]
+        inner = ([hi * (k + 1) / (batch + 1) for k in range(batch)] if lo == 0.0 else
+                 [lo * (hi / lo) ** ((k + 1) / (batch + 1)) for k in range(batch)])
         seen.update(zip(inner, quadrant_gaps(surface, spacing, rings, material, inner, k_max, drape_kwargs)[0]))
         lo, hi = bracket()
     g_lo, g_hi = seen[lo], seen[hi]

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.stats.qmc
 
-from .posterior import MissingExtraError
+from .posterior import extra
 
 #: Restarts of each GP's hyper-parameter search (the first start is the kernel's own).
 RESTARTS = 2
@@ -28,22 +28,14 @@ def latin_hypercube(lower, upper, n: int, seed: int) -> np.ndarray:
     return scipy.stats.qmc.scale(sampler.random(n), lower, upper)
 
 
-def _sklearn():
-    try:
-        from sklearn.gaussian_process import GaussianProcessRegressor, kernels
-    except ImportError:
-        raise MissingExtraError("a calibration from measured drapes needs scikit-learn, the optional extra: "
-                                "pip install 'uqdrape[calibrate]'") from None
-    return GaussianProcessRegressor, kernels
-
-
 class Emulator:
     """GPs of the columns of ``values`` (training point, output) at ``points`` (training point,
     parameter) in the box [lower, upper]; ``noise_var`` (same shape as ``values``) the
     Monte Carlo variance of each value."""
 
     def __init__(self, points, values, noise_var, lower, upper, *, seed: int = 0):
-        regressor, kernels = _sklearn()
+        gp = extra("sklearn.gaussian_process", "a calibration from measured drapes needs scikit-learn")
+        regressor, kernels = gp.GaussianProcessRegressor, gp.kernels
         self.lower, self.upper = np.asarray(lower, float), np.asarray(upper, float)
         x = self._unit(points)
         values, noise_var = np.asarray(values, float), np.asarray(noise_var, float)

@@ -26,17 +26,7 @@ import numpy as np
 from ..errors import ParameterError
 from ..files import check_input_file
 from .points import AnglePoints, PointsError, read_points
-
-
-def _skimage_feature():
-    from .posterior import MissingExtraError
-
-    try:
-        from skimage import feature
-    except ImportError:
-        raise MissingExtraError("an orientation field from an image needs scikit-image, the optional extra: "
-                                "pip install 'uqdrape[calibrate]'") from None
-    return feature
+from .posterior import extra
 
 
 def orientation_field(image, window_px: float = 4.0, derivative_px: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -54,7 +44,8 @@ def orientation_field(image, window_px: float = 4.0, derivative_px: float = 0.0)
         import scipy.ndimage
 
         image = scipy.ndimage.gaussian_filter(image, derivative_px)
-    a_rr, a_rc, a_cc = _skimage_feature().structure_tensor(image, sigma=window_px, mode="reflect", order="rc")
+    feature = extra("skimage.feature", "an orientation field from an image needs scikit-image")
+    a_rr, a_rc, a_cc = feature.structure_tensor(image, sigma=window_px, mode="reflect", order="rc")
     jxx, jyy, jxy = a_cc, a_rr, -a_rc  # x = column, y = -row
     theta = 0.5 * np.degrees(np.arctan2(2.0 * jxy, jxx - jyy)) + 90.0
     theta = 90.0 - np.mod(90.0 - theta, 180.0)

@@ -14,6 +14,7 @@ in natural units (deg, mm) under the names of :attr:`.fit.FieldFit.estimates`.
 
 from __future__ import annotations
 
+import importlib
 import logging
 import math
 import time
@@ -65,16 +66,17 @@ EDGE, EDGE_SHARE = 0.05, 0.01
 
 
 class MissingExtraError(ImportError, ValueError):
-    """emcee is not installed (a ValueError too, so the command line says it in one line)."""
+    """A package of the optional extra ``calibrate`` is not installed (a ValueError too, so
+    the command line says it in one line)."""
 
 
-def _emcee():
+def extra(module: str, needs: str):
+    """The module ``module`` of the optional extra ``calibrate``; MissingExtraError saying
+    what ``needs`` it (e.g. "a posterior sample needs emcee") where it is not installed."""
     try:
-        import emcee
+        return importlib.import_module(module)
     except ImportError:
-        raise MissingExtraError("a posterior sample needs emcee, the optional extra: pip install 'uqdrape[calibrate]'") \
-            from None
-    return emcee
+        raise MissingExtraError(f"{needs}, the optional extra: pip install 'uqdrape[calibrate]'") from None
 
 
 def prior_box(field_fit) -> dict:
@@ -114,7 +116,7 @@ def posterior_sample(field_fit, *, walkers: int = 16, steps: int = 1500, burn: i
 def run_chains(log_post, start, names, *, steps: int, burn: int, rng, vectorize: bool = False) -> Posterior:
     """emcee's affine-invariant ensemble from ``start`` (walker, parameter), ``burn`` of
     ``steps`` steps dropped; the sample of θ under ``names``, reproducible from ``rng``."""
-    emcee = _emcee()
+    emcee = extra("emcee", "a posterior sample needs emcee")
     clock = time.perf_counter()
     sampler = emcee.EnsembleSampler(len(start), start.shape[1], log_post, vectorize=vectorize)
     sampler.random_state = np.random.RandomState(int(rng.integers(2 ** 31))).get_state()  # reproducible

@@ -152,12 +152,9 @@ class Evaluator:
                 tasks.append(task(study, np.arange(a, b), force, sectors, friction))
                 owners.append(key)
         n = len(todo) * study.realizations
-        bar = Progress(n, enabled=self.progress, desc=f"{study.name}: {len(todo)} designs ({sample})")
-        try:
+        with Progress(n, enabled=self.progress, desc=f"{study.name}: {len(todo)} designs ({sample})") as bar:
             parts = compute_tasks(tasks, [b - a for a, b in ranges] * len(todo), self.scheduler, self.workers, bar,
                                   self.pool)
-        finally:
-            bar.close()
         self.drapes += n
         for key, x in todo.items():
             record = _merge([p for p, owner in zip(parts, owners) if owner == key])

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import errno
 import hashlib
-import json
 import re
 import secrets
 from dataclasses import dataclass
@@ -26,7 +25,7 @@ if TYPE_CHECKING:  # annotations only: xarray is imported where a Dataset is mad
     import xarray as xr
 
 from ..errors import ParameterError, naming
-from ..files import write_text_atomic
+from ..files import json_object, write_text_atomic
 from ..stochastic.sampling import extension_problem
 from ..study import Study, identity
 from .chunk import HDF5_LOCK, write_atomic
@@ -48,12 +47,7 @@ def corrupt_manifest(where, why: str) -> OSError:
 
 def parse_manifest(text: bytes, where) -> dict:
     """The manifest in ``text`` (read from ``where``), checked as :func:`read_manifest` says."""
-    try:
-        manifest = json.loads(text.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError, RecursionError) as err:
-        raise corrupt_manifest(where, f"not JSON text: {type(err).__name__}") from None
-    if not isinstance(manifest, dict):
-        raise corrupt_manifest(where, "not a JSON object")
+    manifest = json_object(text, lambda why: corrupt_manifest(where, why))
     study, chunks, size = manifest.get("study"), manifest.get("chunks"), manifest.get("chunk_size")
     if not (isinstance(study, dict) and all(isinstance(v, dict) or (isinstance(v, list) and all(
             isinstance(p, dict) for p in v)) for v in study.values())

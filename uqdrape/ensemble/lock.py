@@ -87,11 +87,9 @@ def hold_lock(where, kind: str, create, read, remove):
     or one uqdrape did not write raise RunLocked naming ``where``."""
     taken = False
     while True:
-        try:
+        with contextlib.suppress(FileExistsError):  # else: whose is it, and is it stale?
             create(json.dumps(lock_record()).encode())
             break
-        except FileExistsError:
-            pass
         try:
             owner = lock_owner(read())
         except OSError:

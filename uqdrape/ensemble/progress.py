@@ -40,7 +40,7 @@ class Progress:
     (a single drape's rings) leaves stderr to the command's one-line errors. The rate is
     units finished over the time they took, up to the last update; with ``startup`` it
     starts at the first update, whose unit carried one-off work (compiling the kernels),
-    so no ETA is shown before two updates."""
+    so no ETA is shown before two updates. As a context manager it closes on leaving."""
 
     def __init__(self, total: int, done: int = 0, *, enabled: bool = True, verbose: bool = False,
                  desc: str = "realisations", unit: str = "real", last_line: bool = True, startup: bool = False,
@@ -83,6 +83,12 @@ class Progress:
 
     def close(self) -> None:
         self.bar.close()
+
+    def __enter__(self) -> Progress:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
 
 def announce_compiling(mode: str, enabled: bool = True, file=None, prefix: str = "") -> None:

@@ -120,15 +120,20 @@ def foot_normal(surface, foot) -> np.ndarray:
     return surface.normal_at(xy) if xy.shape[1] == 3 else surface.normal(xy[:, 0], xy[:, 1])
 
 
+def _candidates(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Indices (M, k) of the k = min(CANDIDATES, T) triangles of ``tri`` (T, 3, d) whose
+    centroids lie nearest each of the points (M, d)."""
+    k = min(CANDIDATES, len(tri))
+    return cKDTree(tri.mean(1)).query(points, k=k)[1].reshape(len(points), k)
+
+
 def locate_on(points: np.ndarray, tri: np.ndarray, reach: float):
     """Triangle index (M,) (-1: none within ``reach`` mm) and barycentric weights (M, 3) of
     the points (M, 3) on their nearest of the triangles ``tri`` (T, 3, 3) in space."""
     import trimesh
 
-    tree = cKDTree(tri.mean(1))
-    k = min(CANDIDATES, len(tri))
-    _, cand = tree.query(points, k=k)
-    cand = cand.reshape(len(points), k)
+    cand = _candidates(points, tri)
+    k = cand.shape[1]
     near = trimesh.triangles.closest_point(tri[cand.ravel()], np.repeat(points, k, axis=0)).reshape(-1, k, 3)
     dist = np.linalg.norm(near - points[:, None], axis=-1)
     best = np.argmin(dist, axis=1)
@@ -141,10 +146,7 @@ def locate_on(points: np.ndarray, tri: np.ndarray, reach: float):
 def locate(points: np.ndarray, tri_xy: np.ndarray):
     """Triangle index (M,) (-1: none) and barycentric weights (M, 3) of plan ``points``
     (M, 2) in the triangles ``tri_xy`` (T, 3, 2)."""
-    tree = cKDTree(tri_xy.mean(1))
-    k = min(CANDIDATES, len(tri_xy))
-    _, cand = tree.query(points, k=k)
-    cand = cand.reshape(len(points), k)
+    cand = _candidates(points, tri_xy)
     a, b, c = (tri_xy[cand, m] for m in range(3))
     v0, v1, v2 = b - a, c - a, points[:, None, :] - a
     det = v0[..., 0] * v1[..., 1] - v0[..., 1] * v1[..., 0]

@@ -44,20 +44,9 @@ import numpy as np
 from ..files import Document, Table, csv_number, csv_rows, parse_toml, read_text, toml_text
 from .model import Material, MaterialError
 
-_CARD_KEYS = {
-    "name": str,
-    "description": str,
-    "note": str,
-    "phi0_deg": float,
-    "locking_angle_deg": float,
-    "locking_angle_neg_deg": float,
-    "bending_stiffness": float,
-    "stitch_direction_deg": float,
-    "shear": dict,
-    "architecture": dict,
-    "scatter": dict,
-    "sheartest": dict,
-}
+_CARD_KEYS = {"name": str, "description": str, "note": str, "phi0_deg": float, "locking_angle_deg": float,
+              "locking_angle_neg_deg": float, "bending_stiffness": float, "stitch_direction_deg": float,
+              "shear": dict, "architecture": dict, "scatter": dict, "sheartest": dict}
 #: Tables a card keeps for its readers, not for `Material`: [scatter] (the specimens' sd
 #: per angle) and [sheartest] (how the curves were fitted: `uqdrape.material.sheartest`).
 _RECORD_KEYS = ("shear", "scatter", "sheartest")
@@ -84,10 +73,8 @@ def load_material(name_or_path) -> Material:
     path = Path(name_or_path)
     suffix = path.suffix.lower()
     if suffix not in (".toml", ".csv"):
-        raise ValueError(
-            f"unknown material {text!r}: valid shipped cards are {', '.join(shipped)}; "
-            "or give the path of a .toml card or a .csv curve file"
-        )
+        raise ValueError(f"unknown material {text!r}: valid shipped cards are {', '.join(shipped)}; "
+                         "or give the path of a .toml card or a .csv curve file")
     if not path.is_file():
         raise ValueError(f"{path}: material file not found")
     if suffix == ".csv":
@@ -166,10 +153,8 @@ def _read_csv(text, label):
     by someone else's card); past the header a bad cell is quoted (``csv_number``)."""
     (_, header), *rows = csv_rows(text, label)
     if header not in (list(_CSV_COLUMNS[:2]), list(_CSV_COLUMNS)):
-        raise ValueError(
-            f"{label}: not a curve CSV: its first line that is not a # comment must be the header "
-            "angle_deg,ns_positive or angle_deg,ns_positive,ns_negative"
-        )
+        raise ValueError(f"{label}: not a curve CSV: its first line that is not a # comment must be the header "
+                         "angle_deg,ns_positive or angle_deg,ns_positive,ns_negative")
     columns = {name: [] for name in header}
     for lineno, row in rows:
         if len(row) != len(header):

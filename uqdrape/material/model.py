@@ -277,23 +277,9 @@ class Material:
     architecture (a derived card's [architecture] record, dict, or None).
     """
 
-    def __init__(
-        self,
-        name,
-        angles_deg_pos,
-        ns_pos,
-        angles_deg_neg=None,
-        ns_neg=None,
-        *,
-        phi0_deg=45.0,
-        locking_angle_deg=None,
-        locking_angle_neg_deg=None,
-        bending_stiffness=DEFAULT_BENDING_STIFFNESS,
-        stitch_direction_deg=None,
-        description="",
-        note="",
-        architecture=None,
-    ):
+    def __init__(self, name, angles_deg_pos, ns_pos, angles_deg_neg=None, ns_neg=None, *, phi0_deg=45.0,
+                 locking_angle_deg=None, locking_angle_neg_deg=None, bending_stiffness=DEFAULT_BENDING_STIFFNESS,
+                 stitch_direction_deg=None, description="", note="", architecture=None):
         if not isinstance(name, str) or not name:
             raise MaterialError("name", f"name must be a non-empty string, got {name!r}")
         self.name = name
@@ -312,13 +298,9 @@ class Material:
             raise MaterialError("shear.negative", "angles_deg_neg and ns_neg must be given together (or both omitted "
                                 "for a symmetric fabric)")
         a_pos, n_pos = _as_curve("positive", angles_deg_pos, ns_pos)
-        if angles_deg_neg is None:
-            a_neg, n_neg = a_pos, n_pos
-        else:
-            a_neg, n_neg = _as_curve("negative", angles_deg_neg, ns_neg)
-        self.symmetric = bool(
-            a_pos.shape == a_neg.shape and np.array_equal(a_pos, a_neg) and np.array_equal(n_pos, n_neg)
-        )
+        a_neg, n_neg = (a_pos, n_pos) if angles_deg_neg is None else _as_curve("negative", angles_deg_neg, ns_neg)
+        self.symmetric = bool(a_pos.shape == a_neg.shape and np.array_equal(a_pos, a_neg)
+                              and np.array_equal(n_pos, n_neg))
 
         lock_pos = a_pos[-1] if locking_angle_deg is None else float(locking_angle_deg)
         if locking_angle_neg_deg is not None:
@@ -352,11 +334,9 @@ class Material:
             stitch_direction_deg = float(stitch_direction_deg)
             off = (stitch_direction_deg - phi0_deg + 90.0) % 180.0 - 90.0
             if abs(off) > 1e-9:
-                raise MaterialError(
-                    "stitch_direction_deg", f"stitch_direction_deg must bisect +fibre1 and +fibre2, i.e. equal phi0_deg = {phi0_deg:g} "
-                    f"(mod 180), got {stitch_direction_deg:g}; for a stitch along the other bisector swap the "
-                    "positive and negative curves"
-                )
+                raise MaterialError("stitch_direction_deg", "stitch_direction_deg must bisect +fibre1 and +fibre2, "
+                                    f"i.e. equal phi0_deg = {phi0_deg:g} (mod 180), got {stitch_direction_deg:g}; for "
+                                    "a stitch along the other bisector swap the positive and negative curves")
         self.stitch_direction_deg = stitch_direction_deg
 
         self._curves = {"positive": (a_pos, n_pos), "negative": (a_neg, n_neg)}
@@ -431,8 +411,6 @@ class Material:
         return np.where(g >= 0.0, pos, -neg)
 
     def __repr__(self):
-        return (
-            f"Material({self.name!r}, phi0_deg={self.phi0_deg:g}, locking_angle_deg={self.locking_angle_deg:g}, "
-            f"locking_angle_neg_deg={self.locking_angle_neg_deg:g}, bending_stiffness={self.bending_stiffness:g}, "
-            f"symmetric={self.symmetric})"
-        )
+        return (f"Material({self.name!r}, phi0_deg={self.phi0_deg:g}, locking_angle_deg={self.locking_angle_deg:g}, "
+                f"locking_angle_neg_deg={self.locking_angle_neg_deg:g}, bending_stiffness={self.bending_stiffness:g}, "
+                f"symmetric={self.symmetric})")

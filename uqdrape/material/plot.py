@@ -48,8 +48,7 @@ def plot_material(material, path):
         for lock in (material.locking_angle_deg, -material.locking_angle_neg_deg):
             ax.axvline(lock, color="0.4", linestyle="--", linewidth=1.0)
         ax.axhline(0.0, color="0.8", linewidth=0.8)
-        ax.set_xlabel("shear angle γ (deg)")
-        ax.set_ylabel(ylabel)
+        ax.set(xlabel="shear angle γ (deg)", ylabel=ylabel)
         ax.grid(alpha=0.3)
     ax_f.legend(loc="upper left", title="dashed: locking")
     fig.suptitle(f"{material.name}: φ0 = {material.phi0_deg:g}°, locking +{material.locking_angle_deg:g}° / "
@@ -86,11 +85,9 @@ def plot_architecture(arch, path, terms=None, gamma0_deg=None):
         ax_s.axvline(gamma0_deg, color="0.4", linestyle="--", linewidth=1.0,
                      label=f"zero-force angle {gamma0_deg:.2f}°")
     for ax, title in ((ax_t, "contributions (thesis Fig 4.18 axes)"), (ax_s, "summed")):
-        ax.set_xlim(-75.0, 75.0)
+        ax.set(xlim=(-75.0, 75.0), xlabel="shear angle θ (deg)", ylabel="normalised shear force $N_s$ (N/m)")
         ax.axhline(0.0, color="0.8", linewidth=0.8)
         ax.axvline(0.0, color="0.8", linewidth=0.8)
-        ax.set_xlabel("shear angle θ (deg)")
-        ax.set_ylabel("normalised shear force $N_s$ (N/m)")
         ax.set_title(title, fontsize=10)
         ax.grid(alpha=0.3)
         ax.legend(loc="upper left", fontsize=8)

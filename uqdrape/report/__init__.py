@@ -10,16 +10,8 @@ kind's plan (``plan.PLAN``) with ``index.html`` and ``summary.json``; the number
 from ``uqdrape.stats``, this package only renders.
 """
 
-from .ensemble_figures import (
-    plot_convergence,
-    plot_histograms,
-    plot_line_statistics,
-    plot_mean_map,
-    plot_scalar_vs_factor,
-    plot_sd_map,
-    plot_sweep,
-    plot_wrinkle_map,
-)
+from .ensemble_figures import (plot_convergence, plot_histograms, plot_line_statistics, plot_mean_map,
+                               plot_scalar_vs_factor, plot_sd_map, plot_sweep, plot_wrinkle_map)
 from .design import write_design_report
 from ..experimental import ExperimentalPoints, read_experimental
 from .figures import plot_lines, plot_net
@@ -28,23 +20,8 @@ from .laminate import write_laminate_report
 from .sensitivity_figures import plot_sensitivity_bars, plot_sensitivity_map, plot_sensitivity_vs_force
 
 __all__ = [
-    "plot_net",
-    "plot_lines",
-    "plot_mean_map",
-    "plot_sd_map",
-    "plot_wrinkle_map",
-    "plot_line_statistics",
-    "plot_histograms",
-    "plot_convergence",
-    "plot_sweep",
-    "plot_scalar_vs_factor",
-    "plot_sensitivity_bars",
-    "plot_sensitivity_vs_force",
-    "plot_sensitivity_map",
-    "write_report",
-    "rare_rows",
-    "read_experimental",
-    "ExperimentalPoints",
-    "write_design_report",
-    "write_laminate_report",
+    "plot_net", "plot_lines", "plot_mean_map", "plot_sd_map", "plot_wrinkle_map", "plot_line_statistics",
+    "plot_histograms", "plot_convergence", "plot_sweep", "plot_scalar_vs_factor", "plot_sensitivity_bars",
+    "plot_sensitivity_vs_force", "plot_sensitivity_map", "write_report", "rare_rows", "read_experimental",
+    "ExperimentalPoints", "write_design_report", "write_laminate_report",
 ]

@@ -155,8 +155,7 @@ def _criteria(ax, fit):
     ax.bar(range(len(names)), np.asarray(values) - min(values), color=colours)
     ax.text(names.index(fit.family), 0.0, "kept", ha="center", va="bottom", color="C0")
     ax.set_xticks(range(len(names)), [n.replace("_", "\n") for n in names])
-    ax.set(title=f"{fit.criterion.upper()} − least of the families",
-           ylabel=f"Δ{fit.criterion.upper()}")
+    ax.set(title=f"{fit.criterion.upper()} − least of the families", ylabel=f"Δ{fit.criterion.upper()}")
 
 
 @styled

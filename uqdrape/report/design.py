@@ -71,8 +71,7 @@ def _statistic_panel(ax, ds: xr.Dataset, name: str, validation_key: str):
                     ms=size, mfc="none" if role == "optimum" else colour, mew=2, capsize=3,
                     label=f"{role if role != 'uniform' else 'uniform at the optimum total'}, validation sample")
     _log_if_wide(ax, est)
-    ax.set_xlabel("total blank-holder force (N)")
-    ax.set_ylabel(_LABELS[name])
+    ax.set(xlabel="total blank-holder force (N)", ylabel=_LABELS[name])
     ax.grid(alpha=0.3)
 
 
@@ -118,9 +117,8 @@ def plot_design_history(ds: xr.Dataset, path) -> Path:
     ax.plot(k, f, "o", color="tab:blue", ms=4, alpha=0.6, label="design evaluated")
     ax.plot(k, np.minimum.accumulate(f), "-", color="tab:green", lw=2, label="best so far")
     _log_if_wide(ax, f)
-    ax.set_xlabel("evaluation (design sample)")
-    ax.set_ylabel("objective")
-    ax.set_title("\n".join(textwrap.wrap(f"{d['objective'].attrs['long_name']}; {ds.attrs['optimiser']}", 80)))
+    ax.set(xlabel="evaluation (design sample)", ylabel="objective",
+           title="\n".join(textwrap.wrap(f"{d['objective'].attrs['long_name']}; {ds.attrs['optimiser']}", 80)))
     ax.legend()
     ax.grid(alpha=0.3)
     return save(fig, path)
@@ -151,11 +149,7 @@ def plot_sectors(ds: xr.Dataset, path, surface) -> Path:
     rect = [0.12, 0.08, 0.8, 0.8]
     ax = fig.add_axes(rect)
     _outline(ax, surface, extent)
-    ax.set_aspect("equal")
-    ax.set_xlim(-extent, extent)
-    ax.set_ylim(-extent, extent)
-    ax.set_xlabel("x (mm)")
-    ax.set_ylabel("y (mm)")
+    ax.set(aspect="equal", xlim=(-extent, extent), ylim=(-extent, extent), xlabel="x (mm)", ylabel="y (mm)")
     polar = fig.add_axes(rect, projection="polar", frameon=False)
     polar.bar(theta, opt, width=0.9 * width, color="tab:green", alpha=0.45, edgecolor="tab:green",
               label="sector force at the optimum")
@@ -164,10 +158,7 @@ def plot_sectors(ds: xr.Dataset, path, surface) -> Path:
                label=f"uniform, same total ({opt.sum():.0f} N)")
     for t, f in zip(theta, opt):
         polar.text(t, f + 0.06 * top, f"{f:.0f} N", ha="center", va="center", fontsize=NOTE_PT)
-    polar.set_ylim(0, 1.2 * top)
-    polar.set_yticklabels([])
-    polar.set_xticks(np.arange(n) * width)
-    polar.set_xticklabels([])
+    polar.set(ylim=(0, 1.2 * top), yticklabels=[], xticks=np.arange(n) * width, xticklabels=[])
     polar.grid(alpha=0.3)
     polar.legend(loc="lower left", bbox_to_anchor=(0.0, 0.0), framealpha=0.9)
     fig.suptitle(f"{ds.attrs['study_name']}: sector forces at the optimum on the part outline\n"
@@ -195,10 +186,8 @@ def plot_risk_maps(ds: xr.Dataset, path) -> Path:
         im = ax.scatter(x[hot], y[hot], c=p[hot], s=10, cmap=RISK_CMAP, vmin=0, vmax=top, rasterized=True)
         if not hot.any():
             ax.legend(loc="upper right")
-        ax.set_aspect("equal")
-        ax.set_title(f"{role}: total {sum(val[role]['x'][:n]):.0f} N, max P = {float(p.max()):.2f}")
-        ax.set_xlabel("x (mm)")
-        ax.set_ylabel("y (mm)")
+        ax.set(aspect="equal", title=f"{role}: total {sum(val[role]['x'][:n]):.0f} N, max P = {float(p.max()):.2f}",
+               xlabel="x (mm)", ylabel="y (mm)")
     fig.colorbar(im, ax=axes, label=f"P(node next to a locked cell), validation sample (scale 0-{top:.2g})")
     return save(fig, path)
 
@@ -289,7 +278,4 @@ def _write_design_report(ds: xr.Dataset, out: Path, surface) -> Path:
             f"<p class=\"note\">{html.escape(provenance_line(prov))}</p>\n"
             f"<p><b>{html.escape(ds.attrs['summary'])}</b></p>\n{_table(ds)}\n{_rare_table(ds)}"
             f"<h2>Figures</h2>\n{figures_html(figures)}")
-    page_html = page(f"{ds.attrs['study_name']}: blank-holder design", body)
-    index = out / "index.html"
-    write_text_atomic(index, page_html)
-    return index
+    return write_text_atomic(out / "index.html", page(f"{ds.attrs['study_name']}: blank-holder design", body))

@@ -23,37 +23,13 @@ from scipy import stats
 from uqdrape.drape.lines import max_shear_lines
 from uqdrape.drape.net import net_quads
 from uqdrape.schema import FORCE, QUADRANTS, REALIZATION, SOLVER_INPUTS
-from uqdrape.stats import (
-    convergence,
-    exceedance_probability,
-    line_scalars,
-    line_statistics,
-    mean_statistics,
-    node_histogram,
-    node_statistics,
-    samples_needed,
-    wrinkle_risk,
-)
+from uqdrape.stats import (convergence, exceedance_probability, line_scalars, line_statistics, mean_statistics,
+                           node_histogram, node_statistics, samples_needed, wrinkle_risk)
 from uqdrape.stats.headline import argmax_site
 
 from ..experimental import as_experimental
-from .figures import (
-    DISTANCE_LABEL,
-    MINUS_COLOR,
-    PLUS_COLOR,
-    QUADRANT_STYLE,
-    SHEAR_LABEL,
-    describe,
-    force_groups,
-    force_title,
-    label,
-    overlay_experimental,
-    panels,
-    report_figure,
-    save,
-    shared_ylim,
-    suptitle,
-)
+from .figures import (DISTANCE_LABEL, MINUS_COLOR, PLUS_COLOR, QUADRANT_STYLE, SHEAR_LABEL, describe, force_groups,
+                      force_title, label, overlay_experimental, panels, report_figure, save, shared_ylim, suptitle)
 from .style import NOTE_PT
 
 #: Probability level of the shaded band of the realisations along the max-shear lines.
@@ -244,8 +220,7 @@ def plot_line_statistics(ds: xr.Dataset, path, *, line_stats: xr.Dataset | None 
         ax.fill_between([], [], [], color="0.5", alpha=0.25, label=f"central {BAND:.0%} of realisations")
         overlay_experimental(ax, points, force)
         ax.axhline(0.0, color="0.6", linewidth=0.8)
-        ax.set(xlabel="mean " + DISTANCE_LABEL, ylabel=SHEAR_LABEL)
-        ax.set_title(force_title(force))
+        ax.set(xlabel="mean " + DISTANCE_LABEL, ylabel=SHEAR_LABEL, title=force_title(force))
         ax.grid(alpha=0.3)
         ax.legend(loc="best")
     shared_ylim(axes)

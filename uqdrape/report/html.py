@@ -19,13 +19,7 @@ from pathlib import Path
 import xarray as xr
 
 from uqdrape.schema import FORCE, QOI_ATTRS, REALIZATION, by_force
-from uqdrape.stats import (
-    dominant_factors,
-    headline_numbers,
-    node_statistics,
-    study_kind,
-    wrinkle_risk,
-)
+from uqdrape.stats import dominant_factors, headline_numbers, node_statistics, study_kind, wrinkle_risk
 from uqdrape.stats.headline import SENSITIVITY, DETERMINISTIC, RANDOM, SWEPT
 
 from ..experimental import read_experimental
@@ -235,8 +229,7 @@ def write_report(ds: xr.Dataset, out_dir, *, title: str, description: str | None
         section = "" if sensitivity is None else _sensitivity_section(sensitivity, sens_items)
         rows = _rows(numbers, extra, dominant) + (rare_rows(rare) if rare is not None else [])
         page = _page(record, ds, rows, items, study_text, summary_path.name, section)
-        index = out / "index.html"
-        write_text_atomic(index, page)
+        index = write_text_atomic(out / "index.html", page)
     return index
 
 

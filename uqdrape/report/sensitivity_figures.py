@@ -78,8 +78,7 @@ def plot_sensitivity_bars(indices: xr.Dataset, path):
             ax.grid(axis="y", alpha=0.3)
             if method == "sobol":
                 ax.set_ylim(min(-0.1, ax.get_ylim()[0]), max(1.1, ax.get_ylim()[1]))
-            ax.set_title(f"{q}, {force_title(force)}")
-            ax.set_ylabel(_qoi_axis_label(indices, q))
+            ax.set(title=f"{q}, {force_title(force)}", ylabel=_qoi_axis_label(indices, q))
     axes[0, 0].legend(loc="upper left")
     fig.suptitle(f"sensitivity indices per quantity of interest\n{_sample_text(indices)}")
     return save(fig, path)

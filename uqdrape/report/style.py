@@ -78,12 +78,6 @@ def is_wide(png_width_px: int) -> bool:
     return png_width_px > COLUMN_IN * DPI + 1
 
 
-def displayed_pt(size_pt: float, figure_width_in: float, wide: bool) -> float:
-    """The size (pt) a text of ``size_pt`` in a figure ``figure_width_in`` wide reads at on
-    the page, in the row (``wide``) or a column, at the window of ``WINDOW_PX``."""
-    return size_pt * (ROW_PX if wide else COLUMN_PX) / (figure_width_in * CSS_PX_PER_IN)
-
-
 def check_formats(formats) -> tuple[str, ...]:
     """``formats`` as a tuple, each one of :data:`VECTOR_FORMATS` (else ValueError)."""
     formats = tuple(formats or ())

@@ -201,10 +201,8 @@ def _indices(problem, X, Y, method, conf_level, seed, num_resamples, atol=0.0, p
         raise ValueError(f"Y has {Y.shape[0]} rows but X has {X.shape[0]} (one per evaluation)")
     per_sample = len(labels) + (2 if method == "sobol" else 1)
     if X.shape[0] % per_sample:
-        raise ValueError(
-            f"{X.shape[0]} evaluations do not form a {method} sample for {len(labels)} "
-            f"factors/groups (need a multiple of {per_sample})"
-        )
+        raise ValueError(f"{X.shape[0]} evaluations do not form a {method} sample for {len(labels)} "
+                         f"factors/groups (need a multiple of {per_sample})")
 
     n_cols = Y.shape[1]
     out = {name: np.full((len(labels), n_cols), np.nan) for name in VARIABLES[method]}
@@ -221,25 +219,16 @@ def _indices(problem, X, Y, method, conf_level, seed, num_resamples, atol=0.0, p
     varying = np.flatnonzero(finite & ~constant)
     if progress is not None:
         progress(n_cols - varying.size)
-    if method == "sobol" and varying.size:
-        for name, values in _sobol_columns(problem, Y[:, varying], conf_level, seed, num_resamples,
-                                           progress).items():
-            out[name][:, varying] = values
-    if method == "morris" and varying.size:
-        for name, values in _morris_columns(problem, X, Y[:, varying], conf_level, seed, num_resamples,
-                                            progress).items():
+    if varying.size:
+        columns = (_sobol_columns(problem, Y[:, varying], conf_level, seed, num_resamples, progress)
+                   if method == "sobol" else
+                   _morris_columns(problem, X, Y[:, varying], conf_level, seed, num_resamples, progress))
+        for name, values in columns.items():
             out[name][:, varying] = values
 
-    attrs = {
-        "method": method,
-        "base_samples": X.shape[0] // per_sample,
-        "n_evaluations": X.shape[0],
-        "conf_level": float(conf_level),
-        "num_resamples": int(num_resamples),
-        "analysis_seed": seed,
-        "constant_atol": float(atol),
-        "salib_version": version("SALib"),
-    }
+    attrs = {"method": method, "base_samples": X.shape[0] // per_sample, "n_evaluations": X.shape[0],
+             "conf_level": float(conf_level), "num_resamples": int(num_resamples), "analysis_seed": seed,
+             "constant_atol": float(atol), "salib_version": version("SALib")}
     if method == "morris":
         attrs["num_levels"] = MORRIS_NUM_LEVELS
     return labels, out, constant, attrs
@@ -253,14 +242,10 @@ def _dataset(labels, out, constant, attrs, dims, shape, coords) -> xr.Dataset:
                {"long_name": names[name], **({"units": "1"} if name.startswith("S") else {})})
         for name, values in out.items()
     }
-    data_vars["output_constant"] = (
-        dims, constant.reshape(shape),
-        {"long_name": "output constant over the sample (indices set to 0)"},
-    )
-    ds = xr.Dataset(data_vars, coords={"factor": ("factor", labels, {
-        "long_name": "factor, or factor group (a random field is one group)"}), **coords},
-        attrs=attrs)
-    return ds
+    data_vars["output_constant"] = (dims, constant.reshape(shape),
+                                    {"long_name": "output constant over the sample (indices set to 0)"})
+    return xr.Dataset(data_vars, coords={"factor": ("factor", labels, {
+        "long_name": "factor, or factor group (a random field is one group)"}), **coords}, attrs=attrs)
 
 
 def analyze(problem: Mapping, X, Y, *, method: str = "sobol",
@@ -275,12 +260,10 @@ def analyze(problem: Mapping, X, Y, *, method: str = "sobol",
     the module docstring.
     """
     Y = np.asarray(Y, dtype=float)
-    if Y.ndim == 1:
-        Y = Y[:, None]
+    Y = Y[:, None] if Y.ndim == 1 else Y
     if Y.ndim != 2:
         raise ValueError(f"Y has shape {Y.shape}, expected (n_evaluations,) or (n_evaluations, n_qoi)")
-    if qoi_names is None:
-        qoi_names = [f"y{k}" for k in range(Y.shape[1])]
+    qoi_names = [f"y{k}" for k in range(Y.shape[1])] if qoi_names is None else qoi_names
     qoi_names = [str(q) for q in qoi_names]
     if len(qoi_names) != Y.shape[1] or len(set(qoi_names)) != len(qoi_names):
         raise ValueError(f"qoi_names={qoi_names} must be {Y.shape[1]} unique names (one per column of Y)")
@@ -289,8 +272,7 @@ def analyze(problem: Mapping, X, Y, *, method: str = "sobol",
         which = {q: int(b) for q, b in zip(qoi_names, bad) if b}
         raise ValueError(f"Y contains NaN/inf (count per QoI: {which}); every evaluation must succeed")
     labels, out, constant, attrs = _indices(problem, X, Y, method, conf_level, seed, num_resamples, atol)
-    return _dataset(labels, out, constant, attrs, ("qoi",), (Y.shape[1],),
-                    {"qoi": ("qoi", qoi_names)})
+    return _dataset(labels, out, constant, attrs, ("qoi",), (Y.shape[1],), {"qoi": ("qoi", qoi_names)})
 
 
 def analyze_map(problem: Mapping, X, Y: xr.DataArray, *, method: str = "sobol",
@@ -307,8 +289,7 @@ def analyze_map(problem: Mapping, X, Y: xr.DataArray, *, method: str = "sobol",
     if not isinstance(Y, xr.DataArray) or sample_dim not in Y.dims:
         raise ValueError(f"Y must be an xarray DataArray with dimension sample_dim={sample_dim!r}")
     Y = Y.transpose(sample_dim, ...)
-    dims = Y.dims[1:]
-    shape = Y.shape[1:]
+    dims, shape = Y.dims[1:], Y.shape[1:]
     values = np.asarray(Y.values, dtype=float).reshape(Y.shape[0], -1)
     labels, out, constant, attrs = _indices(problem, X, values, method, conf_level, seed, num_resamples, atol,
                                             progress)
@@ -330,10 +311,8 @@ def indices_vs_levels(datasets: Sequence[xr.Dataset], level_values, *,
     datasets = list(datasets)
     levels = np.asarray(level_values, dtype=float)
     if levels.ndim != 1 or len(levels) != len(datasets) or len(datasets) == 0:
-        raise ValueError(
-            f"level_values has {levels.size} values for {len(datasets)} datasets; "
-            "give one level per dataset (at least one)"
-        )
+        raise ValueError(f"level_values has {levels.size} values for {len(datasets)} datasets; "
+                         "give one level per dataset (at least one)")
     if len(np.unique(levels)) != len(levels):
         raise ValueError(f"level_values={levels.tolist()} must be unique")
     first = datasets[0]

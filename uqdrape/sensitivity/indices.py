@@ -53,7 +53,8 @@ def _per_level(sample: SampleMatrix, data, analyse):
 
 
 def _describe_factors(sample: SampleMatrix, ds: xr.Dataset) -> xr.Dataset:
-    """Add per-factor coordinates: number of SALib variables in each group, field or scalar."""
+    """Add per-factor coordinates (number of SALib variables in each group, field or
+    scalar) and the sample's metadata as attributes."""
     groups = sample.problem.get("groups") or sample.problem["names"]
     labels = list(ds["factor"].values)
     sizes = [groups.count(label) for label in labels]
@@ -61,8 +62,7 @@ def _describe_factors(sample: SampleMatrix, ds: xr.Dataset) -> xr.Dataset:
              for label in labels]
     return ds.assign_coords(
         n_variables=("factor", sizes, {"long_name": "SALib variables in the group (KL modes of a field)"}),
-        factor_kind=("factor", kinds, {"long_name": "scalar factor or random field"}),
-    )
+        factor_kind=("factor", kinds, {"long_name": "scalar factor or random field"})).assign_attrs(sample.meta)
 
 
 def qoi_indices(sample: SampleMatrix, qois: xr.Dataset, *, seed: int, conf_level: float = 0.95,
@@ -84,7 +84,6 @@ def qoi_indices(sample: SampleMatrix, qois: xr.Dataset, *, seed: int, conf_level
     ds = _per_level(sample, qois, analyse)
     ds = ds.assign_coords(qoi_units=("qoi", [qois[q].attrs.get("units", "") for q in names],
                                      {"long_name": "units of the quantity of interest"}))
-    ds.attrs.update(sample.meta)
     return _describe_factors(sample, ds)
 
 
@@ -98,6 +97,4 @@ def map_indices(sample: SampleMatrix, field: xr.DataArray, *, seed: int, conf_le
         return analyze_map(sample.problem, sample.X, level, method=sample.method, conf_level=conf_level,
                            seed=seed, num_resamples=num_resamples, atol=ROUNDOFF, progress=progress)
 
-    ds = _per_level(sample, field, analyse)
-    ds.attrs.update(sample.meta)
-    return _describe_factors(sample, ds)
+    return _describe_factors(sample, _per_level(sample, field, analyse))

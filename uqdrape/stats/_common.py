@@ -46,10 +46,8 @@ def select_site(da: xr.DataArray, node: Sequence) -> xr.DataArray:
 
 def lazy_map(func, *args, n_out: int = 1):
     """Apply an elementwise numpy/scipy function to (possibly dask-backed) DataArrays, lazily."""
-    return xr.apply_ufunc(
-        func, *args, dask="parallelized", output_dtypes=[float] * n_out,
-        output_core_dims=[[]] * n_out,
-    )
+    return xr.apply_ufunc(func, *args, dask="parallelized", output_dtypes=[float] * n_out,
+                          output_core_dims=[[]] * n_out)
 
 
 def t_quantile(confidence: float, dof: xr.DataArray) -> xr.DataArray:

@@ -11,12 +11,8 @@ from scipy import stats
 from ._common import REALIZATION, check_confidence, get_variable, select_site, t_quantile
 
 
-def convergence(
-    data: xr.Dataset | xr.DataArray,
-    node: Sequence[int] | None = None,
-    var: str = "shear",
-    confidence: float = 0.95,
-) -> xr.Dataset:
+def convergence(data: xr.Dataset | xr.DataArray, node: Sequence[int] | None = None, var: str = "shear",
+                confidence: float = 0.95) -> xr.Dataset:
     """Running mean, sd and Student-t half-width of the mean against N, in realisation order.
 
     ``data`` is an ensemble Dataset with ``node`` = (i, j) (or (cell_i, cell_j)) picking
@@ -45,24 +41,18 @@ def convergence(
     s1 = d.fillna(0.0).cumsum(REALIZATION)
     s2 = (d**2).fillna(0.0).cumsum(REALIZATION)
     mean = shift + s1 / mm
-    var_ = ((s2 - s1**2 / mm) / (mm - 1.0)).where(m > 1).clip(min=0.0)
-    sd = np.sqrt(var_)
+    sd = np.sqrt(((s2 - s1**2 / mm) / (mm - 1.0)).where(m > 1).clip(min=0.0))
     half = t_quantile(c, m - 1) * sd / np.sqrt(mm)
     units = da.attrs.get("units")
     u = {"units": units} if units else {}
-    out = xr.Dataset(
-        {
-            "running_mean": mean.assign_attrs(u, long_name="mean of the valid realisations among the first n"),
-            "running_sd": sd.assign_attrs(u, long_name="sd (ddof=1) of the valid realisations among the first n"),
-            "half_width": half.assign_attrs(
-                u, long_name=f"half-width of the {c:.0%} Student-t confidence interval of the mean"
-            ),
-            "count": m.assign_attrs(units="1", long_name="number of valid realisations among the first n"),
-        }
-    )
+    out = xr.Dataset({
+        "running_mean": mean.assign_attrs(u, long_name="mean of the valid realisations among the first n"),
+        "running_sd": sd.assign_attrs(u, long_name="sd (ddof=1) of the valid realisations among the first n"),
+        "half_width": half.assign_attrs(u, long_name=f"half-width of the {c:.0%} Student-t confidence interval of "
+                                                     "the mean"),
+        "count": m.assign_attrs(units="1", long_name="number of valid realisations among the first n")})
     out = out.rename({REALIZATION: "n"}).assign_coords(
-        n=("n", np.arange(1, x.sizes[REALIZATION] + 1), {"long_name": "number of realisations drawn"})
-    )
+        n=("n", np.arange(1, x.sizes[REALIZATION] + 1), {"long_name": "number of realisations drawn"}))
     out.attrs = {"variable": str(da.name), "confidence": c, **({"node": list(node)} if node is not None else {})}
     return out
 
@@ -78,19 +68,15 @@ def samples_needed(sd, half_width, confidence: float = 0.95, method: str = "t"):
     c = check_confidence(confidence)
     if method not in ("t", "normal"):
         raise ValueError(f"method must be 't' or 'normal', got {method!r}")
-    sd_a = np.asarray(sd, dtype=float)
-    h_a = np.asarray(half_width, dtype=float)
-    if np.any(~(sd_a > 0)) or not np.all(np.isfinite(sd_a)):
-        raise ValueError(f"sd must be finite and > 0, got {sd!r}")
-    if np.any(~(h_a > 0)) or not np.all(np.isfinite(h_a)):
-        raise ValueError(f"half_width must be finite and > 0, got {half_width!r}")
+    sd_a, h_a = np.asarray(sd, dtype=float), np.asarray(half_width, dtype=float)
+    for name, value, a in (("sd", sd, sd_a), ("half_width", half_width, h_a)):
+        if np.any(~(a > 0)) or not np.all(np.isfinite(a)):
+            raise ValueError(f"{name} must be finite and > 0, got {value!r}")
     z = stats.norm.ppf(0.5 + c / 2.0)
     n = np.ceil((z * sd_a / h_a) ** 2)
     if method == "t":
         n = np.maximum(n, 2.0)
-        short = stats.t.ppf(0.5 + c / 2.0, n - 1.0) * sd_a / np.sqrt(n) > h_a
-        while np.any(short):
+        while np.any(short := stats.t.ppf(0.5 + c / 2.0, n - 1.0) * sd_a / np.sqrt(n) > h_a):
             n = np.where(short, n + 1.0, n)
-            short = stats.t.ppf(0.5 + c / 2.0, n - 1.0) * sd_a / np.sqrt(n) > h_a
     out = n.astype(np.int64)
     return int(out) if out.ndim == 0 else out

@@ -13,10 +13,8 @@ from scipy import stats
 from ._common import REALIZATION, check_confidence, get_variable, lazy_map
 
 METHODS = ("wilson", "clopper-pearson")
-_METHOD_TEXT = {
-    "wilson": "Wilson score interval",
-    "clopper-pearson": "Clopper-Pearson exact interval (beta quantiles)",
-}
+_METHOD_TEXT = {"wilson": "Wilson score interval",
+                "clopper-pearson": "Clopper-Pearson exact interval (beta quantiles)"}
 
 
 def wilson_interval(k, n, confidence: float):
@@ -52,13 +50,8 @@ def clopper_pearson_interval(k, n, confidence: float):
     return _clopper_pearson(k, n, confidence)
 
 
-def exceedance_probability(
-    ds: xr.Dataset,
-    threshold_deg=None,
-    var: str = "shear",
-    confidence: float = 0.95,
-    method: str = "wilson",
-) -> xr.Dataset:
+def exceedance_probability(ds: xr.Dataset, threshold_deg=None, var: str = "shear", confidence: float = 0.95,
+                           method: str = "wilson") -> xr.Dataset:
     """P(|ds[var]| > threshold_deg) per node over the valid realisations, with an interval.
 
     ``threshold_deg`` (degree; a scalar, or a 1-D sequence giving a ``threshold`` dim)
@@ -73,15 +66,13 @@ def exceedance_probability(
     da = get_variable(ds, var)
     if threshold_deg is None:
         if "locking_angle_deg" not in ds.attrs:
-            raise ValueError(
-                "threshold_deg is None and the Dataset has no 'locking_angle_deg' attr; pass threshold_deg (degree)"
-            )
+            raise ValueError("threshold_deg is None and the Dataset has no 'locking_angle_deg' attr; pass "
+                             "threshold_deg (degree)")
         threshold_deg = ds.attrs["locking_angle_deg"]
     thr = np.asarray(threshold_deg, dtype=float)
     if thr.ndim > 1 or thr.size == 0 or not np.all(np.isfinite(thr)) or np.any(thr < 0):
-        raise ValueError(
-            f"threshold_deg must be a finite angle >= 0 (degree) or a 1-D sequence of them, got {threshold_deg!r}"
-        )
+        raise ValueError(f"threshold_deg must be a finite angle >= 0 (degree) or a 1-D sequence of them, got "
+                         f"{threshold_deg!r}")
     t = xr.DataArray(np.atleast_1d(thr), dims="threshold", name="threshold",
                      attrs={"units": da.attrs.get("units", "degree"), "long_name": f"threshold on |{var}|"})
     t = t.assign_coords(threshold=t)
@@ -92,16 +83,11 @@ def exceedance_probability(
     p = k / n.where(n > 0)
     lo, hi = (wilson_interval if method == "wilson" else clopper_pearson_interval)(k, n, c)
     interval = {"method": _METHOD_TEXT[method], "confidence": c}
-    out = xr.Dataset(
-        {
-            "probability": p.assign_attrs(units="1", long_name=f"probability that |{var}| exceeds the threshold"),
-            "probability_lower": lo.assign_attrs(units="1", long_name="lower confidence limit of the probability",
-                                                 **interval),
-            "probability_upper": hi.assign_attrs(units="1", long_name="upper confidence limit of the probability",
-                                                 **interval),
-            "exceed_count": k.assign_attrs(units="1", long_name=f"number of valid realisations with |{var}| > threshold"),
-            "count": n.assign_attrs(units="1", long_name="number of valid (non-NaN) realisations"),
-        }
-    )
+    out = xr.Dataset({
+        "probability": p.assign_attrs(units="1", long_name=f"probability that |{var}| exceeds the threshold"),
+        **{f"probability_{side}": limit.assign_attrs(units="1", long_name=f"{side} confidence limit of the probability",
+                                                     **interval) for side, limit in (("lower", lo), ("upper", hi))},
+        "exceed_count": k.assign_attrs(units="1", long_name=f"number of valid realisations with |{var}| > threshold"),
+        "count": n.assign_attrs(units="1", long_name="number of valid (non-NaN) realisations")})
     out.attrs = {**ds.attrs, "variable": var, "confidence": c, "interval": _METHOD_TEXT[method]}
     return out.compute()

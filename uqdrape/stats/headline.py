@@ -24,6 +24,7 @@ import numpy as np
 import xarray as xr
 
 from ..drape.status import Status
+from ..files import to_float
 from ..schema import FORCE, REALIZATION, SOLVER_INPUTS, by_force
 from .convergence import samples_needed
 from .exceedance import exceedance_probability
@@ -93,10 +94,7 @@ def wrinkle_risk(ds: xr.Dataset, confidence: float = 0.95) -> xr.Dataset | None:
         ex = exceedance_probability(ds, 0.5, var="locked", confidence=confidence)
         ex.attrs["risk"] = "P(next to a locked cell)"
         return ex
-    try:
-        threshold = float(ds.attrs.get("locking_angle_deg"))
-    except (TypeError, ValueError):
-        return None
+    threshold = to_float(ds.attrs.get("locking_angle_deg"))
     if not math.isfinite(threshold):
         return None
     ex = exceedance_probability(ds, threshold, confidence=confidence)

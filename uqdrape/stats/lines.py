@@ -84,23 +84,14 @@ def line_means(shear: xr.DataArray, k_max: int | None = None) -> xr.Dataset:
     line_mean = shear.sel(k=slice(1, k_max)).mean("k", skipna=False)
     plus = line_mean.sel(quadrant=list(PLUS_QUADRANTS)).mean("quadrant", skipna=False)
     minus = line_mean.sel(quadrant=list(MINUS_QUADRANTS)).mean("quadrant", skipna=False)
-    out = xr.Dataset(
-        {
-            "line_mean_shear": line_mean.assign_attrs(
-                units="degree", long_name=f"mean signed shear over nodes k = 1..{k_max} of the max-shear line"
-            ),
-            "plus_mean_shear": plus.assign_attrs(
-                units="degree", long_name="line mean shear averaged over the i*j > 0 quadrants (++, --)"
-            ),
-            "minus_mean_shear": minus.assign_attrs(
-                units="degree", long_name="line mean shear averaged over the i*j < 0 quadrants (-+, +-)"
-            ),
-            "asymmetry": (plus + minus).assign_attrs(
-                units="degree",
-                long_name="plus_mean_shear + minus_mean_shear (0 when mirrored; < 0 when the - quadrants shear more)",
-            ),
-        }
-    )
+    scalars = {
+        "line_mean_shear": (line_mean, f"mean signed shear over nodes k = 1..{k_max} of the max-shear line"),
+        "plus_mean_shear": (plus, "line mean shear averaged over the i*j > 0 quadrants (++, --)"),
+        "minus_mean_shear": (minus, "line mean shear averaged over the i*j < 0 quadrants (-+, +-)"),
+        "asymmetry": (plus + minus,
+                      "plus_mean_shear + minus_mean_shear (0 when mirrored; < 0 when the - quadrants shear more)")}
+    out = xr.Dataset({name: value.assign_attrs(units="degree", long_name=text)
+                      for name, (value, text) in scalars.items()})
     out.attrs = {"k_max": k_max}
     return out.compute()
 

@@ -25,19 +25,14 @@ MEAN_INTERVAL = "Student t: mean +- t_{(1+c)/2, n-1} * sd / sqrt(n) over the n v
 #: its K randomisations are.
 REPLICATE_INTERVAL = ("Student t over randomisations: mean of the K randomisations' means +- "
                       "t_{(1+c)/2, K-1} * sd(means) / sqrt(K)")
-QUANTILE_INTERVAL = (
-    "distribution-free order statistics: [X_(l), X_(u)] with l = binom.ppf((1-c)/2, n, p), "
-    "u = binom.ppf((1+c)/2, n, p) + 1 (1-based ranks, coverage >= c); NaN when n is too small"
-)
+QUANTILE_INTERVAL = ("distribution-free order statistics: [X_(l), X_(u)] with l = binom.ppf((1-c)/2, n, p), "
+                     "u = binom.ppf((1+c)/2, n, p) + 1 (1-based ranks, coverage >= c); NaN when n is too small")
 QUANTILE_METHOD = "numpy 'linear' (Hyndman-Fan type 7) over the valid realisations"
 
 
 def _attrs(units, long_name: str, **extra) -> dict:
-    out = {"long_name": long_name}
-    if units is not None:
-        out["units"] = units
-    out.update(extra)
-    return out
+    """``long_name``, ``units`` where given, and ``extra``."""
+    return {"long_name": long_name, **({} if units is None else {"units": units}), **extra}
 
 
 def _limits(prefix: str, lower, upper, units, what: str, confidence: float, method: str) -> dict:
@@ -74,15 +69,12 @@ def moment_statistics(da: xr.DataArray, confidence: float, dim: str = REALIZATIO
     m2s = m2.where(spread)
     skew = (m3 / m2s**1.5 * np.sqrt(nn * (nn - 1.0)) / (nn - 2.0)).where(spread)
     half = t_quantile(confidence, n - 1) * sd / np.sqrt(nn)
-    return xr.Dataset(
-        {
-            "mean": mean.assign_attrs(_attrs(units, f"ensemble mean of {name}")),
-            "sd": sd.assign_attrs(_attrs(units, f"ensemble standard deviation (ddof=1) of {name}")),
-            "skewness": skew.assign_attrs(_attrs("1", f"adjusted sample skewness G1 of {name}")),
-            "count": n.assign_attrs(_attrs("1", "number of valid (non-NaN) realisations")),
-            **_limits("mean", mean - half, mean + half, units, "the mean", confidence, MEAN_INTERVAL),
-        }
-    )
+    return xr.Dataset({
+        "mean": mean.assign_attrs(_attrs(units, f"ensemble mean of {name}")),
+        "sd": sd.assign_attrs(_attrs(units, f"ensemble standard deviation (ddof=1) of {name}")),
+        "skewness": skew.assign_attrs(_attrs("1", f"adjusted sample skewness G1 of {name}")),
+        "count": n.assign_attrs(_attrs("1", "number of valid (non-NaN) realisations")),
+        **_limits("mean", mean - half, mean + half, units, "the mean", confidence, MEAN_INTERVAL)})
 
 
 #: the sign bit of a float64, which orders the keys of :func:`_keys`
@@ -333,15 +325,11 @@ def quantile_statistics(da: xr.DataArray, quantiles: Sequence[float], confidence
     coords = {k: c for k, c in da.coords.items() if dim not in c.dims}
     coords["quantile"] = ("quantile", probs, {"long_name": "probability level", "units": "1"})
     dims = (*rest, "quantile")
-    out = xr.Dataset(
-        {
-            "quantile_value": (dims, value, _attrs(units, f"ensemble quantile of {name}", method=QUANTILE_METHOD)),
-            **{k: (dims, v.values, v.attrs) for k, v in _limits(
-                "quantile", xr.DataArray(lower), xr.DataArray(upper), units, "the quantile", confidence,
-                QUANTILE_INTERVAL).items()},
-        },
-        coords=coords,
-    )
+    out = xr.Dataset({
+        "quantile_value": (dims, value, _attrs(units, f"ensemble quantile of {name}", method=QUANTILE_METHOD)),
+        **{k: (dims, v.values, v.attrs) for k, v in _limits(
+            "quantile", xr.DataArray(lower), xr.DataArray(upper), units, "the quantile", confidence,
+            QUANTILE_INTERVAL).items()}}, coords=coords)
     return xr.merge([first.drop_vars(["n", "low", "high"]), out], combine_attrs="override") if moments else out
 
 
@@ -358,13 +346,8 @@ def mean_statistics(da: xr.DataArray, confidence: float = 0.95, dim: str = REALI
     return moment_statistics(da.astype(float), c, dim).assign_attrs(confidence=c).compute()
 
 
-def node_statistics(
-    ds: xr.Dataset,
-    var: str = "shear",
-    quantiles: Sequence[float] = (0.05, 0.5, 0.95),
-    confidence: float = 0.95,
-    replicates: int | None = None,
-) -> xr.Dataset:
+def node_statistics(ds: xr.Dataset, var: str = "shear", quantiles: Sequence[float] = (0.05, 0.5, 0.95),
+                    confidence: float = 0.95, replicates: int | None = None) -> xr.Dataset:
     """Per-node (or per-cell, for a cell variable) ensemble statistics of ``ds[var]``.
 
     Reduces along ``realization``, keeping every other dim (i, j or cell_i, cell_j, and

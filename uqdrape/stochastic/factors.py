@@ -27,15 +27,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ParameterError
+from ..files import to_float
 
 _EPS = 1e-12
 
 
 def _finite(name: str, value) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        number = math.nan
+    number = to_float(value)
     if not math.isfinite(number):
         raise ParameterError(name, f"{name} must be a finite number, got {value!r}")
     return number

@@ -95,9 +95,8 @@ class GaussianField:
         else:
             self.length_mm = _pair(length_mm, "length_mm")
         lengths = self.length_mm or (None, None)
-        self.matrices = tuple(
-            _correlation_matrix(n, d, correlation, L) for n, d, L in zip(shape, self.spacing_mm, lengths)
-        )
+        self.matrices = tuple(_correlation_matrix(n, d, correlation, L)
+                              for n, d, L in zip(shape, self.spacing_mm, lengths))
         (lam1, self._phi1), (lam2, self._phi2) = (_eigenpairs(m) for m in self.matrices)
         self._scale = np.sqrt(np.outer(lam1, lam2))
 

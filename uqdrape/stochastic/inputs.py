@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from ..errors import ParameterError
+from ..files import to_float
 from .fields import GaussianField
 
 
@@ -27,10 +28,7 @@ def positive_int(name: str, value) -> int:
 
 
 def _spacing(spacing_mm) -> float:
-    try:
-        s = float(spacing_mm)
-    except (TypeError, ValueError):
-        s = math.nan
+    s = to_float(spacing_mm)
     if not (math.isfinite(s) and s > 0):
         raise ValueError(f"spacing_mm must be a positive number (mm), got {spacing_mm!r}")
     return s
@@ -101,10 +99,9 @@ class SpacingInput(_FieldInput):
         for z in self._field_values(xi):
             s = self.spacing_mm * (1.0 + self.cv * z)
             if np.any(s <= 0):
-                raise ValueError(
-                    f"spacing cv={self.cv:g} gave a non-positive segment length{_first_bad(s <= 0, lead)}: "
-                    f"a standard normal of {z.min():.2f} <= -1/cv; use a smaller cv"
-                )
+                raise ValueError(f"spacing cv={self.cv:g} gave a non-positive segment length"
+                                 f"{_first_bad(s <= 0, lead)}: a standard normal of {z.min():.2f} <= -1/cv; use a "
+                                 "smaller cv")
             out.append(s)
         return tuple(out)
 
@@ -121,10 +118,8 @@ class ZeroAngleInput(_FieldInput):
         n = positive_int("rings", rings)
         ok = all(isinstance(v, (int, float, np.number)) and math.isfinite(v) for v in (mean_deg, sd_deg))
         if not ok or not abs(mean_deg) < 90.0 or sd_deg < 0:
-            raise ParameterError(
-                ("mean_deg", "sd_deg"),
-                f"zero angle needs |mean_deg| < 90 and sd_deg >= 0 (degrees), got mean_deg={mean_deg!r}, sd_deg={sd_deg!r}"
-            )
+            raise ParameterError(("mean_deg", "sd_deg"), "zero angle needs |mean_deg| < 90 and sd_deg >= 0 (degrees), "
+                                                         f"got mean_deg={mean_deg!r}, sd_deg={sd_deg!r}")
         self.mean_deg, self.sd_deg = float(mean_deg), float(sd_deg)
         super().__init__([(2 * n, 2 * n)], _spacing(spacing_mm), correlation, length_mm)
 
@@ -134,10 +129,8 @@ class ZeroAngleInput(_FieldInput):
         gamma0 = self.mean_deg + self.sd_deg * z
         bad = np.abs(gamma0) >= 90.0
         if np.any(bad):
-            raise ValueError(
-                f"zero angle mean_deg={self.mean_deg:g}, sd_deg={self.sd_deg:g} gave |gamma0| >= 90 degrees"
-                f"{_first_bad(bad, np.ndim(xi) - 1)}; use a smaller sd_deg"
-            )
+            raise ValueError(f"zero angle mean_deg={self.mean_deg:g}, sd_deg={self.sd_deg:g} gave |gamma0| >= 90 "
+                             f"degrees{_first_bad(bad, np.ndim(xi) - 1)}; use a smaller sd_deg")
         return gamma0
 
 

@@ -168,18 +168,13 @@ def check_base_samples(method: str, base_samples) -> int:
     n = int(base_samples)
     if method == "sobol":
         if n < SOBOL_MIN_BASE_SAMPLES:
-            raise ParameterError(
-                "base_samples", f"base_samples={n} is too small for Sobol': the minimum is "
-                f"{SOBOL_MIN_BASE_SAMPLES} (and it must be a power of 2)"
-            )
+            raise ParameterError("base_samples", f"base_samples={n} is too small for Sobol': the minimum is "
+                                                 f"{SOBOL_MIN_BASE_SAMPLES} (and it must be a power of 2)")
         if n & (n - 1):
             lower = 1 << (n.bit_length() - 1)
-            raise ParameterError(
-                "base_samples", f"base_samples={n} must be a power of 2 for Sobol' (e.g. {lower} or {2 * lower})"
-            )
+            raise ParameterError("base_samples",
+                                 f"base_samples={n} must be a power of 2 for Sobol' (e.g. {lower} or {2 * lower})")
     elif n < MORRIS_MIN_TRAJECTORIES:
-        raise ParameterError(
-            "base_samples", f"base_samples={n} is too small for Morris: the minimum is "
-            f"{MORRIS_MIN_TRAJECTORIES} trajectories"
-        )
+        raise ParameterError("base_samples", f"base_samples={n} is too small for Morris: the minimum is "
+                                             f"{MORRIS_MIN_TRAJECTORIES} trajectories")
     return n

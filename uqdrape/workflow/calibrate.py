@@ -109,11 +109,8 @@ def _drape_batches(studies, realizations: int, distance, sign, *, scheduler, wor
             owners.append(k)
             sizes.append(b - a)
     reach_scheduler(scheduler)
-    bar = Progress(sum(sizes), enabled=progress, desc=desc)
-    try:
+    with Progress(sum(sizes), enabled=progress, desc=desc) as bar:
         parts = compute_tasks(tasks, sizes, scheduler, workers, bar)
-    finally:
-        bar.close()
     return [np.concatenate([p for p, o in zip(parts, owners) if o == k]) for k in range(len(studies))]
 
 

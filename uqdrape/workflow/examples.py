@@ -119,10 +119,8 @@ def copy_example(name: str, dest: str | os.PathLike = ".", *, overwrite: bool = 
     if name not in entries:
         raise ValueError(f"unknown example {name!r}; valid: {', '.join(entries)}")
     root, source = examples_dir(), entries[name]
-    if source.is_dir():
-        files = [p for p in source.rglob("*") if p.is_file() and "__pycache__" not in p.parts]
-    else:
-        files = [source, *_referenced(source, root)]
+    files = ([p for p in source.rglob("*") if p.is_file() and "__pycache__" not in p.parts] if source.is_dir()
+             else [source, *_referenced(source, root)])
     dest = Path(dest)
     pairs = [(f, dest / f.resolve().relative_to(root.resolve())) for f in files]
     clash = [str(to) for f, to in pairs if to.exists() and to.read_bytes() != f.read_bytes()]

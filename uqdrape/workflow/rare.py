@@ -33,7 +33,7 @@ import numpy as np
 from scipy.special import ndtr
 
 from ..ensemble import at, drape_inputs, inputs_from_rows, sample_columns, study_mould
-from ..files import check_input_file
+from ..files import check_input_file, json_object
 from ..reliability import importance_sampling
 from ..report import rare_rows
 from ..report.html import RARE_METHODS
@@ -171,12 +171,7 @@ def parse_rare(data: bytes, where) -> dict:
         kind = int if integer else (int, float)
         return isinstance(value, kind) and not isinstance(value, bool) and low <= value < math.inf
 
-    try:
-        record = json.loads(data.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError, RecursionError) as err:
-        raise damaged(f"not JSON text: {type(err).__name__}") from None
-    if not isinstance(record, dict):
-        raise damaged("not a JSON object")
+    record = json_object(data, damaged)
     if not isinstance(record.get("key"), str):
         raise damaged('"key" must be the digest of the study and its request')
     if not (isinstance(record.get("qoi"), str) and record["qoi"] in QOI_ATTRS):

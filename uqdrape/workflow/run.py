@@ -211,11 +211,8 @@ def write_sensitivity(output_dir, matrix, *, qoi=None, seed: int,
         study_name = ds.attrs.get("study_name", out.name)
     indices = qoi_indices(matrix, qois, seed=seed)
     nodes = shear.isel({dim: 0 for dim in shear.dims if dim not in ("i", "j")}).size
-    bar = Progress(nodes * shear.sizes.get(FORCE, 1), enabled=progress, desc="index maps", unit="node")
-    try:
+    with Progress(nodes * shear.sizes.get(FORCE, 1), enabled=progress, desc="index maps", unit="node") as bar:
         maps = map_indices(matrix, shear, seed=seed, progress=bar.update)
-    finally:
-        bar.close()
     for result in (indices, maps):
         result.attrs.update(study_name=study_name, run_key=_run_key(out))
     if "k_max" in qois.attrs:

@@ -32,6 +32,7 @@ evaluations or ``timeout_s`` seconds if given. From Python::
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import threading
@@ -232,11 +233,9 @@ def serve_study(study, *, host: str = "127.0.0.1", port: int = 4242, qoi=None, m
     loop = threading.Thread(target=server.serve_forever, kwargs={"poll_interval": 0.1}, daemon=True)
     with server:
         loop.start()
-        try:
+        with contextlib.suppress(KeyboardInterrupt):  # Ctrl-C or SIGTERM: a served model's normal end
             while not server.stopping.is_set() and time.monotonic() < deadline:
                 server.stopping.wait(min(0.5, max(deadline - time.monotonic(), 0.0)))
-        except KeyboardInterrupt:  # Ctrl-C or SIGTERM: a served model's normal end
-            pass
         server.stopping.set()
         server.shutdown()
     return server.served

@@ -49,14 +49,11 @@ def interval(values, target, replicates: int | None = None) -> tuple[float, floa
     values = np.asarray(values, dtype=float)
     if np.isnan(values).any():
         raise ValueError(f"target: {target.qoi} is undefined in {int(np.isnan(values).sum())} drapes")
-    if replicates is not None:
-        return replicate_interval(values, replicates, target.confidence)
-    n = values.size
-    if target.statistic == "probability":
-        lo, hi = wilson_interval(values.sum(), n, target.confidence)
+    if replicates is None and target.statistic == "probability":
+        lo, hi = wilson_interval(values.sum(), values.size, target.confidence)
         return float(values.mean()), float(hi - lo) / 2
-    t = _stats.t.ppf(0.5 + target.confidence / 2, n - 1)
-    return float(values.mean()), float(t * values.std(ddof=1) / math.sqrt(n))
+    # independent drapes: the Student-t interval of groups of one
+    return replicate_interval(values, values.size if replicates is None else replicates, target.confidence)
 
 
 def next_realizations(n: int, half: float, goal: float, step: int, budget: int) -> int:

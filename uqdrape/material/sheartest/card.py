@@ -185,10 +185,7 @@ def fit_card(rig_file: RigFile, name: str, rig_label: str) -> CardFit:
         "force_unit": "N" if rig_file.force_convention == "crosshead" else "N/m",
         "normalisation": _NORMALISATION.get(rig_file.force_convention) or _NORMALISATION[rig_file.test],
         "fit_method": METHOD.format(knots=options["knots"]),
-        "friction": options["friction"],
-        "jump_deg": options["jump_deg"],
-        "max_angle_deg": options["max_angle_deg"],
-        "max_divergence_deg": options["max_divergence_deg"],
+        **{key: options[key] for key in ("friction", "jump_deg", "max_angle_deg", "max_divergence_deg")},
         **record,
     }
     return CardFit(doc, fits, warnings)
