@@ -2,8 +2,8 @@
 
 * Workers are forked from a forkserver (where the platform has one; else spawned) that
   imported the drape engine (``PRELOAD``) once: a new worker does not import numpy, scipy,
-  xarray, dask and numba again (some 2 CPU-seconds each), only loads the cached kernels
-  it calls. The forkserver lives as long as the Python process that started it, so
+  xarray, dask and numba again or set up numba's target (some 3 CPU-seconds each), only
+  loads the cached kernels it calls. The forkserver lives as long as the Python process that started it, so
   successive runs, designs and calibration rounds from one Python session start their
   pools warm; :func:`prepare` starts it early, so that its imports overlap the caller's
   (``uqdrape run`` calls it before it imports anything heavy).
@@ -38,12 +38,9 @@ import threading
 import time
 from pathlib import Path
 
-#: Modules the forkserver imports once for all the workers it forks: what ties its life to
-#: the run's, then a chunk's task and dask's process scheduler (the whole drape engine), and
-#: what a chunk's Dataset and netCDF file then import (xarray, netCDF4, and dask.distributed,
-#: which xarray's writer imports to choose its lock; about 0.8 CPU-s a worker otherwise).
-PRELOAD = ["uqdrape._forkserver", "uqdrape.ensemble.run", "dask.multiprocessing", "xarray", "netCDF4",
-           "dask.distributed"]
+#: What the forkserver imports once for all the workers it forks (``uqdrape._forkserver``:
+#: what ties its life to the run's, then the whole drape engine, warmed up).
+PRELOAD = ["uqdrape._forkserver"]
 #: How often a worker checks that its run is alive where the kernel cannot be asked to
 #: kill it with its run (s).
 WATCH_INTERVAL = 0.2
